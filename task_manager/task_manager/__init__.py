@@ -1,0 +1,1 @@
+"""ROS 2 Task Manager: start, track and end every task of a robot in one place."""

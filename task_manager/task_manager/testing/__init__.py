@@ -1,0 +1,1 @@
+"""Helpers for tests of the Task Manager and of systems built on it."""

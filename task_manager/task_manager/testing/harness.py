@@ -1,0 +1,84 @@
+"""An in-process ROS node spun in a background thread, with bounded waits for tests."""
+
+import threading
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rclpy.task import Future
+
+T = TypeVar('T')
+
+
+class WaitTimeoutError(AssertionError):
+    """A bounded wait in a test ran out before the awaited event happened."""
+
+
+def wait_for_future(future: Future, timeout_sec: float, what: str = 'future') -> Any:
+    """Block the calling (non-executor) thread until `future` completes; return its result."""
+    done = threading.Event()
+    future.add_done_callback(lambda _: done.set())
+    if not done.wait(timeout_sec) and not future.done():
+        raise WaitTimeoutError(f'{what} not done within {timeout_sec} s')
+    return future.result()
+
+
+class TopicRecorder:
+    """Records every message of a topic; tests wait on conditions over the record."""
+
+    def __init__(self, node: Node, msg_type: type, topic: str, qos: QoSProfile | int) -> None:
+        self.messages: list[Any] = []
+        self._changed = threading.Condition()
+        self.subscription = node.create_subscription(msg_type, topic, self._on_message, qos)
+
+    def _on_message(self, msg: Any) -> None:
+        with self._changed:
+            self.messages.append(msg)
+            self._changed.notify_all()
+
+    def wait_until(
+        self, predicate: Callable[[list[Any]], T], timeout_sec: float, what: str = 'condition'
+    ) -> T:
+        """Wait until `predicate(messages)` is truthy and return its value."""
+        with self._changed:
+            value = self._changed.wait_for(lambda: predicate(self.messages), timeout_sec)
+            if not value:
+                raise WaitTimeoutError(f'{what} not met within {timeout_sec} s')
+            return value
+
+    def snapshot(self) -> list[Any]:
+        with self._changed:
+            return list(self.messages)
+
+
+class RosHarness:
+    """Owns one node and a single-threaded executor spinning it in a background thread.
+
+    Single-threaded on purpose: a shared multi-threaded executor delays deliveries
+    under load (see ROS2_FROM_PYPI.md), which would make tests slow and flaky.
+    """
+
+    def __init__(self, node_name: str) -> None:
+        self.node = rclpy.create_node(node_name)
+        self.executor = SingleThreadedExecutor()
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, name=f'{node_name}-spin', daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except Exception:  # the context may be shutting down under us
+            if rclpy.ok():
+                raise
+
+    def record(self, msg_type: type, topic: str, qos: QoSProfile | int = 10) -> TopicRecorder:
+        return TopicRecorder(self.node, msg_type, topic, qos)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self._thread.join(timeout=5.0)
+        self.node.destroy_node()

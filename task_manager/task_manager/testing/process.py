@@ -1,0 +1,95 @@
+"""Run the Task Manager as users do: a subprocess with a parameters file."""
+
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from task_manager.testing.harness import WaitTimeoutError
+
+STOP_TIMEOUT_SEC = 10.0
+
+
+def task_manager_executable() -> str:
+    """The `task-manager` console script of the running interpreter's environment."""
+    beside_python = Path(sys.executable).with_name('task-manager')
+    return str(beside_python) if beside_python.exists() else shutil.which('task-manager') or ''
+
+
+def write_params_file(path: Path, parameters: dict[str, Any]) -> Path:
+    """Write `parameters` as the node's parameters file (`task_manager: ros__parameters:`)."""
+    path.write_text(yaml.safe_dump({'task_manager': {'ros__parameters': parameters}}))
+    return path
+
+
+class NodeProcess:
+    """A running `task-manager` process whose log lines tests can wait for."""
+
+    def __init__(self, params_file: Path | None, extra_args: list[str] | None = None) -> None:
+        command = [task_manager_executable()]
+        ros_args = list(extra_args or [])
+        if params_file is not None:
+            ros_args += ['--params-file', str(params_file)]
+        if ros_args:
+            command += ['--ros-args', *ros_args]
+        self.log_lines: list[str] = []
+        self._changed = threading.Condition()
+        env = dict(os.environ, RCUTILS_LOGGING_BUFFERED_STREAM='0', PYTHONUNBUFFERED='1')
+        self.process = subprocess.Popen(
+            command,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
+        )
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.process.stdout is not None
+        for line in self.process.stdout:
+            with self._changed:
+                self.log_lines.append(line.rstrip('\n'))
+                self._changed.notify_all()
+        with self._changed:
+            self._changed.notify_all()
+
+    def wait_for_log(self, pattern: str, timeout_sec: float) -> str:
+        """Wait for a log line matching the regular expression `pattern`; return it."""
+        regex = re.compile(pattern)
+
+        def match() -> str | None:
+            found = next((line for line in self.log_lines if regex.search(line)), None)
+            return found or ('' if self.process.poll() is not None else None)
+
+        with self._changed:
+            line = self._changed.wait_for(match, timeout_sec)
+        if not line:
+            raise WaitTimeoutError(
+                f'no log line matching {pattern!r} within {timeout_sec} s; '
+                f'log so far:\n' + '\n'.join(self.log_lines)
+            )
+        return line
+
+    def wait_exit(self, timeout_sec: float) -> int:
+        code = self.process.wait(timeout_sec)
+        self._reader.join(timeout_sec)
+        return code
+
+    def stop(self, timeout_sec: float = STOP_TIMEOUT_SEC) -> int:
+        """SIGINT, then wait; kill only as a last resort (a kill leaves DDS files in /dev/shm)."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+        try:
+            return self.wait_exit(timeout_sec)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            raise

@@ -1,0 +1,29 @@
+"""Shared fixtures: an isolated ROS domain per test run and an in-process ROS harness."""
+
+import os
+
+# Keep this run's DDS traffic apart from other runs on the machine, and on it.
+os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
+os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+
+from collections.abc import Iterator
+
+import pytest
+import rclpy
+
+from task_manager.testing.harness import RosHarness
+
+
+@pytest.fixture(scope='session')
+def ros_context() -> Iterator[None]:
+    rclpy.init()
+    yield
+    rclpy.try_shutdown()
+
+
+@pytest.fixture
+def ros(ros_context: None, request: pytest.FixtureRequest) -> Iterator[RosHarness]:
+    """An in-process node, spun in the background, for the test's clients and servers."""
+    harness = RosHarness(f'test_{abs(hash(request.node.nodeid)) % 10**8}')
+    yield harness
+    harness.close()
