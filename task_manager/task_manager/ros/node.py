@@ -1,13 +1,127 @@
-"""The `task_manager` node."""
+"""The `task_manager` node: declared tasks, ExecuteTask, active tasks and results."""
 
+import json
+from typing import Any
+
+from rclpy.action import ActionServer, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from task_manager_msgs.action import ExecuteTask
+from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
+
+from task_manager.core.task import TaskRecord, TaskRequest
+from task_manager.core.task_spec import TaskKind, TaskSpec
+from task_manager.ros import qos
+from task_manager.ros.action_runner import ActionTaskRunner
+from task_manager.ros.dispatcher import TaskDispatcher
+from task_manager.ros.execution import RunnerTimeouts, TaskRunner
+from task_manager.ros.goal_binding import GoalTaskBinding
+from task_manager.ros.interfaces import load_interface
+from task_manager.ros.parameters import read_settings, read_task_specs
+from task_manager.ros.service_runner import ServiceTaskRunner
+from task_manager.ros.task_servers import create_task_servers
 
 NODE_NAME = 'task_manager'
+EXECUTE_TASK_ACTION = '/task_manager/execute_task'
+ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
+RESULTS_TOPIC = '/task_manager/results'
+
+
+def active_task_msg(record: TaskRecord) -> ActiveTask:
+    return ActiveTask(
+        task_id=record.task_id,
+        task_name=record.task_name,
+        task_status=str(record.status),
+        source=record.source,
+    )
+
+
+def result_json(record: TaskRecord) -> str:
+    return json.dumps(record.result, ensure_ascii=False, allow_nan=False, separators=(',', ':'))
 
 
 class TaskManagerNode(Node):
-    """Serves the Task Manager's public ROS interfaces."""
+    """Serves the Task Manager's public ROS interfaces.
+
+    Raises ConfigurationError from the constructor when the parameters are unusable.
+    """
 
     def __init__(self) -> None:
-        super().__init__(NODE_NAME)
-        self.get_logger().info('Task Manager ready')
+        super().__init__(
+            NODE_NAME,
+            allow_undeclared_parameters=True,
+            automatically_declare_parameters_from_overrides=True,
+        )
+        settings = read_settings(self)
+        specs = read_task_specs(self, reserved_names=set())
+        runners = {spec.task_name: self._create_runner(spec, settings.timeouts) for spec in specs}
+        self._active_publisher = self.create_publisher(
+            ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS
+        )
+        self._result_publisher = self.create_publisher(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS)
+        self.dispatcher = TaskDispatcher(self, runners, self, self._spawn)
+        self._goals = GoalTaskBinding(self.dispatcher)
+        self._execute_server = ActionServer(
+            self,
+            ExecuteTask,
+            EXECUTE_TASK_ACTION,
+            execute_callback=self._execute_task,
+            goal_callback=lambda _: GoalResponse.ACCEPT,
+            cancel_callback=self._goals.cancel_callback,
+            goal_service_qos_profile=qos.DEEP_RELIABLE,
+            result_service_qos_profile=qos.DEEP_RELIABLE,
+            cancel_service_qos_profile=qos.DEEP_RELIABLE,
+            callback_group=ReentrantCallbackGroup(),
+        )
+        self._task_servers = (
+            create_task_servers(self, self.dispatcher, specs)
+            if settings.enable_task_servers
+            else []
+        )
+        self.publish_active([])
+        self.get_logger().info(
+            f'Task Manager ready with {len(specs)} task(s): '
+            + ', '.join(spec.task_name for spec in specs)
+        )
+
+    def _create_runner(self, spec: TaskSpec, timeouts: RunnerTimeouts) -> TaskRunner:
+        interface_class = load_interface(spec)
+        if spec.kind is TaskKind.ACTION:
+            return ActionTaskRunner(self, spec, interface_class, timeouts)
+        return ServiceTaskRunner(self, spec, interface_class, timeouts)
+
+    def _spawn(self, coroutine: Any) -> None:
+        assert self.executor is not None, 'the node must be added to an executor'
+        self.executor.create_task(coroutine)
+
+    # ---- TaskReporter ----------------------------------------------------------------------
+
+    def publish_active(self, records: list[TaskRecord]) -> None:
+        self._active_publisher.publish(
+            ActiveTaskArray(active_tasks=[active_task_msg(r) for r in records])
+        )
+
+    def publish_result(self, record: TaskRecord) -> None:
+        self._result_publisher.publish(
+            TaskDoneResult(
+                task_id=record.task_id,
+                task_name=record.task_name,
+                task_status=str(record.status),
+                error_code=str(record.error_code),
+                source=record.source,
+                task_result=result_json(record),
+            )
+        )
+
+    # ---- /task_manager/execute_task ----------------------------------------------------------
+
+    async def _execute_task(self, goal_handle: Any) -> ExecuteTask.Result:
+        goal = goal_handle.request
+        request = TaskRequest(goal.task_id, goal.task_name, goal.source, goal.task_data)
+        record = await self._goals.run(goal_handle, request)
+        return ExecuteTask.Result(
+            task_id=record.task_id,
+            task_result=result_json(record),
+            task_status=str(record.status),
+            error_code=str(record.error_code),
+        )

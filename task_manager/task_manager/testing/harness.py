@@ -5,6 +5,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import rclpy
+from rclpy.event_handler import QoSSubscriptionMatchedInfo, SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -31,8 +32,26 @@ class TopicRecorder:
 
     def __init__(self, node: Node, msg_type: type, topic: str, qos: QoSProfile | int) -> None:
         self.messages: list[Any] = []
+        self.matched_publishers = 0
         self._changed = threading.Condition()
-        self.subscription = node.create_subscription(msg_type, topic, self._on_message, qos)
+        self.subscription = node.create_subscription(
+            msg_type,
+            topic,
+            self._on_message,
+            qos,
+            event_callbacks=SubscriptionEventCallbacks(matched=self._on_matched),
+        )
+
+    def _on_matched(self, info: QoSSubscriptionMatchedInfo) -> None:
+        with self._changed:
+            self.matched_publishers = info.current_count
+            self._changed.notify_all()
+
+    def wait_matched(self, timeout_sec: float) -> None:
+        """Wait until a publisher is connected, so nothing it publishes from now is missed."""
+        with self._changed:
+            if not self._changed.wait_for(lambda: self.matched_publishers > 0, timeout_sec):
+                raise WaitTimeoutError(f'no publisher matched within {timeout_sec} s')
 
     def _on_message(self, msg: Any) -> None:
         with self._changed:

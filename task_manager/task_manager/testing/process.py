@@ -7,6 +7,7 @@ import signal
 import subprocess
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -16,11 +17,28 @@ from task_manager.testing.harness import WaitTimeoutError
 
 STOP_TIMEOUT_SEC = 10.0
 
+# launch(tasks: {key: entry}, **node_parameters) -> a probe connected to the running node
+LaunchTaskManager = Callable[..., Any]
+
 
 def task_manager_executable() -> str:
     """The `task-manager` console script of the running interpreter's environment."""
     beside_python = Path(sys.executable).with_name('task-manager')
     return str(beside_python) if beside_python.exists() else shutil.which('task-manager') or ''
+
+
+def action_task(
+    name: str, topic: str, interface: str = 'test_msgs.action.Fibonacci', **properties: Any
+) -> dict[str, Any]:
+    """A task entry for a parameters file, of an action task."""
+    return {'task_name': name, 'topic': topic, 'msg_interface': interface, **properties}
+
+
+def service_task(
+    name: str, topic: str, interface: str = 'std_srvs/srv/SetBool', **properties: Any
+) -> dict[str, Any]:
+    """A task entry for a parameters file, of a service task."""
+    return {'task_name': name, 'topic': topic, 'msg_interface': interface, **properties}
 
 
 def write_params_file(path: Path, parameters: dict[str, Any]) -> Path:

@@ -1,0 +1,29 @@
+"""The Task Manager's exceptions.
+
+TaskManagerError
+ +-- ConfigurationError      a parameters file the node cannot run with
+ +-- TaskRequestError        a request that ends before its task starts (carries an ErrorCode)
+ +-- InvalidTransition       a lifecycle step that the task's current status does not allow
+"""
+
+from task_manager.core.status import ErrorCode
+
+
+class TaskManagerError(Exception):
+    """Base of every error raised by the Task Manager."""
+
+
+class ConfigurationError(TaskManagerError):
+    """The declared tasks or node parameters are unusable; the node must not start."""
+
+
+class TaskRequestError(TaskManagerError):
+    """A task request fails before its task runs; `error_code` goes to the caller."""
+
+    def __init__(self, error_code: ErrorCode, message: str) -> None:
+        super().__init__(message)
+        self.error_code = error_code
+
+
+class InvalidTransition(TaskManagerError):  # noqa: N818 - named after the state-machine term
+    """A task lifecycle transition that is not allowed from the current status."""

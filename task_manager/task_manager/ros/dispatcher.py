@@ -1,0 +1,250 @@
+"""Runs task requests: admission, conflict resolution, start, tracking, cancel and end.
+
+Everything here runs on the node's executor thread; each request is one coroutine that
+awaits futures, so a waiting task costs no thread and an unrelated request never waits
+behind another one's server or cancel.
+"""
+
+import uuid
+from collections.abc import Callable, Coroutine
+from typing import Any, Protocol
+
+from rclpy.node import Node
+from rclpy.task import Future
+
+from task_manager.core.errors import TaskRequestError
+from task_manager.core.registry import TaskRegistry
+from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
+from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
+from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+from task_manager.ros.execution import Execution, TaskRunner
+from task_manager.ros.futures import all_completed, completed_future, first_completed, wait_for
+from task_manager.ros.message_json import TaskDataError
+
+
+class TaskReporter(Protocol):
+    """Where the dispatcher tells the world about tasks (the node's publishers)."""
+
+    def publish_active(self, records: list[TaskRecord]) -> None: ...
+
+    def publish_result(self, record: TaskRecord) -> None: ...
+
+
+def _unknown_spec(task_name: str) -> TaskSpec:
+    return TaskSpec(task_name, '', InterfaceName('', TaskKind.SYSTEM, ''))
+
+
+class TaskDispatcher:
+    """Owns the registry of active tasks and every request's path through it."""
+
+    def __init__(
+        self,
+        node: Node,
+        runners: dict[str, TaskRunner],
+        reporter: TaskReporter,
+        spawn: Callable[[Coroutine[Any, Any, Any]], Any],
+    ) -> None:
+        self.registry = TaskRegistry()
+        self.runners_by_name = runners
+        self._node = node
+        self._reporter = reporter
+        self._spawn = spawn
+        self._log = node.get_logger()
+        # key: task id, value: completes with the task's TaskEnd (first writer wins)
+        self._finished: dict[str, Future] = {}
+        # key: task id, value: completes once the task has started on its server, or failed to
+        self._started: dict[str, Future] = {}
+        # key: task id, value: the running task on its server
+        self._executions: dict[str, Execution] = {}
+        # key: task id, value: completes with True when the cancel in flight ended the task
+        self._cancels_in_flight: dict[str, Future] = {}
+        # ids of tasks whose start on their server is in flight
+        self._starting_ids: set[str] = set()
+
+    # ---- running a request -------------------------------------------------------------
+
+    async def run(
+        self, request: TaskRequest, on_admitted: Callable[[TaskRecord], None] | None = None
+    ) -> TaskRecord:
+        """Run `request` to its end and return its final record. Never raises.
+
+        `on_admitted` is called with the record once the request is tracked, before it starts.
+        """
+        record, message = self._admit(request)
+        if record.is_final:
+            self._reporter.publish_result(record)
+            return record
+        if on_admitted is not None:
+            on_admitted(record)
+        try:
+            end = await self._start_and_wait(record, message)
+        except TaskRequestError as error:
+            self._log.warning(f'task {record.task_id} ({record.task_name}) failed: {error}')
+            end = TaskEnd(TaskStatus.ERROR, {}, error.error_code)
+        except Exception as error:  # the callback boundary: log, fail the task, keep serving
+            self._log.error(f'task {record.task_id} ({record.task_name}) crashed: {error!r}')
+            end = TaskEnd(TaskStatus.ERROR, {}, ErrorCode.TASK_START_FAILED)
+        finished = self._finished[record.task_id]
+        self._finish(record, finished.result() if finished.done() else end)
+        return record
+
+    def _admit(self, request: TaskRequest) -> tuple[TaskRecord, Any]:
+        task_id = request.task_id or str(uuid.uuid4())
+        runner = self.runners_by_name.get(request.task_name)
+        spec = runner.spec if runner else _unknown_spec(request.task_name)
+        record = TaskRecord(task_id, spec, request.source, parent_id=request.parent_id)
+        if runner is None:
+            known = ', '.join(sorted(self.runners_by_name))
+            return self._rejected(
+                record, ErrorCode.UNKNOWN_TASK, f'unknown task name; declared tasks: {known}'
+            ), None
+        if self.registry.get(task_id) is not None:
+            return self._rejected(
+                record, ErrorCode.DUPLICATE_TASK_ID, 'the id is in use by an active task'
+            ), None
+        try:
+            message = runner.parse(request.task_data)
+        except TaskDataError as error:
+            return self._rejected(record, ErrorCode.TASK_DATA_PARSING_FAILED, str(error)), None
+        self.registry.admit(record)
+        self._finished[task_id] = Future()
+        self._started[task_id] = Future()
+        return record, message
+
+    def _rejected(self, record: TaskRecord, code: ErrorCode, reason: str) -> TaskRecord:
+        self._log.warning(
+            f'task {record.task_id} ({record.task_name}) from {record.source!r} '
+            f'rejected, {code}: {reason}'
+        )
+        record.mark_ended(TaskStatus.ERROR, {}, code)
+        return record
+
+    async def _start_and_wait(self, record: TaskRecord, message: Any) -> TaskEnd:
+        task_id = record.task_id
+        finished = self._finished[task_id]
+        await self._resolve_conflicts(record)
+        if finished.done():  # cancelled while it waited for its conflicts
+            return finished.result()
+        self._starting_ids.add(task_id)
+        try:
+            execution = await self.runners_by_name[record.task_name].start(message, record)
+        finally:
+            self._starting_ids.discard(task_id)
+            self._started[task_id].set_result(None)
+        self._executions[task_id] = execution
+        record.mark_started()
+        self._log.info(f'task {task_id} ({record.task_name}) from {record.source!r} started')
+        self._publish_active()
+        execution.outcome.add_done_callback(lambda done: self._settle(task_id, done.result()))
+        if record.cancel_reason is not None:  # a cancel arrived while the task was starting
+            self._cancel_future(record, record.cancel_reason)
+        return await finished
+
+    async def _resolve_conflicts(self, record: TaskRecord) -> None:
+        conflicts = self.registry.conflicts_of(record.spec, record.task_id)
+        if not conflicts:
+            return
+        self._log.info(
+            f'task {record.task_id} ({record.task_name}) cancels conflicting task(s) '
+            + ', '.join(f'{c.task_id} ({c.task_name})' for c in conflicts)
+        )
+        cancels = [self._cancel_future(c, CancelReason.CONFLICT) for c in conflicts]
+        await first_completed([all_completed(cancels), self._finished[record.task_id]])
+        if self._finished[record.task_id].done():
+            return
+        stuck = [c for c, cancel in zip(conflicts, cancels, strict=True) if not cancel.result()]
+        if stuck:
+            raise TaskRequestError(
+                ErrorCode.TASK_START_FAILED,
+                'could not cancel conflicting task(s) within their cancel_timeout: '
+                + ', '.join(f'{c.task_id} ({c.task_name})' for c in stuck),
+            )
+
+    def _settle(self, task_id: str, end: TaskEnd) -> None:
+        finished = self._finished.get(task_id)
+        if finished is not None and not finished.done():
+            finished.set_result(end)
+
+    # ---- cancelling ----------------------------------------------------------------------
+
+    def cancel(self, task_id: str, reason: CancelReason) -> Future:
+        """Cancel an active task; the future completes with True once it has ended in time.
+
+        An id that is not active completes True at once (there is nothing left to cancel).
+        """
+        record = self.registry.get(task_id)
+        if record is None:
+            return completed_future(True)
+        return self._cancel_future(record, reason)
+
+    def _cancel_future(self, record: TaskRecord, reason: CancelReason) -> Future:
+        task_id = record.task_id
+        in_flight = self._cancels_in_flight.get(task_id)
+        if in_flight is not None:
+            return in_flight
+        record.request_cancel(reason)
+        if self._finished[task_id].done():
+            return completed_future(True)
+        if record.status is TaskStatus.RECEIVED and task_id not in self._starting_ids:
+            self._settle(task_id, TaskEnd(TaskStatus.CANCELED))  # it never started
+            return completed_future(True)
+        cancelled: Future = Future()
+        self._cancels_in_flight[task_id] = cancelled
+        self._spawn(
+            self._cancel_started(
+                record, reason, self._started[task_id], self._finished[task_id], cancelled
+            )
+        )
+        return cancelled
+
+    async def _cancel_started(
+        self,
+        record: TaskRecord,
+        reason: CancelReason,
+        started: Future,
+        finished: Future,
+        cancelled: Future,
+    ) -> None:
+        """Cancel a task that is starting or running, within its cancel_timeout."""
+        task_id = record.task_id
+        timeout_sec = record.spec.cancel_timeout_sec
+        clock = self._node.get_clock()
+        began = clock.now()
+        await wait_for(self._node, first_completed([started, finished]), timeout_sec)
+        execution = self._executions.get(task_id)
+        ok = finished.done()
+        if not ok and execution is not None:
+            remaining_sec = timeout_sec - (clock.now() - began).nanoseconds / 1e9
+            ok = await execution.cancel(remaining_sec) or finished.done()
+        if not ok:
+            self._log.warning(
+                f'task {task_id} ({record.task_name}): cancel ({reason}) did not complete '
+                f'within cancel_timeout {timeout_sec} s'
+            )
+            if reason is CancelReason.CLIENT:
+                self._settle(task_id, TaskEnd(TaskStatus.ERROR, {}, ErrorCode.TASK_CANCEL_FAILED))
+        self._cancels_in_flight.pop(task_id, None)
+        cancelled.set_result(ok)
+
+    # ---- ending ----------------------------------------------------------------------------
+
+    def _finish(self, record: TaskRecord, end: TaskEnd) -> None:
+        was_active = record.status is TaskStatus.IN_PROGRESS
+        record.mark_ended(end.status, end.result, end.error_code)
+        if was_active:
+            self._publish_active()  # the final status, once, before the task leaves the list
+        self.registry.remove(record.task_id)
+        for table in (self._finished, self._started, self._executions):
+            table.pop(record.task_id, None)
+        if was_active:
+            self._publish_active()
+        self._reporter.publish_result(record)
+        self._log.info(
+            f'task {record.task_id} ({record.task_name}) ended {record.status}'
+            + (f' ({record.error_code})' if record.error_code else '')
+        )
+
+    def _publish_active(self) -> None:
+        self._reporter.publish_active(
+            [r for r in self.registry if r.status is not TaskStatus.RECEIVED]
+        )

@@ -1,0 +1,43 @@
+"""The seams between the dispatcher and whatever runs a task (action, service, system)."""
+
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from rclpy.task import Future
+
+from task_manager.core.task import TaskRecord
+from task_manager.core.task_spec import TaskSpec
+
+
+@dataclass(frozen=True)
+class RunnerTimeouts:
+    """Bounds on the waits of starting a task on its server."""
+
+    server_wait_sec: float = 1.0
+    """How long a missing server may take to appear before the start fails."""
+    goal_response_sec: float = 5.0
+    """How long a server may take to accept or reject a goal."""
+
+
+class Execution(Protocol):
+    """A task that has started; `outcome` completes with its TaskEnd."""
+
+    outcome: Future
+
+    async def cancel(self, timeout_sec: float) -> bool:
+        """Ask the task to stop; True once it has ended within `timeout_sec`."""
+        ...
+
+
+class TaskRunner(Protocol):
+    """Starts tasks of one declared task type."""
+
+    spec: TaskSpec
+
+    def parse(self, task_data: str) -> Any:
+        """The goal/request message of `task_data` (JSON); raises TaskDataError."""
+        ...
+
+    async def start(self, message: Any, record: TaskRecord) -> Execution:
+        """Start the task; raises TaskRequestError(TASK_START_FAILED) if it cannot."""
+        ...

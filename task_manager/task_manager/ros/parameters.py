@@ -1,0 +1,66 @@
+"""Reading the node's parameters into task declarations and settings."""
+
+from dataclasses import dataclass
+from typing import Any
+
+from rclpy.node import Node
+
+from task_manager.core.errors import ConfigurationError
+from task_manager.core.task_spec import TaskSpec, parse_task_specs, unknown_keys
+from task_manager.ros.execution import RunnerTimeouts
+
+# key: node-level parameter, value: (accepted types, default)
+NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
+    'enable_task_servers': ((bool,), False),
+    'server_wait_timeout': ((int, float), RunnerTimeouts.server_wait_sec),
+    'goal_response_timeout': ((int, float), RunnerTimeouts.goal_response_sec),
+}
+
+
+@dataclass(frozen=True)
+class NodeSettings:
+    """Node-level parameters."""
+
+    enable_task_servers: bool
+    timeouts: RunnerTimeouts
+
+
+def read_settings(node: Node) -> NodeSettings:
+    values = {}
+    for name, (types, default) in NODE_PARAMETERS.items():
+        value = node.get_parameter(name).value if node.has_parameter(name) else default
+        if not isinstance(value, types) or (bool not in types and isinstance(value, bool)):
+            expected = ' or '.join(t.__name__ for t in types)
+            raise ConfigurationError(f'parameter {name!r} must be {expected}, got {value!r}')
+        values[name] = value
+    return NodeSettings(
+        enable_task_servers=values['enable_task_servers'],
+        timeouts=RunnerTimeouts(
+            server_wait_sec=float(values['server_wait_timeout']),
+            goal_response_sec=float(values['goal_response_timeout']),
+        ),
+    )
+
+
+def read_task_specs(node: Node, reserved_names: set[str]) -> list[TaskSpec]:
+    """Parse `tasks` and every `<key>.*` entry; warn about keys nobody reads."""
+    if not node.has_parameter('tasks'):
+        raise ConfigurationError(
+            "parameter 'tasks' is missing: list the keys of the task entries, "
+            'e.g. tasks: [navigate]'
+        )
+    task_keys = node.get_parameter('tasks').value
+    if task_keys is None:
+        task_keys = []
+    entries = {}
+    for key in task_keys if isinstance(task_keys, list | tuple) else []:
+        prefixed = node.get_parameters_by_prefix(key) if isinstance(key, str) else {}
+        entries[key] = {name: parameter.value for name, parameter in prefixed.items()}
+    specs = parse_task_specs(task_keys, entries, reserved_names)
+    for spec in specs:
+        for unknown in unknown_keys(entries[spec.parameter_key]):
+            node.get_logger().warning(
+                f"task '{spec.task_name}': ignoring unknown parameter "
+                f'{spec.parameter_key}.{unknown}'
+            )
+    return specs

@@ -1,0 +1,95 @@
+"""A test client of a running Task Manager that uses only its public ROS interfaces."""
+
+import json
+from typing import Any
+
+from rclpy.action import ActionClient
+from task_manager_msgs.action import ExecuteTask
+from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
+
+from task_manager.ros import qos
+from task_manager.testing.harness import RosHarness, TopicRecorder, wait_for_future
+
+EXECUTE_TASK_ACTION = '/task_manager/execute_task'
+DEFAULT_TIMEOUT_SEC = 15.0
+
+
+class TaskManagerProbe:
+    """Sends ExecuteTask goals and records /task_manager/active_tasks and /results."""
+
+    def __init__(self, ros: RosHarness, timeout_sec: float = DEFAULT_TIMEOUT_SEC) -> None:
+        self.ros = ros
+        self.timeout_sec = timeout_sec
+        self.client = ActionClient(
+            ros.node,
+            ExecuteTask,
+            EXECUTE_TASK_ACTION,
+            goal_service_qos_profile=qos.DEEP_RELIABLE,
+            result_service_qos_profile=qos.DEEP_RELIABLE,
+            cancel_service_qos_profile=qos.DEEP_RELIABLE,
+        )
+        self.results: TopicRecorder = ros.record(
+            TaskDoneResult, '/task_manager/results', qos.RESULTS
+        )
+        self.active: TopicRecorder = ros.record(
+            ActiveTaskArray, '/task_manager/active_tasks', qos.ACTIVE_TASKS
+        )
+
+    def wait_until_connected(self) -> None:
+        assert self.client.wait_for_server(timeout_sec=self.timeout_sec), 'no execute_task server'
+        self.results.wait_matched(self.timeout_sec)
+        self.active.wait_matched(self.timeout_sec)
+
+    def send(
+        self, task_name: str, task_data: Any = None, task_id: str = '', source: str = 'test'
+    ) -> Any:
+        """Send a goal (task_data as a dict, or a raw string); return the accepted goal handle."""
+        data = task_data if isinstance(task_data, str) else json.dumps(task_data or {})
+        goal = ExecuteTask.Goal(task_id=task_id, task_name=task_name, source=source, task_data=data)
+        handle = wait_for_future(self.client.send_goal_async(goal), self.timeout_sec, 'goal')
+        assert handle.accepted
+        return handle
+
+    def result_of(self, goal_handle: Any) -> Any:
+        """Wait for a goal's result; returns the wrapped response (.status and .result)."""
+        return wait_for_future(goal_handle.get_result_async(), self.timeout_sec, 'result')
+
+    def run(self, task_name: str, task_data: Any = None, **kwargs: Any) -> ExecuteTask.Result:
+        return self.result_of(self.send(task_name, task_data, **kwargs)).result
+
+    def cancel(self, goal_handle: Any) -> Any:
+        return wait_for_future(goal_handle.cancel_goal_async(), self.timeout_sec, 'cancel')
+
+    def wait_result_message(self, task_id: str) -> TaskDoneResult:
+        """Wait for the /task_manager/results message of `task_id`."""
+        return self.results.wait_until(
+            lambda msgs: next((m for m in msgs if m.task_id == task_id), None),
+            self.timeout_sec,
+            f'result of {task_id}',
+        )
+
+    def results_for(self, task_id: str) -> list[TaskDoneResult]:
+        return [m for m in self.results.snapshot() if m.task_id == task_id]
+
+    def wait_active(self, predicate: Any, what: str = 'active tasks') -> ActiveTaskArray:
+        """Wait for an active_tasks message satisfying `predicate(list of (id, status))`."""
+        return self.active.wait_until(
+            lambda msgs: next(
+                (
+                    m
+                    for m in reversed(msgs)
+                    if predicate([(t.task_id, t.task_status) for t in m.active_tasks])
+                ),
+                None,
+            ),
+            self.timeout_sec,
+            what,
+        )
+
+    def wait_in_progress(self, task_id: str) -> None:
+        self.wait_active(lambda tasks: (task_id, 'IN_PROGRESS') in tasks, f'{task_id} active')
+
+    def destroy(self) -> None:
+        self.client.destroy()
+        for recorder in (self.results, self.active):
+            self.ros.node.destroy_subscription(recorder.subscription)

@@ -1,0 +1,213 @@
+"""Action and service servers whose outcome, timing and cancel behaviour a test controls.
+
+Goals and calls wait until the test ends them (`succeed`, `abort`, `respond`), or end at
+once when the server is given an `on_goal`/`on_call` hook that does so. Decisions made on
+the test's thread reach the executor through a guard condition, so nothing polls or sleeps.
+"""
+
+import threading
+from collections import deque
+from collections.abc import Callable
+from enum import Enum
+from typing import Any
+
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.node import Node
+from rclpy.task import Future
+
+from task_manager.testing.harness import WaitTimeoutError
+
+
+class CancelPolicy(Enum):
+    """What a scripted action server does with a cancel request."""
+
+    END = 'end'
+    """Accept it and end the goal CANCELED at once."""
+    IGNORE = 'ignore'
+    """Accept it but keep running until the test ends the goal."""
+    REJECT = 'reject'
+    """Reject the cancel request."""
+
+
+class _ExecutorHop:
+    """Runs functions on the executor thread, handed over from any thread."""
+
+    def __init__(self, node: Node) -> None:
+        self._pending: deque[Callable[[], None]] = deque()
+        self._guard = node.create_guard_condition(self._drain)
+
+    def call(self, function: Callable[[], None]) -> None:
+        self._pending.append(function)
+        self._guard.trigger()
+
+    def _drain(self) -> None:
+        while self._pending:
+            self._pending.popleft()()
+
+
+class _Arrivals:
+    """A list that tests wait on as items arrive."""
+
+    def __init__(self) -> None:
+        self.items: list[Any] = []
+        self._changed = threading.Condition()
+
+    def add(self, item: Any) -> None:
+        with self._changed:
+            self.items.append(item)
+            self._changed.notify_all()
+
+    def wait_for(self, count: int, timeout_sec: float, what: str) -> list[Any]:
+        with self._changed:
+            if not self._changed.wait_for(lambda: len(self.items) >= count, timeout_sec):
+                raise WaitTimeoutError(
+                    f'{what}: {len(self.items)} of {count} arrived within {timeout_sec} s'
+                )
+            return list(self.items[:count])
+
+
+class ScriptedGoal:
+    """One goal received by a ScriptedActionServer."""
+
+    def __init__(self, goal_handle: Any, hop: _ExecutorHop) -> None:
+        self.goal_handle = goal_handle
+        self.request = goal_handle.request
+        self.cancel_requested = threading.Event()
+        self.ended = threading.Event()
+        self._end: Future = Future()
+        self._hop = hop
+
+    def _decide(self, outcome: str, result: Any) -> None:
+        if not self._end.done():
+            self._end.set_result((outcome, result))
+
+    def succeed(self, result: Any = None) -> None:
+        self._hop.call(lambda: self._decide('succeed', result))
+
+    def abort(self, result: Any = None) -> None:
+        self._hop.call(lambda: self._decide('abort', result))
+
+    def publish_feedback(self, feedback: Any) -> None:
+        self._hop.call(lambda: self.goal_handle.publish_feedback(feedback))
+
+
+class ScriptedActionServer:
+    """An action server whose goals end when the test says so."""
+
+    def __init__(
+        self,
+        node: Node,
+        action_type: Any,
+        topic: str,
+        *,
+        accept_goals: bool = True,
+        cancel_policy: CancelPolicy = CancelPolicy.END,
+        on_goal: Callable[[ScriptedGoal], None] | None = None,
+    ) -> None:
+        self.action_type = action_type
+        self.accept_goals = accept_goals
+        self.cancel_policy = cancel_policy
+        self.goals = _Arrivals()
+        self.rejected = _Arrivals()
+        self._on_goal = on_goal
+        self._hop = _ExecutorHop(node)
+        self._goals_by_id: dict[bytes, ScriptedGoal] = {}
+        self.server = ActionServer(
+            node,
+            action_type,
+            topic,
+            execute_callback=self._execute,
+            goal_callback=self._goal,
+            cancel_callback=self._cancel,
+            callback_group=ReentrantCallbackGroup(),
+        )
+
+    def _goal(self, request: Any) -> GoalResponse:
+        if self.accept_goals:
+            return GoalResponse.ACCEPT
+        self.rejected.add(request)
+        return GoalResponse.REJECT
+
+    def _cancel(self, goal_handle: Any) -> CancelResponse:
+        goal = self._goals_by_id[bytes(goal_handle.goal_id.uuid)]
+        goal.cancel_requested.set()
+        if self.cancel_policy is CancelPolicy.REJECT:
+            return CancelResponse.REJECT
+        if self.cancel_policy is CancelPolicy.END:
+            goal._decide('canceled', None)
+        return CancelResponse.ACCEPT
+
+    async def _execute(self, goal_handle: Any) -> Any:
+        goal = ScriptedGoal(goal_handle, self._hop)
+        self._goals_by_id[bytes(goal_handle.goal_id.uuid)] = goal
+        self.goals.add(goal)
+        if self._on_goal is not None:
+            self._on_goal(goal)
+        outcome, result = await goal._end
+        if outcome == 'canceled' and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        elif outcome == 'succeed':
+            goal_handle.succeed()
+        else:
+            goal_handle.abort()
+        goal.ended.set()
+        return result if result is not None else self.action_type.Result()
+
+    def wait_for_goals(self, count: int, timeout_sec: float) -> list[ScriptedGoal]:
+        return self.goals.wait_for(count, timeout_sec, 'goals')
+
+    def destroy(self) -> None:
+        self.server.destroy()
+
+
+class ScriptedCall:
+    """One request received by a ScriptedService."""
+
+    def __init__(self, request: Any, response_type: Any, hop: _ExecutorHop) -> None:
+        self.request = request
+        self._response_type = response_type
+        self._response: Future = Future()
+        self._hop = hop
+
+    def respond(self, **fields: Any) -> None:
+        """Send the response, with `fields` set on it."""
+        self._hop.call(lambda: self._set(fields))
+
+    def _set(self, fields: dict[str, Any]) -> None:
+        if not self._response.done():
+            self._response.set_result(self._response_type(**fields))
+
+
+class ScriptedService:
+    """A service whose calls return when the test says so (services cannot be cancelled)."""
+
+    def __init__(
+        self,
+        node: Node,
+        service_type: Any,
+        topic: str,
+        *,
+        on_call: Callable[[ScriptedCall], None] | None = None,
+    ) -> None:
+        self.calls = _Arrivals()
+        self._service_type = service_type
+        self._on_call = on_call
+        self._hop = _ExecutorHop(node)
+        self._node = node
+        self.service = node.create_service(
+            service_type, topic, self._handle, callback_group=ReentrantCallbackGroup()
+        )
+
+    async def _handle(self, request: Any, _response: Any) -> Any:
+        call = ScriptedCall(request, self._service_type.Response, self._hop)
+        self.calls.add(call)
+        if self._on_call is not None:
+            self._on_call(call)
+        return await call._response
+
+    def wait_for_calls(self, count: int, timeout_sec: float) -> list[ScriptedCall]:
+        return self.calls.wait_for(count, timeout_sec, 'calls')
+
+    def destroy(self) -> None:
+        self._node.destroy_service(self.service)

@@ -1,0 +1,46 @@
+"""Fixtures that start the Task Manager as users do and talk to it over DDS."""
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.probe import TaskManagerProbe
+from task_manager.testing.process import LaunchTaskManager, NodeProcess, write_params_file
+
+START_TIMEOUT_SEC = 20.0
+
+
+@pytest.fixture
+def topic_prefix(request: pytest.FixtureRequest) -> str:
+    """A prefix unique to the test, so servers of earlier tests are never matched."""
+    return f'/t{abs(hash(request.node.nodeid)) % 10**8}'
+
+
+@pytest.fixture
+def launch_task_manager(ros: RosHarness, tmp_path: Path) -> Iterator[LaunchTaskManager]:
+    """Start `task-manager --ros-args --params-file F` with the given task entries."""
+    processes: list[NodeProcess] = []
+    probes: list[TaskManagerProbe] = []
+
+    def launch(tasks: dict[str, dict[str, Any]], **node_parameters: Any) -> TaskManagerProbe:
+        parameters = {'tasks': list(tasks), **tasks, **node_parameters}
+        params_file = write_params_file(tmp_path / f'params{len(processes)}.yaml', parameters)
+        process = NodeProcess(params_file)
+        processes.append(process)
+        process.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
+        probe = TaskManagerProbe(ros)
+        probes.append(probe)
+        probe.wait_until_connected()
+        probe.process = process  # type: ignore[attr-defined]
+        return probe
+
+    yield launch
+    for probe in probes:
+        probe.destroy()
+    for process in processes:
+        code = process.stop()
+        print('\n'.join(process.log_lines))
+        assert code == 0

@@ -1,0 +1,262 @@
+"""/task_manager/execute_task: ids, errors, end statuses, cancels (BEHAVIOUR.md rules 1-10)."""
+
+import json
+import uuid
+
+from action_msgs.msg import GoalStatus
+from std_srvs.srv import SetBool
+from test_msgs.action import Fibonacci
+
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.process import LaunchTaskManager, action_task, service_task
+from task_manager.testing.servers import ScriptedActionServer, ScriptedService
+
+TIMEOUT_SEC = 15.0
+
+
+def _instant_fibonacci(ros: RosHarness, topic: str) -> ScriptedActionServer:
+    return ScriptedActionServer(
+        ros.node,
+        Fibonacci,
+        topic,
+        on_goal=lambda goal: goal.succeed(Fibonacci.Result(sequence=[0, 1, 1])),
+    )
+
+
+def test_empty_id_gets_a_uuid_and_the_result_carries_it(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    server = _instant_fibonacci(ros, f'{topic_prefix}/fib')
+    tm = launch_task_manager({'fib': action_task('nav/fib', f'{topic_prefix}/fib')})
+
+    generated = tm.run('nav/fib', {'order': 3}, source='CLOUD')
+    given = tm.run('nav/fib', {'order': 2}, task_id='my-id')
+
+    assert uuid.UUID(generated.task_id).version == 4
+    assert given.task_id == 'my-id'
+    assert (generated.task_status, generated.error_code) == ('DONE', '')
+    assert json.loads(generated.task_result) == {'sequence': [0, 1, 1]}
+    assert [g.request.order for g in server.wait_for_goals(2, TIMEOUT_SEC)] == [3, 2]
+    published = tm.wait_result_message(generated.task_id)
+    assert (published.task_name, published.task_status, published.source) == (
+        'nav/fib',
+        'DONE',
+        'CLOUD',
+    )
+    assert json.loads(published.task_result) == {'sequence': [0, 1, 1]}
+
+
+def test_unknown_task_is_an_error_with_an_empty_result(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib')})
+
+    handle = tm.send('no/such_task', {'order': 1}, task_id='u1')
+    response = tm.result_of(handle)
+
+    assert (response.result.task_status, response.result.error_code) == ('ERROR', 'unknown_task')
+    assert response.result.task_result == '{}'
+    assert response.status == GoalStatus.STATUS_ABORTED
+    published = tm.wait_result_message('u1')
+    assert (published.task_status, published.error_code, published.task_name) == (
+        'ERROR',
+        'unknown_task',
+        'no/such_task',
+    )
+
+
+BAD_TASK_DATA = [
+    '',
+    '   ',
+    'not json',
+    '{"order": 1',
+    '[]',
+    'null',
+    '1',
+    '"x"',
+    'true',
+    '{"order": "abc"}',
+    '{"order": 1.5}',
+    '{"order": true}',
+    '{"order": null}',
+    '{"order": [1]}',
+    '{"order": 2147483648}',
+    '{}',
+    '{"ordr": 3}',
+]
+
+
+def test_bad_task_data_is_rejected_and_nothing_reaches_the_server(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    server = _instant_fibonacci(ros, f'{topic_prefix}/fib')
+    tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib')})
+
+    outcomes = {data: tm.run('fib', data) for data in BAD_TASK_DATA}
+    accepted = tm.run('fib', '{"order": 2, "unknown_key": 1}')
+
+    for data, result in outcomes.items():
+        assert (result.task_status, result.error_code, result.task_result) == (
+            'ERROR',
+            'task_data_parsing_failed',
+            '{}',
+        ), data
+    assert accepted.task_status == 'DONE'
+    assert [g.request.order for g in server.wait_for_goals(1, TIMEOUT_SEC)] == [2]
+    assert len(server.goals.items) == 1
+
+
+def test_duplicate_active_id_is_rejected_and_the_active_task_is_untouched(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    server = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib')
+    tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib', reentrant=True)})
+    first = tm.send('fib', {'order': 1}, task_id='dup')
+    tm.wait_in_progress('dup')
+
+    duplicate = tm.run('fib', {'order': 2}, task_id='dup')
+
+    assert (duplicate.task_status, duplicate.error_code) == ('ERROR', 'duplicate_id')
+    goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
+    assert not goal.cancel_requested.is_set() and len(server.goals.items) == 1
+    goal.succeed()
+    assert tm.result_of(first).result.task_status == 'DONE'
+    server_after = tm.send('fib', {'order': 3}, task_id='dup')
+    server.wait_for_goals(2, TIMEOUT_SEC)[1].succeed()
+    assert tm.result_of(server_after).result.task_status == 'DONE'
+
+
+def test_end_status_follows_how_the_action_server_ended_the_goal(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    server = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib')
+    tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib', reentrant=True)})
+    succeeded, aborted = tm.send('fib', {'order': 1}), tm.send('fib', {'order': 2})
+    goals = {g.request.order: g for g in server.wait_for_goals(2, TIMEOUT_SEC)}
+
+    goals[1].succeed(Fibonacci.Result(sequence=[7]))
+    goals[2].abort(Fibonacci.Result(sequence=[9]))
+
+    done, error = tm.result_of(succeeded), tm.result_of(aborted)
+    assert (done.status, done.result.task_status) == (GoalStatus.STATUS_SUCCEEDED, 'DONE')
+    assert json.loads(done.result.task_result) == {'sequence': [7]}
+    assert (error.status, error.result.task_status) == (GoalStatus.STATUS_ABORTED, 'ERROR')
+    assert json.loads(error.result.task_result) == {'sequence': [9]}
+
+
+def test_client_cancel_ends_the_task_canceled_and_the_goal_canceled(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    server = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib')
+    recorder = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/rec')
+    tm = launch_task_manager(
+        {
+            'fib': action_task('fib', f'{topic_prefix}/fib'),
+            'rec': action_task(
+                'record_video', f'{topic_prefix}/rec', cancel_reported_as_success=True
+            ),
+        }
+    )
+    plain = tm.send('fib', {'order': 1}, task_id='plain')
+    video = tm.send('record_video', {'order': 1}, task_id='video')
+    tm.wait_in_progress('plain')
+    tm.wait_in_progress('video')
+
+    tm.cancel(plain)
+    tm.cancel(video)
+
+    plain_response, video_response = tm.result_of(plain), tm.result_of(video)
+    assert server.wait_for_goals(1, TIMEOUT_SEC)[0].cancel_requested.is_set()
+    assert recorder.wait_for_goals(1, TIMEOUT_SEC)[0].cancel_requested.is_set()
+    assert plain_response.status == GoalStatus.STATUS_CANCELED
+    assert plain_response.result.task_status == 'CANCELED'
+    assert video_response.result.task_status == 'DONE'
+    assert tm.wait_result_message('video').task_status == 'DONE'
+
+
+def test_service_task_done_or_error_by_its_success_field(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    ScriptedService(
+        ros.node,
+        SetBool,
+        f'{topic_prefix}/set',
+        on_call=lambda call: call.respond(success=call.request.data, message='echo'),
+    )
+    tm = launch_task_manager(
+        {
+            'plain': service_task('plain', f'{topic_prefix}/set'),
+            'checked': service_task(
+                'checked', f'{topic_prefix}/set', service_success_field='success'
+            ),
+        }
+    )
+
+    plain_false = tm.run('plain', {'data': False})
+    checked_true = tm.run('checked', {'data': True})
+    checked_false = tm.run('checked', {'data': False})
+
+    assert plain_false.task_status == 'DONE'
+    assert json.loads(plain_false.task_result) == {'success': False, 'message': 'echo'}
+    assert checked_true.task_status == 'DONE'
+    assert (checked_false.task_status, checked_false.error_code) == ('ERROR', '')
+
+
+def test_client_cancel_of_a_service_task_that_does_not_return_fails(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    service = ScriptedService(ros.node, SetBool, f'{topic_prefix}/set')
+    tm = launch_task_manager(
+        {'slow': service_task('slow', f'{topic_prefix}/set', cancel_timeout=0.5)}
+    )
+    handle = tm.send('slow', {'data': True}, task_id='slow-1')
+    tm.wait_in_progress('slow-1')
+
+    tm.cancel(handle)
+
+    response = tm.result_of(handle)
+    assert (response.result.task_status, response.result.error_code) == (
+        'ERROR',
+        'task_cancel_failed',
+    )
+    assert response.status == GoalStatus.STATUS_ABORTED
+    service.wait_for_calls(1, TIMEOUT_SEC)[0].respond(success=True)
+
+
+def test_missing_or_rejecting_server_fails_the_start(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    rejecting = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/rej', accept_goals=False)
+    tm = launch_task_manager(
+        {
+            'missing': action_task('missing', f'{topic_prefix}/nobody'),
+            'missing_srv': service_task('missing_srv', f'{topic_prefix}/nobody_srv'),
+            'rejecting': action_task('rejecting', f'{topic_prefix}/rej'),
+        },
+        server_wait_timeout=0.5,
+    )
+
+    for name in ('missing', 'missing_srv', 'rejecting'):
+        result = tm.run(name, {'order': 1} if name != 'missing_srv' else {'data': True})
+        assert (result.task_status, result.error_code) == ('ERROR', 'task_start_failed'), name
+    assert len(rejecting.rejected.items) == 1
+
+
+def test_unrelated_task_starts_while_another_tasks_server_is_missing(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    _instant_fibonacci(ros, f'{topic_prefix}/fib')
+    tm = launch_task_manager(
+        {
+            'missing': action_task('missing', f'{topic_prefix}/nobody', blocking=True),
+            'fib': action_task('fib', f'{topic_prefix}/fib'),
+        },
+        server_wait_timeout=5.0,
+    )
+    waiting = tm.send('missing', {'order': 1}, task_id='waits-for-server')
+
+    unrelated = tm.run('fib', {'order': 1})
+
+    assert unrelated.task_status == 'DONE'
+    assert tm.results_for('waits-for-server') == []  # still waiting for its server
+    assert tm.result_of(waiting).result.error_code == 'task_start_failed'

@@ -1,0 +1,56 @@
+"""enable_task_servers: every task also at /task_manager/task/<task_name>, same machinery."""
+
+from rclpy.action import ActionClient
+from std_srvs.srv import SetBool
+from test_msgs.action import Fibonacci
+
+from task_manager.testing.harness import RosHarness, wait_for_future
+from task_manager.testing.process import LaunchTaskManager, action_task, service_task
+from task_manager.testing.servers import ScriptedActionServer, ScriptedService
+
+TIMEOUT_SEC = 15.0
+
+
+def test_task_servers_run_tasks_through_the_task_manager(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    ScriptedActionServer(
+        ros.node,
+        Fibonacci,
+        f'{topic_prefix}/fib',
+        on_goal=lambda goal: goal.succeed(Fibonacci.Result(sequence=[0, 1, 1, 2])),
+    )
+    ScriptedService(
+        ros.node,
+        SetBool,
+        f'{topic_prefix}/set',
+        on_call=lambda call: call.respond(success=True, message='set'),
+    )
+    tm = launch_task_manager(
+        {
+            'fib': action_task('math/fib', f'{topic_prefix}/fib'),
+            'set': service_task('set', f'{topic_prefix}/set'),
+        },
+        enable_task_servers=True,
+    )
+    action_client = ActionClient(ros.node, Fibonacci, '/task_manager/task/math/fib')
+    service_client = ros.node.create_client(SetBool, '/task_manager/task/set')
+    assert action_client.wait_for_server(timeout_sec=TIMEOUT_SEC)
+    assert service_client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+
+    goal_handle = wait_for_future(
+        action_client.send_goal_async(Fibonacci.Goal(order=4)), TIMEOUT_SEC, 'goal'
+    )
+    action_result = wait_for_future(goal_handle.get_result_async(), TIMEOUT_SEC, 'result')
+    response = wait_for_future(
+        service_client.call_async(SetBool.Request(data=True)), TIMEOUT_SEC, 'response'
+    )
+
+    assert list(action_result.result.sequence) == [0, 1, 1, 2]
+    assert (response.success, response.message) == (True, 'set')
+    published = tm.results.wait_until(lambda msgs: len(msgs) >= 2 and msgs, TIMEOUT_SEC)
+    assert sorted((m.task_name, m.task_status, m.source) for m in published) == [
+        ('math/fib', 'DONE', 'task_server'),
+        ('set', 'DONE', 'task_server'),
+    ]
+    action_client.destroy()
