@@ -96,7 +96,7 @@ def parse_task_spec(key: str, entry: Mapping[str, Any]) -> TaskSpec:
         interface = parse_interface_name(entry['msg_interface'])
     except ConfigurationError as error:
         raise ConfigurationError(f'{label}: {error}') from error
-    if options['cancel_timeout'] < 0:
+    if not options['cancel_timeout'] >= 0:  # also rejects NaN
         raise ConfigurationError(f'{label}: {key}.cancel_timeout must be >= 0')
     if options['service_success_field'] and interface.kind is not TaskKind.SERVICE:
         raise ConfigurationError(

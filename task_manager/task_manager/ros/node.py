@@ -19,6 +19,7 @@ from task_manager.ros.goal_binding import GoalTaskBinding
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
 from task_manager.ros.service_runner import ServiceTaskRunner
+from task_manager.ros.system import SYSTEM_TASK_NAMES, create_system_runners
 from task_manager.ros.task_servers import create_task_servers
 
 NODE_NAME = 'task_manager'
@@ -53,13 +54,15 @@ class TaskManagerNode(Node):
             automatically_declare_parameters_from_overrides=True,
         )
         settings = read_settings(self)
-        specs = read_task_specs(self, reserved_names=set())
-        runners = {spec.task_name: self._create_runner(spec, settings.timeouts) for spec in specs}
+        specs = read_task_specs(self, reserved_names=set(SYSTEM_TASK_NAMES))
+        user_runners = [self._create_runner(spec, settings.timeouts) for spec in specs]
         self._active_publisher = self.create_publisher(
             ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS
         )
         self._result_publisher = self.create_publisher(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS)
-        self.dispatcher = TaskDispatcher(self, runners, self, self._spawn)
+        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn)
+        runners = [*user_runners, *create_system_runners(self, self.dispatcher)]
+        self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in runners})
         self._goals = GoalTaskBinding(self.dispatcher)
         self._execute_server = ActionServer(
             self,

@@ -59,7 +59,9 @@ def _action_server(
     node: Node, binding: GoalTaskBinding, spec: TaskSpec, action_type: Any, name: str
 ) -> ActionServer:
     async def execute(goal_handle: Any) -> Any:
-        record = await binding.run(goal_handle, _request(spec, goal_handle.request))
+        record = await binding.run(
+            goal_handle, _request(spec, goal_handle.request), action_type.Feedback
+        )
         return _message_of_result(action_type.Result, record)
 
     return ActionServer(

@@ -1,0 +1,23 @@
+"""The tasks built into the Task Manager: system/mission, cancel_task, stop and wait."""
+
+from rclpy.node import Node
+
+from task_manager.ros.dispatcher import TaskDispatcher
+from task_manager.ros.execution import TaskRunner
+from task_manager.ros.system.cancel import CancelTasksRunner, StopTasksRunner
+from task_manager.ros.system.mission import MissionRunner
+from task_manager.ros.system.specs import SYSTEM_TASK_NAMES
+from task_manager.ros.system.wait import WaitRunner
+
+__all__ = ['SYSTEM_TASK_NAMES', 'create_system_runners']
+
+
+def create_system_runners(node: Node, dispatcher: TaskDispatcher) -> list[TaskRunner]:
+    """One runner per system task name (system/cancel_tasks is an alias of cancel_task)."""
+    return [
+        MissionRunner(node, dispatcher),
+        CancelTasksRunner(node, dispatcher, alias=False),
+        CancelTasksRunner(node, dispatcher, alias=True),
+        StopTasksRunner(node, dispatcher),
+        WaitRunner(node),
+    ]

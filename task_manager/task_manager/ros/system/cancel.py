@@ -1,0 +1,75 @@
+"""system/cancel_task (alias system/cancel_tasks) and system/stop."""
+
+from typing import Any
+
+from rclpy.node import Node
+from task_manager_msgs.srv import CancelTasks, StopTasks
+
+from task_manager.core.status import CancelReason, TaskStatus
+from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.ros.dispatcher import TaskDispatcher
+from task_manager.ros.futures import all_completed
+from task_manager.ros.message_json import message_from_json
+from task_manager.ros.system.coroutine_execution import CoroutineExecution
+from task_manager.ros.system.specs import CANCEL_TASK_ALIAS_SPEC, CANCEL_TASK_SPEC, STOP_SPEC
+
+
+async def cancel_all(
+    dispatcher: TaskDispatcher, task_ids: list[str], reason: CancelReason
+) -> list[str]:
+    """Cancel every id at once; return the ids whose cancel completed in time."""
+    cancels = [dispatcher.cancel(task_id, reason) for task_id in task_ids]
+    await all_completed(cancels)
+    return [t for t, cancel in zip(task_ids, cancels, strict=True) if cancel.result()]
+
+
+def _end(success: bool, result: dict[str, Any]) -> TaskEnd:
+    return TaskEnd(TaskStatus.DONE if success else TaskStatus.ERROR, result)
+
+
+class CancelTasksRunner:
+    """Cancels tasks by id; ids that are not active count as cancelled (with a warning)."""
+
+    def __init__(self, node: Node, dispatcher: TaskDispatcher, alias: bool) -> None:
+        self.spec = CANCEL_TASK_ALIAS_SPEC if alias else CANCEL_TASK_SPEC
+        self._node = node
+        self._dispatcher = dispatcher
+
+    def parse(self, task_data: str) -> Any:
+        return message_from_json(CancelTasks.Request, task_data)
+
+    async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
+        return CoroutineExecution(self._node, self._cancel(list(message.cancelled_tasks), record))
+
+    async def _cancel(self, task_ids: list[str], record: TaskRecord) -> TaskEnd:
+        for task_id in task_ids:
+            if self._dispatcher.registry.get(task_id) is None:
+                self._node.get_logger().warning(
+                    f'task {record.task_id} ({record.task_name}): no active task {task_id!r} '
+                    'to cancel; counted as cancelled'
+                )
+        cancelled = await cancel_all(self._dispatcher, task_ids, CancelReason.CANCEL_TASK)
+        success = len(cancelled) == len(task_ids)
+        return _end(success, {'success': success, 'successful_cancels': cancelled})
+
+
+class StopTasksRunner:
+    """Cancels every active task declared with cancel_on_stop."""
+
+    spec = STOP_SPEC
+
+    def __init__(self, node: Node, dispatcher: TaskDispatcher) -> None:
+        self._node = node
+        self._dispatcher = dispatcher
+
+    def parse(self, task_data: str) -> Any:
+        return message_from_json(StopTasks.Request, task_data)
+
+    async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
+        return CoroutineExecution(self._node, self._stop())
+
+    async def _stop(self) -> TaskEnd:
+        task_ids = [r.task_id for r in self._dispatcher.registry.cancelled_by_stop()]
+        cancelled = await cancel_all(self._dispatcher, task_ids, CancelReason.STOP)
+        success = len(cancelled) == len(task_ids)
+        return _end(success, {'success': success})

@@ -1,0 +1,39 @@
+"""Declarations of the system tasks (fixed; not configurable from the parameters file)."""
+
+from typing import Any
+
+from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+
+MISSION = 'system/mission'
+CANCEL_TASK = 'system/cancel_task'
+CANCEL_TASK_ALIAS = 'system/cancel_tasks'
+STOP = 'system/stop'
+WAIT = 'system/wait'
+SYSTEM_TASK_NAMES = frozenset({MISSION, CANCEL_TASK, CANCEL_TASK_ALIAS, STOP, WAIT})
+
+
+def _system_spec(name: str, kind: TaskKind, interface: str, **properties: Any) -> TaskSpec:
+    return TaskSpec(
+        task_name=name,
+        topic='',
+        interface=InterfaceName('task_manager_msgs', kind, interface),
+        **properties,
+    )
+
+
+MISSION_SPEC = _system_spec(MISSION, TaskKind.ACTION, 'Mission', cancel_on_stop=True)
+# Several cancels or stops may run at once; `success: false` makes their status ERROR.
+CANCEL_TASK_SPEC = _system_spec(
+    CANCEL_TASK, TaskKind.SERVICE, 'CancelTasks', reentrant=True, service_success_field='success'
+)
+CANCEL_TASK_ALIAS_SPEC = _system_spec(
+    CANCEL_TASK_ALIAS,
+    TaskKind.SERVICE,
+    'CancelTasks',
+    reentrant=True,
+    service_success_field='success',
+)
+STOP_SPEC = _system_spec(
+    STOP, TaskKind.SERVICE, 'StopTasks', reentrant=True, service_success_field='success'
+)
+WAIT_SPEC = _system_spec(WAIT, TaskKind.ACTION, 'Wait', blocking=True, cancel_on_stop=True)
