@@ -18,7 +18,13 @@ from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
 from task_manager.ros.execution import Execution, TaskRunner
-from task_manager.ros.futures import all_completed, completed_future, first_completed, wait_for
+from task_manager.ros.futures import (
+    all_completed,
+    completed_future,
+    first_completed,
+    resolved,
+    wait_for,
+)
 from task_manager.ros.message_json import TaskDataError
 
 
@@ -138,7 +144,7 @@ class TaskDispatcher:
         execution.outcome.add_done_callback(lambda done: self._settle(task_id, done.result()))
         if record.cancel_reason is not None:  # a cancel arrived while the task was starting
             self._cancel_future(record, record.cancel_reason)
-        return await finished
+        return await resolved(self._node, finished)
 
     async def _resolve_conflicts(self, record: TaskRecord) -> None:
         conflicts = self.registry.conflicts_of(record.spec, record.task_id)
@@ -149,7 +155,9 @@ class TaskDispatcher:
             + ', '.join(f'{c.task_id} ({c.task_name})' for c in conflicts)
         )
         cancels = [self._cancel_future(c, CancelReason.CONFLICT) for c in conflicts]
-        await first_completed([all_completed(cancels), self._finished[record.task_id]])
+        await resolved(
+            self._node, first_completed([all_completed(cancels), self._finished[record.task_id]])
+        )
         if self._finished[record.task_id].done():
             return
         stuck = [c for c, cancel in zip(conflicts, cancels, strict=True) if not cancel.result()]

@@ -1,10 +1,38 @@
-"""Bounded waits on rclpy futures from coroutines, driven by timers: no thread, no polling."""
+"""Awaiting rclpy futures from coroutines, with bounds driven by timers: no thread, no polling.
 
+rclpy's executors resume a waiting coroutine only when they next wake up. When one task
+completes a future that another task awaits, nothing wakes the executor, and the waiting
+task would sit until some unrelated event. `resolved` wakes it through a guard condition.
+"""
+
+import weakref
 from collections.abc import Sequence
 from typing import Any
 
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.guard_condition import GuardCondition
 from rclpy.node import Node
 from rclpy.task import Future
+
+# key: node, value: the guard condition that wakes the node's executor
+_WAKE_GUARDS: 'weakref.WeakKeyDictionary[Node, GuardCondition]' = weakref.WeakKeyDictionary()
+
+
+def _wake_guard(node: Node) -> GuardCondition:
+    guard = _WAKE_GUARDS.get(node)
+    if guard is None:
+        guard = node.create_guard_condition(lambda: None, ReentrantCallbackGroup())
+        _WAKE_GUARDS[node] = guard
+    return guard
+
+
+async def resolved(node: Node, future: Future) -> Any:
+    """Await `future` and return its result; the executor is woken as soon as it completes."""
+    if not future.done():
+        guard = _wake_guard(node)
+        future.add_done_callback(lambda _: guard.trigger())
+        await future
+    return future.result()
 
 
 def completed_future(value: Any = None) -> Future:
@@ -55,7 +83,7 @@ async def wait_for(node: Node, future: Future, timeout_sec: float) -> bool:
         timeout_sec, lambda: None if deadline.done() else deadline.set_result(None)
     )
     try:
-        winner = await first_completed([future, deadline])
+        winner = await resolved(node, first_completed([future, deadline]))
     finally:
         timer.cancel()
         node.destroy_timer(timer)
@@ -83,7 +111,7 @@ async def wait_until_ready(node: Node, is_ready: Any, timeout_sec: float) -> boo
         timeout_sec, lambda: None if deadline.done() else deadline.set_result(None)
     )
     try:
-        await first_completed([ready, deadline])
+        await resolved(node, first_completed([ready, deadline]))
     finally:
         for timer in (checker, limit):
             timer.cancel()

@@ -13,6 +13,7 @@ from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.ros import qos
 from task_manager.ros.action_runner import ActionTaskRunner
+from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.goal_binding import GoalTaskBinding
@@ -77,7 +78,7 @@ class TaskManagerNode(Node):
             callback_group=ReentrantCallbackGroup(),
         )
         self._task_servers = (
-            create_task_servers(self, self.dispatcher, specs)
+            create_task_servers(self, self.dispatcher, [r.spec for r in runners])
             if settings.enable_task_servers
             else []
         )
@@ -86,6 +87,11 @@ class TaskManagerNode(Node):
             f'Task Manager ready with {len(specs)} task(s): '
             + ', '.join(spec.task_name for spec in specs)
         )
+
+    def destroy_node(self) -> None:
+        """Destroy action servers and clients first (see destroy_waitables)."""
+        destroy_waitables(self)
+        super().destroy_node()
 
     def _create_runner(self, spec: TaskSpec, timeouts: RunnerTimeouts) -> TaskRunner:
         interface_class = load_interface(spec)

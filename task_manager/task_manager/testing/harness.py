@@ -11,6 +11,8 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
 
+from task_manager.ros.cleanup import destroy_waitables
+
 T = TypeVar('T')
 
 
@@ -100,4 +102,5 @@ class RosHarness:
     def close(self) -> None:
         self.executor.shutdown()
         self._thread.join(timeout=5.0)
+        destroy_waitables(self.node)
         self.node.destroy_node()

@@ -8,10 +8,18 @@ from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
 
 from task_manager.ros import qos
-from task_manager.testing.harness import RosHarness, TopicRecorder, wait_for_future
+from task_manager.testing.harness import (
+    RosHarness,
+    TopicRecorder,
+    WaitTimeoutError,
+    wait_for_future,
+)
 
 EXECUTE_TASK_ACTION = '/task_manager/execute_task'
 DEFAULT_TIMEOUT_SEC = 15.0
+WARM_UP_TASK = '__probe_warm_up__'
+WARM_UP_ATTEMPTS = 5
+WARM_UP_TIMEOUT_SEC = 2.0
 
 
 class TaskManagerProbe:
@@ -36,9 +44,26 @@ class TaskManagerProbe:
         )
 
     def wait_until_connected(self) -> None:
+        """Wait until goals, results and both topics work end to end.
+
+        Seeing the server is not enough: DDS may match the server's reply path to a new
+        client a moment later, and a reply sent before that is lost. A goal for an unknown
+        task (answered at once, touching no task) is retried until a round trip succeeds.
+        """
         assert self.client.wait_for_server(timeout_sec=self.timeout_sec), 'no execute_task server'
         self.results.wait_matched(self.timeout_sec)
         self.active.wait_matched(self.timeout_sec)
+        for attempt in range(WARM_UP_ATTEMPTS):
+            goal = ExecuteTask.Goal(task_id=f'probe-warm-up-{attempt}', task_name=WARM_UP_TASK)
+            try:
+                handle = wait_for_future(
+                    self.client.send_goal_async(goal), WARM_UP_TIMEOUT_SEC, 'warm-up goal'
+                )
+                wait_for_future(handle.get_result_async(), WARM_UP_TIMEOUT_SEC, 'warm-up result')
+                return
+            except WaitTimeoutError:
+                continue
+        raise WaitTimeoutError(f'no ExecuteTask round trip in {WARM_UP_ATTEMPTS} attempts')
 
     def send(
         self, task_name: str, task_data: Any = None, task_id: str = '', source: str = 'test'

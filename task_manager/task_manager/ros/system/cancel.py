@@ -8,18 +8,18 @@ from task_manager_msgs.srv import CancelTasks, StopTasks
 from task_manager.core.status import CancelReason, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.futures import all_completed
+from task_manager.ros.futures import all_completed, resolved
 from task_manager.ros.message_json import message_from_json
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 from task_manager.ros.system.specs import CANCEL_TASK_ALIAS_SPEC, CANCEL_TASK_SPEC, STOP_SPEC
 
 
 async def cancel_all(
-    dispatcher: TaskDispatcher, task_ids: list[str], reason: CancelReason
+    node: Node, dispatcher: TaskDispatcher, task_ids: list[str], reason: CancelReason
 ) -> list[str]:
     """Cancel every id at once; return the ids whose cancel completed in time."""
     cancels = [dispatcher.cancel(task_id, reason) for task_id in task_ids]
-    await all_completed(cancels)
+    await resolved(node, all_completed(cancels))
     return [t for t, cancel in zip(task_ids, cancels, strict=True) if cancel.result()]
 
 
@@ -48,7 +48,9 @@ class CancelTasksRunner:
                     f'task {record.task_id} ({record.task_name}): no active task {task_id!r} '
                     'to cancel; counted as cancelled'
                 )
-        cancelled = await cancel_all(self._dispatcher, task_ids, CancelReason.CANCEL_TASK)
+        cancelled = await cancel_all(
+            self._node, self._dispatcher, task_ids, CancelReason.CANCEL_TASK
+        )
         success = len(cancelled) == len(task_ids)
         return _end(success, {'success': success, 'successful_cancels': cancelled})
 
@@ -70,6 +72,6 @@ class StopTasksRunner:
 
     async def _stop(self) -> TaskEnd:
         task_ids = [r.task_id for r in self._dispatcher.registry.cancelled_by_stop()]
-        cancelled = await cancel_all(self._dispatcher, task_ids, CancelReason.STOP)
+        cancelled = await cancel_all(self._node, self._dispatcher, task_ids, CancelReason.STOP)
         success = len(cancelled) == len(task_ids)
         return _end(success, {'success': success})
