@@ -63,6 +63,18 @@ class TaskSpec:
         return self.interface.kind
 
 
+def checked_value(what: str, value: Any, types: tuple[type, ...]) -> Any:
+    """Return `value` if it is one of `types`; else ConfigurationError saying `what` is wrong.
+
+    bool is an int in Python, but `cancel_timeout: true` is surely a mistake: a bool only
+    passes where bool is among `types`.
+    """
+    if not isinstance(value, types) or (bool not in types and isinstance(value, bool)):
+        expected = ' or '.join(t.__name__ for t in types)
+        raise ConfigurationError(f'{what} must be {expected}, got {value!r}')
+    return value
+
+
 def parse_interface_name(text: str) -> InterfaceName:
     """Parse `pkg.action.Name`, `pkg/action/Name`, `pkg.srv.Name` or `pkg/srv/Name`."""
     match = _INTERFACE_PATTERN.match(text.strip())
@@ -84,14 +96,10 @@ def parse_task_spec(key: str, entry: Mapping[str, Any]) -> TaskSpec:
                 'is missing' if value is None else f'must be a non-empty string, got {value!r}'
             )
             raise ConfigurationError(f'{label}: {key}.{required} {problem}')
-    options = {}
-    for name, (types, default) in OPTIONAL_KEYS.items():
-        value = entry.get(name, default)
-        # bool is an int in Python, but `cancel_timeout: true` is surely a mistake
-        if not isinstance(value, types) or (bool not in types and isinstance(value, bool)):
-            expected = ' or '.join(t.__name__ for t in types)
-            raise ConfigurationError(f'{label}: {key}.{name} must be {expected}, got {value!r}')
-        options[name] = value
+    options = {
+        name: checked_value(f'{label}: {key}.{name}', entry.get(name, default), types)
+        for name, (types, default) in OPTIONAL_KEYS.items()
+    }
     try:
         interface = parse_interface_name(entry['msg_interface'])
     except ConfigurationError as error:

@@ -6,7 +6,7 @@ from typing import Any
 from rclpy.node import Node
 
 from task_manager.core.errors import ConfigurationError
-from task_manager.core.task_spec import TaskSpec, parse_task_specs, unknown_keys
+from task_manager.core.task_spec import TaskSpec, checked_value, parse_task_specs, unknown_keys
 from task_manager.ros.execution import RunnerTimeouts
 
 # key: node-level parameter, value: (accepted types, default)
@@ -26,13 +26,14 @@ class NodeSettings:
 
 
 def read_settings(node: Node) -> NodeSettings:
-    values = {}
-    for name, (types, default) in NODE_PARAMETERS.items():
-        value = node.get_parameter(name).value if node.has_parameter(name) else default
-        if not isinstance(value, types) or (bool not in types and isinstance(value, bool)):
-            expected = ' or '.join(t.__name__ for t in types)
-            raise ConfigurationError(f'parameter {name!r} must be {expected}, got {value!r}')
-        values[name] = value
+    values = {
+        name: checked_value(
+            f'parameter {name!r}',
+            node.get_parameter(name).value if node.has_parameter(name) else default,
+            types,
+        )
+        for name, (types, default) in NODE_PARAMETERS.items()
+    }
     return NodeSettings(
         enable_task_servers=values['enable_task_servers'],
         timeouts=RunnerTimeouts(

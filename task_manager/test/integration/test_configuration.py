@@ -47,6 +47,10 @@ CONFIGURATION_ERRORS: dict[str, tuple[dict[str, Any], str]] = {
         {'tasks': ['a', 'b'], 'a': action_task('same', '/a'), 'b': action_task('same', '/b')},
         r"task 'same': declared twice",
     ),
+    'node parameter of the wrong type': (
+        {'tasks': ['a'], 'a': action_task('nav', '/a'), 'server_wait_timeout': 'soon'},
+        r"parameter 'server_wait_timeout' must be int or float",
+    ),
     'wrong type': (
         {'tasks': ['a'], 'a': action_task('nav', '/a', blocking='yes')},
         r"task 'nav': a\.blocking must be bool",
