@@ -1,6 +1,7 @@
 """The `task_manager` node: declared tasks, ExecuteTask, active tasks and results."""
 
 import json
+from collections import deque
 from typing import Any
 
 from rclpy.action import ActionServer, GoalResponse
@@ -8,6 +9,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
+from task_manager_msgs.srv import GetTaskResults
 
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
@@ -27,6 +29,7 @@ NODE_NAME = 'task_manager'
 EXECUTE_TASK_ACTION = '/task_manager/execute_task'
 ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
+GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 
 
 def active_task_msg(record: TaskRecord) -> ActiveTask:
@@ -61,6 +64,10 @@ class TaskManagerNode(Node):
             ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS
         )
         self._result_publisher = self.create_publisher(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS)
+        self._results_history: deque[TaskDoneResult] = deque(maxlen=settings.results_history_size)
+        self._results_service = self.create_service(
+            GetTaskResults, GET_TASK_RESULTS_SERVICE, self._get_task_results
+        )
         self.dispatcher = TaskDispatcher(self, {}, self, self._spawn)
         runners = [*user_runners, *create_system_runners(self, self.dispatcher)]
         self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in runners})
@@ -111,16 +118,23 @@ class TaskManagerNode(Node):
         )
 
     def publish_result(self, record: TaskRecord) -> None:
-        self._result_publisher.publish(
-            TaskDoneResult(
-                task_id=record.task_id,
-                task_name=record.task_name,
-                task_status=str(record.status),
-                error_code=str(record.error_code),
-                source=record.source,
-                task_result=result_json(record),
-            )
+        message = TaskDoneResult(
+            task_id=record.task_id,
+            task_name=record.task_name,
+            task_status=str(record.status),
+            error_code=str(record.error_code),
+            source=record.source,
+            task_result=result_json(record),
         )
+        self._result_publisher.publish(message)
+        self._results_history.append(message)
+
+    def _get_task_results(
+        self, request: GetTaskResults.Request, response: GetTaskResults.Response
+    ) -> GetTaskResults.Response:
+        kept = list(self._results_history)
+        response.results = kept[-request.max_results :] if request.max_results else kept
+        return response
 
     # ---- /task_manager/execute_task ----------------------------------------------------------
 

@@ -14,6 +14,7 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'enable_task_servers': ((bool,), False),
     'server_wait_timeout': ((int, float), RunnerTimeouts.server_wait_sec),
     'goal_response_timeout': ((int, float), RunnerTimeouts.goal_response_sec),
+    'results_history_size': ((int,), 1000),
 }
 
 
@@ -23,6 +24,7 @@ class NodeSettings:
 
     enable_task_servers: bool
     timeouts: RunnerTimeouts
+    results_history_size: int
 
 
 def read_settings(node: Node) -> NodeSettings:
@@ -34,8 +36,11 @@ def read_settings(node: Node) -> NodeSettings:
         )
         for name, (types, default) in NODE_PARAMETERS.items()
     }
+    if values['results_history_size'] < 0:
+        raise ConfigurationError("parameter 'results_history_size' must be >= 0")
     return NodeSettings(
         enable_task_servers=values['enable_task_servers'],
+        results_history_size=values['results_history_size'],
         timeouts=RunnerTimeouts(
             server_wait_sec=float(values['server_wait_timeout']),
             goal_response_sec=float(values['goal_response_timeout']),

@@ -1,10 +1,11 @@
 """/task_manager/active_tasks and /task_manager/results (BEHAVIOUR.md, What everyone can see)."""
 
 from task_manager_msgs.msg import ActiveTaskArray
+from task_manager_msgs.srv import GetTaskResults
 from test_msgs.action import Fibonacci
 
 from task_manager.ros import qos
-from task_manager.testing.harness import RosHarness
+from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import ScriptedActionServer
 
@@ -77,3 +78,32 @@ def test_exactly_one_result_per_request_including_failed_ones(
     counts = {task_id: len(tm.results_for(task_id)) for task_id in [*requests, 'sentinel']}
     assert counts == {'ok': 1, 'unknown': 1, 'bad-json': 1, 'held': 2, 'sentinel': 1}
     assert [m.error_code for m in tm.results_for('held')] == ['duplicate_id', '']
+
+
+def test_kept_results_can_be_fetched_after_the_fact(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=lambda g: g.succeed())
+    tm = launch_task_manager(
+        {'fib': action_task('fib', f'{topic_prefix}/fib')}, results_history_size=3
+    )
+    for task_id in ('r1', 'r2', 'r3', 'r4'):
+        tm.run('fib', {'order': 1}, task_id=task_id)
+    tm.run('nope', {}, task_id='r5')
+    client = ros.node.create_client(GetTaskResults, '/task_manager/get_task_results')
+    assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+
+    everything = wait_for_future(
+        client.call_async(GetTaskResults.Request(max_results=0)), TIMEOUT_SEC, 'results'
+    )
+    newest = wait_for_future(
+        client.call_async(GetTaskResults.Request(max_results=2)), TIMEOUT_SEC, 'results'
+    )
+
+    assert [(r.task_id, r.task_status) for r in everything.results] == [
+        ('r3', 'DONE'),
+        ('r4', 'DONE'),
+        ('r5', 'ERROR'),
+    ]
+    assert [r.task_id for r in newest.results] == ['r4', 'r5']
+    ros.node.destroy_client(client)

@@ -10,7 +10,7 @@ from task_manager_msgs.msg import (
     TaskDoneResult,
     TaskStatus,
 )
-from task_manager_msgs.srv import CancelTasks, StopTasks
+from task_manager_msgs.srv import CancelTasks, GetTaskResults, StopTasks
 
 # key: generated class, value: its fields in wire order as (name, rosidl type)
 EXPECTED_FIELDS = {
@@ -63,6 +63,8 @@ EXPECTED_FIELDS = {
     Wait.Feedback: [('remaining_time', 'double')],
     CancelTasks.Request: [('cancelled_tasks', 'sequence<string>')],
     CancelTasks.Response: [('success', 'boolean'), ('successful_cancels', 'sequence<string>')],
+    GetTaskResults.Request: [('max_results', 'uint32')],
+    GetTaskResults.Response: [('results', 'sequence<task_manager_msgs/TaskDoneResult>')],
     StopTasks.Request: [],
     StopTasks.Response: [('success', 'boolean')],
 }
