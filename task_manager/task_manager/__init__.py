@@ -1,1 +1,45 @@
-"""ROS 2 Task Manager: start, track and end every task of a robot in one place."""
+"""ROS 2 Task Manager: start, track and end every task of a robot in one place.
+
+The public API is what `__all__` lists; it is imported lazily so that the ROS-free core
+(`task_manager.core`) can be used without loading rclpy.
+"""
+
+import importlib
+from typing import Any
+
+__all__ = [
+    'ActiveTaskInfo',
+    'ErrorCode',
+    'Subtask',
+    'TaskHandle',
+    'TaskManagerClient',
+    'TaskManagerError',
+    'TaskManagerUnavailable',
+    'TaskResult',
+    'TaskStatus',
+    'TaskTimeout',
+]
+
+# key: public name, value: the module that defines it
+_DEFINED_IN = {
+    'ActiveTaskInfo': 'task_manager.client',
+    'Subtask': 'task_manager.client',
+    'TaskHandle': 'task_manager.client',
+    'TaskManagerClient': 'task_manager.client',
+    'TaskResult': 'task_manager.client',
+    'ErrorCode': 'task_manager.core.status',
+    'TaskStatus': 'task_manager.core.status',
+    'TaskManagerError': 'task_manager.core.errors',
+    'TaskManagerUnavailable': 'task_manager.core.errors',
+    'TaskTimeout': 'task_manager.core.errors',
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _DEFINED_IN:
+        raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+    return getattr(importlib.import_module(_DEFINED_IN[name]), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

@@ -4,6 +4,8 @@ TaskManagerError
  +-- ConfigurationError      a parameters file the node cannot run with
  +-- TaskRequestError        a request that ends before its task starts (carries an ErrorCode)
  +-- InvalidTransition       a lifecycle step that the task's current status does not allow
+ +-- TaskManagerUnavailable  no Task Manager answered a client in time
+ +-- TaskTimeout             a client's wait for a task ran out
 """
 
 from task_manager.core.status import ErrorCode
@@ -27,3 +29,11 @@ class TaskRequestError(TaskManagerError):
 
 class InvalidTransition(TaskManagerError):  # noqa: N818 - named after the state-machine term
     """A task lifecycle transition that is not allowed from the current status."""
+
+
+class TaskManagerUnavailable(TaskManagerError):  # noqa: N818 - reads as a state, like httpx's
+    """No Task Manager answered within the client's timeout."""
+
+
+class TaskTimeout(TaskManagerError):  # noqa: N818
+    """A task did not end within the time a client was willing to wait."""

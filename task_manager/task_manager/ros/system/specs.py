@@ -37,3 +37,5 @@ STOP_SPEC = _system_spec(
     STOP, TaskKind.SERVICE, 'StopTasks', reentrant=True, service_success_field='success'
 )
 WAIT_SPEC = _system_spec(WAIT, TaskKind.ACTION, 'Wait', blocking=True, cancel_on_stop=True)
+
+SYSTEM_SPECS = (MISSION_SPEC, CANCEL_TASK_SPEC, CANCEL_TASK_ALIAS_SPEC, STOP_SPEC, WAIT_SPEC)

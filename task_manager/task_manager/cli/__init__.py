@@ -1,0 +1,1 @@
+"""`taskctl`: the Task Manager from the command line."""

@@ -1,0 +1,49 @@
+"""The taskctl application: verbs, global options, and errors as one line and an exit code."""
+
+import sys
+
+import typer
+
+from task_manager import TaskManagerError, TaskManagerUnavailable
+from task_manager.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_UNAVAILABLE, progress
+from task_manager.cli.verbs.cancel import cancel, stop
+from task_manager.cli.verbs.mission import mission
+from task_manager.cli.verbs.start import start
+from task_manager.cli.verbs.tasks import tasks
+from task_manager.cli.verbs.watch import active, results
+
+app = typer.Typer(
+    name='taskctl',
+    help='Start, watch and cancel the tasks of a running ROS 2 Task Manager.',
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+@app.callback()
+def options(
+    ctx: typer.Context,
+    timeout: float = typer.Option(
+        5.0, '--timeout', help='Seconds to wait for the Task Manager to answer'
+    ),
+) -> None:
+    ctx.obj = {'timeout_sec': timeout}
+
+
+for verb in (start, mission, cancel, stop, active, results, tasks):
+    app.command()(verb)
+
+
+def main() -> None:
+    """Run taskctl; errors print one `ErrorType: message` line and exit non-zero."""
+    try:
+        app()  # exits by itself, also for usage errors (exit code 2)
+    except TaskManagerUnavailable as error:
+        progress.print(f'TaskManagerUnavailable: {error}', markup=False, soft_wrap=True)
+        sys.exit(EXIT_UNAVAILABLE)
+    except TaskManagerError as error:
+        progress.print(f'{type(error).__name__}: {error}', markup=False, soft_wrap=True)
+        sys.exit(EXIT_ERROR)
+    except KeyboardInterrupt:
+        sys.exit(EXIT_INTERRUPTED)

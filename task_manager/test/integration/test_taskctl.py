@@ -1,0 +1,142 @@
+"""taskctl driven as a user would: a subprocess against a real node and real servers."""
+
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from test_msgs.action import Fibonacci
+
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.probe import TaskManagerProbe
+from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
+
+TASKCTL = str(Path(sys.executable).with_name('taskctl'))
+RUN_TIMEOUT_SEC = 30.0
+FAIL, HOLD = 99, 50  # Fibonacci orders the scripted server aborts / keeps running
+
+
+def taskctl(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [TASKCTL, *args], capture_output=True, text=True, timeout=RUN_TIMEOUT_SEC, check=False
+    )
+
+
+def _decide(goal: ScriptedGoal) -> None:
+    if goal.request.order == FAIL:
+        goal.abort()
+    elif goal.request.order < HOLD:
+        goal.succeed(Fibonacci.Result(sequence=[goal.request.order]))
+
+
+def _launch(ros: RosHarness, launch: LaunchTaskManager, prefix: str) -> TaskManagerProbe:
+    ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib', on_goal=_decide)
+    return launch(
+        {'fib': action_task('math/fib', f'{prefix}/fib', reentrant=True, cancel_on_stop=True)}
+    )
+
+
+def test_start_waits_and_exits_by_status(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    _launch(ros, launch_task_manager, topic_prefix)
+
+    done = taskctl('start', 'math/fib', '{"order": 3}', '--id', 'cli-1', '--source', 'shell')
+    failed = taskctl('start', 'math/fib', '{"order": 99}')
+    unknown = taskctl('start', 'no/such', '{}')
+    bad_json = taskctl('start', 'math/fib', '{order')
+
+    assert done.returncode == 0, done.stderr
+    printed = json.loads(done.stdout)
+    assert (printed['task_id'], printed['status'], printed['source']) == ('cli-1', 'DONE', 'shell')
+    assert printed['result'] == {'sequence': [3]}
+    assert failed.returncode == 1 and json.loads(failed.stdout)['status'] == 'ERROR'
+    assert unknown.returncode == 1
+    assert json.loads(unknown.stdout)['error_code'] == 'unknown_task'
+    assert bad_json.returncode == 2 and 'not valid JSON' in bad_json.stderr
+
+
+def test_start_without_waiting_cancel_and_the_canceled_exit_code(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm = _launch(ros, launch_task_manager, topic_prefix)
+    waiting = subprocess.Popen(
+        [TASKCTL, 'start', 'math/fib', '{"order": 50}', '--id', 'held'],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    tm.wait_in_progress('held')
+    background = taskctl('start', 'math/fib', '{"order": 51}', '--no-wait')
+    other_id = background.stdout.strip()
+    tm.wait_in_progress(other_id)
+
+    cancelled = taskctl('cancel', 'held', 'ghost')
+    stopped = taskctl('stop')
+
+    assert background.returncode == 0 and other_id
+    assert cancelled.returncode == 0, cancelled.stderr
+    assert json.loads(cancelled.stdout)['result']['successful_cancels'] == ['held', 'ghost']
+    assert waiting.wait(RUN_TIMEOUT_SEC) == 3  # CANCELED
+    assert json.loads(waiting.stdout.read())['status'] == 'CANCELED'
+    assert stopped.returncode == 0
+    assert tm.wait_result_message(other_id).task_status == 'CANCELED'
+
+
+def test_mission_from_a_yaml_file(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, tmp_path: Path
+) -> None:
+    _launch(ros, launch_task_manager, topic_prefix)
+    good = tmp_path / 'good.yaml'
+    good.write_text(
+        'subtasks:\n'
+        '  - {task_name: math/fib, task_data: {order: 1}, task_id: s1}\n'
+        '  - {task_name: math/fib, task_data: {order: 99}, allow_skipping: true, task_id: s2}\n'
+        '  - {task_name: math/fib, task_data: \'{"order": 2}\', task_id: s3}\n'
+    )
+    failing = tmp_path / 'failing.json'
+    failing.write_text(json.dumps([{'task_name': 'math/fib', 'task_data': {'order': 99}}]))
+
+    done = taskctl('mission', str(good))
+    failed = taskctl('mission', str(failing))
+
+    assert done.returncode == 0, done.stderr
+    rows = json.loads(done.stdout)['result']['mission_results']
+    assert [(r['task_id'], r['task_status'], r['skipped']) for r in rows] == [
+        ('s1', 'DONE', False),
+        ('s2', 'ERROR', True),
+        ('s3', 'DONE', False),
+    ]
+    assert failed.returncode == 1
+
+
+def test_active_results_and_tasks(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm = _launch(ros, launch_task_manager, topic_prefix)
+    tm.run('math/fib', {'order': 4}, task_id='finished-earlier')
+    tm.send('math/fib', {'order': 50}, task_id='running-now')
+    tm.wait_in_progress('running-now')
+
+    active = taskctl('active')
+    results = taskctl('results', '--json')
+    tasks = taskctl('tasks')
+
+    assert active.returncode == 0 and 'running-now' in active.stdout
+    lines = [json.loads(line) for line in results.stdout.splitlines()]
+    assert {'task_id': 'finished-earlier', 'status': 'DONE'}.items() <= lines[-1].items()
+    assert tasks.returncode == 0
+    for name in ('math/fib', 'system/mission', 'system/wait', 'system/stop'):
+        assert name in tasks.stdout
+
+
+def test_no_task_manager_is_reported_within_the_bound() -> None:
+    started = time.monotonic()
+
+    missing = taskctl('--timeout', '1', 'start', 'math/fib', '{}')
+
+    assert missing.returncode == 4
+    assert missing.stderr.startswith('TaskManagerUnavailable: no Task Manager answered')
+    assert time.monotonic() - started < 10.0
