@@ -19,7 +19,7 @@ help:
 	@echo "make lint     ruff"
 	@echo "make bench    benchmarks (not part of make test)"
 
-install: $(STAMPS)/task_manager
+install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -49,18 +49,31 @@ $(STAMPS)/task_manager: $(STAMPS)/task_manager_msgs task_manager/pyproject.toml 
 	$(PIP) install --quiet -e 'task_manager[dev]' -c $(CONSTRAINTS)
 	@touch $@
 
+# The demo: a simulated robot's interfaces, and the robot plus the `task-manager-demo` launcher.
+$(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels $(shell find task_manager_demo_msgs -type f)
+	@mkdir -p $(BUILD)
+	$(call build_interfaces,task_manager_demo_msgs)
+
+# Order-only on task_manager (which brings the ROS wheels): only its own files reinstall it.
+$(STAMPS)/task_manager_demo: task_manager_demo/pyproject.toml task_manager_demo/setup.py task_manager_demo/setup.cfg | $(STAMPS)/task_manager
+	$(PIP) install --quiet -e task_manager_demo -c $(CONSTRAINTS)
+	@touch $@
+
 test: install
-	$(VENV)/bin/ruff check task_manager
-	$(PY) -m pytest
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/pytest
 
 lint: install
-	$(VENV)/bin/ruff check task_manager
-	$(VENV)/bin/ruff format --check task_manager
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 
+# The simulated robot and the Task Manager with the demo's tasks; Ctrl-C stops both.
+# `make run PARAMS=file.yaml` gives the Task Manager another parameters file.
 run: install
-	$(VENV)/bin/task-manager --ros-args --params-file $(PARAMS)
+	$(VENV)/bin/task-manager-demo $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
 
 bench: install
+	$(PIP) install --quiet -r requirements/bench.txt
 	$(PY) -m bench
 
 clean:

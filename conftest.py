@@ -1,4 +1,4 @@
-"""Shared fixtures: an isolated ROS domain per test run and an in-process ROS harness."""
+"""Fixtures of every test tree: an isolated ROS domain per test run, an in-process ROS node."""
 
 import os
 

@@ -1,0 +1,1 @@
+"""A simulated robot and a launcher that show the Task Manager at work."""

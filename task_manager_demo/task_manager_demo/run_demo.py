@@ -1,0 +1,246 @@
+"""Console script `task-manager-demo`: the simulated robot and the Task Manager, ready to use.
+
+Starts both as child processes, waits (bounded) until each logs that it is ready, then prints
+what to try next and streams their logs. Ctrl-C or SIGTERM stops both (SIGINT, a bounded
+wait, a kill only as a last resort) and exits 0. A child that dies first fails the demo.
+"""
+
+import argparse
+import os
+import queue
+import re
+import shutil
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+from task_manager_demo.children import (
+    Child,
+    Event,
+    Events,
+    Exited,
+    Line,
+    Signalled,
+    forward_stop_signals,
+)
+from task_manager_demo.robot_interface import ROBOT_READY_LOG
+
+PACKAGE = 'task_manager_demo'
+PARAMS_NAME = 'demo_tasks.yaml'
+ROBOT_EXECUTABLE = ('task-manager-demo-robot', PACKAGE)
+TASK_MANAGER_EXECUTABLE = ('task-manager', 'task_manager')
+TASK_MANAGER_READY = re.compile(r'Task Manager ready with \d+ task\(s\): (?P<tasks>.*)$')
+ROBOT_READY = re.compile(re.escape(ROBOT_READY_LOG) + r' at (?P<pose>\([^)]*\))')
+READY_TIMEOUT_SEC = 30.0
+STOP_TIMEOUT_SEC = 10.0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+RULE = '=' * 78
+# Colour codes of ROS log lines, when the children log in colour (on a terminal).
+COLOUR_CODE = re.compile(r'\x1b\[[0-9;]*m')
+
+
+def default_params_file() -> Path:
+    """demo_tasks.yaml beside the package sources (editable install), or in its share folder."""
+    source = Path(__file__).resolve().parents[1] / 'params' / PARAMS_NAME
+    if source.exists():
+        return source
+    from ament_index_python.packages import get_package_share_directory
+
+    return Path(get_package_share_directory(PACKAGE)) / 'params' / PARAMS_NAME
+
+
+def find_executable(name: str, package: str) -> str:
+    """A console script beside this interpreter, on PATH, or where colcon installs it."""
+    beside_python = Path(sys.executable).with_name(name)
+    if beside_python.exists():
+        return str(beside_python)
+    on_path = shutil.which(name)
+    if on_path:
+        return on_path
+    from ament_index_python.packages import get_package_prefix
+
+    return str(Path(get_package_prefix(package)) / 'lib' / package / name)
+
+
+def shown_path(path: Path) -> str:
+    """`path` relative to the working directory when it lies below it, else absolute."""
+    absolute = os.path.abspath(path)
+    relative = os.path.relpath(absolute)
+    return absolute if relative.startswith('..') else relative
+
+
+def banner(tasks: str, robot_pose: str, params_file: Path) -> str:
+    taskctl = shown_path(Path(sys.executable).with_name('taskctl'))
+    return '\n'.join(
+        [
+            RULE,
+            f'Task Manager ready, with a simulated robot at {robot_pose}',
+            textwrap.fill(
+                f'{tasks} and the system/ tasks',
+                width=len(RULE),
+                initial_indent='  tasks:  ',
+                subsequent_indent=' ' * 10,
+                break_on_hyphens=False,
+            ),
+            f'  params: {shown_path(params_file)}',
+            '  watch:  /task_manager/active_tasks  tasks in progress',
+            '          /task_manager/results       one result per task',
+            '',
+            'In a second terminal, try:',
+            f'  {taskctl} start navigation/navigate_to_pose \'{{"x": 2.0, "y": 1.0}}\'',
+            f'  {taskctl} active --watch',
+            f'  {taskctl} mission examples/mission.yaml',
+            '',
+            'Ctrl-C stops the robot and the Task Manager.',
+            RULE,
+        ]
+    )
+
+
+def say(text: str) -> None:
+    print(text, flush=True)
+
+
+class Demo:
+    """Supervises the two children through one event queue."""
+
+    def __init__(self, params_file: Path, events: Events) -> None:
+        self.params_file = params_file
+        self.events = events
+        self.children: list[Child] = []
+        self.streaming = False
+
+    def start(self) -> None:
+        robot = [find_executable(*ROBOT_EXECUTABLE)]
+        self.robot = self._start('sim_robot', robot)
+        task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
+        self.task_manager = self._start('task_manager', [*task_manager, str(self.params_file)])
+
+    def _start(self, name: str, command: list[str]) -> Child:
+        child = Child(name, command, self.events)
+        self.children.append(child)
+        return child
+
+    def run(self, ready_timeout_sec: float) -> int:
+        """Wait for both children to be ready, then until a signal; the exit code."""
+        ready = self._wait_ready(time.monotonic() + ready_timeout_sec)
+        if ready is None:
+            return EXIT_FAILED
+        if not ready:
+            return 0
+        say(banner(ready['tasks'], ready['pose'], self.params_file))
+        self.streaming = True
+        return self._follow()
+
+    def _wait_ready(self, deadline: float) -> dict[str, str] | None:
+        """The ready lines' details; {} when stopped by a signal first; None on a failure."""
+        waiting = {self.robot: ROBOT_READY, self.task_manager: TASK_MANAGER_READY}
+        details: dict[str, str] = {}
+        while waiting:
+            event = self._next(deadline)
+            if event is None:
+                self._report(list(waiting), 'was not ready in time')
+                return None
+            if isinstance(event, Signalled):
+                return {}
+            if isinstance(event, Exited):
+                code = event.child.wait(STOP_TIMEOUT_SEC)
+                self._report([event.child], f'exited with code {code} before it was ready')
+                return None
+            pattern = waiting.get(event.child)
+            match = pattern.search(COLOUR_CODE.sub('', event.text)) if pattern else None
+            if match:
+                details.update(match.groupdict())
+                del waiting[event.child]
+        return details
+
+    def _next(self, deadline: float) -> Event | None:
+        try:
+            return self.events.get(timeout=max(deadline - time.monotonic(), 0.0))
+        except queue.Empty:
+            return None
+
+    @staticmethod
+    def _report(children: list[Child], state: str) -> None:
+        for child in children:
+            say(f'{child.name} {state}; its output:')
+            say('\n'.join(f'  {line}' for line in child.output) or '  (none)')
+
+    def _follow(self) -> int:
+        """Stream the children's logs until a signal (0) or a child's exit (failure)."""
+        while True:
+            event = self.events.get()
+            if isinstance(event, Signalled):
+                return 0
+            if isinstance(event, Line):
+                say(event.text)
+            else:
+                code = event.child.wait(STOP_TIMEOUT_SEC)
+                say(f'{event.child.name} exited unexpectedly with code {code}')
+                return EXIT_FAILED
+
+    def stop(self) -> bool:
+        """Stop the Task Manager first, so it can still cancel its tasks on the robot.
+
+        True when every child stopped by itself within its bound.
+        """
+        return all([self._stop(child) for child in reversed(self.children)])
+
+    def _stop(self, child: Child) -> bool:
+        """SIGINT, a bounded wait (a further Ctrl-C is passed on), a kill as a last resort."""
+        child.interrupt()
+        deadline = time.monotonic() + STOP_TIMEOUT_SEC
+        while child.output_open:
+            event = self._next(deadline)
+            if event is None:
+                break
+            if isinstance(event, Signalled):
+                child.interrupt()
+            elif isinstance(event, Line) and self.streaming:
+                say(event.text)
+        if child.wait(deadline - time.monotonic()) is None:
+            say(f'{child.name} did not stop within {STOP_TIMEOUT_SEC} s: killing it')
+            child.kill()
+            return False
+        return True
+
+
+def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog='task-manager-demo', description=__doc__)
+    parser.add_argument(
+        '--params-file', type=Path, help=f'Task Manager parameters (default: {PARAMS_NAME})'
+    )
+    parser.add_argument(
+        '--ready-timeout',
+        type=float,
+        default=READY_TIMEOUT_SEC,
+        help='seconds both processes may take to be ready (default: %(default)s)',
+    )
+    return parser.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    options = parse_arguments(argv)
+    params_file = (options.params_file or default_params_file()).resolve()
+    if not params_file.is_file():
+        say(f'task-manager-demo: no parameters file {params_file}')
+        return EXIT_USAGE
+    events: Events = queue.SimpleQueue()
+    forward_stop_signals(events)
+    demo = Demo(params_file, events)
+    try:
+        demo.start()
+        code = demo.run(options.ready_timeout)
+    finally:
+        stopped_cleanly = demo.stop()
+    if not stopped_cleanly:
+        return EXIT_FAILED
+    if code == 0:
+        say('task-manager-demo: the robot and the Task Manager have stopped')
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

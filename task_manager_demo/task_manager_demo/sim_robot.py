@@ -1,0 +1,276 @@
+"""The simulated robot `sim_robot`: navigate, spin, dock and take photos, as real servers do.
+
+One base moves at a time. A timer advances the current motion and publishes its feedback;
+each goal's execute callback is a coroutine awaiting the end of its motion, so no thread
+waits per goal. A new navigate, spin or dock goal pre-empts the running one (ABORTED); a
+cancelled goal stops the robot where it is and ends CANCELED.
+"""
+
+import math
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from enum import Enum
+from typing import Any
+
+import rclpy
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.task import Future
+from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
+from task_manager_demo_msgs.srv import TakePhoto
+
+from task_manager_demo.motion import DriveToPose, Motion, Pose, Speeds, SpinBy
+from task_manager_demo.robot_interface import (
+    DOCK_ACTION,
+    NAVIGATE_ACTION,
+    ROBOT_READY_LOG,
+    SPIN_ACTION,
+    TAKE_PHOTO_SERVICE,
+)
+
+NODE_NAME = 'sim_robot'
+DEFAULT_CAMERA = 'front'
+BROKEN_CAMERA = 'broken'
+EXIT_CONFIGURATION_ERROR = 2
+
+# parameter name -> default; all floats (an integer in a parameters file is accepted too)
+FLOAT_PARAMETERS = {
+    'linear_speed': 0.5,
+    'angular_speed': 1.0,
+    'update_rate': 10.0,
+    'initial_x': 0.0,
+    'initial_y': 0.0,
+    'initial_theta': 0.0,
+    'dock_x': 0.0,
+    'dock_y': 0.0,
+    'dock_theta': 0.0,
+}
+POSITIVE_PARAMETERS = ('linear_speed', 'angular_speed', 'update_rate')
+
+
+class ConfigurationError(ValueError):
+    """A parameter of the robot is unusable."""
+
+
+class Outcome(Enum):
+    """How a motion ended, and so its goal."""
+
+    SUCCEEDED = 'succeeded'
+    CANCELED = 'canceled'
+    PREEMPTED = 'pre-empted'
+
+
+def finish_goal(goal_handle: ServerGoalHandle, outcome: Outcome) -> None:
+    if outcome is Outcome.SUCCEEDED:
+        goal_handle.succeed()
+    elif outcome is Outcome.CANCELED:
+        goal_handle.canceled()
+    else:
+        goal_handle.abort()
+
+
+@dataclass
+class _Drive:
+    """The motion the base is carrying out, for one goal."""
+
+    goal_handle: ServerGoalHandle
+    motion: Motion
+    feedback: Callable[[Pose], Any]
+    outcome: Future
+
+
+class Base:
+    """The robot's single base: its pose and the one motion it is carrying out."""
+
+    def __init__(self, pose: Pose, dt: float) -> None:
+        self.pose = pose
+        self.dt = dt
+        self._drive: _Drive | None = None
+
+    def start(
+        self, goal_handle: ServerGoalHandle, motion: Motion, feedback: Callable[[Pose], Any]
+    ) -> Future:
+        """Start `motion` for `goal_handle`, pre-empting the running one; returns its Outcome."""
+        self._end(Outcome.PREEMPTED)
+        self._drive = _Drive(goal_handle, motion, feedback, Future())
+        return self._drive.outcome
+
+    def tick(self) -> None:
+        """Advance the running motion by one time step and publish its feedback."""
+        drive = self._drive
+        if drive is None:
+            return
+        if drive.goal_handle.is_cancel_requested:
+            self._end(Outcome.CANCELED)
+            return
+        self.pose = drive.motion.step(self.pose, self.dt)
+        drive.goal_handle.publish_feedback(drive.feedback(self.pose))
+        if drive.motion.finished(self.pose):
+            self._end(Outcome.SUCCEEDED)
+
+    def _end(self, outcome: Outcome) -> None:
+        if self._drive is not None:
+            self._drive.outcome.set_result(outcome)
+            self._drive = None
+
+
+def _goal_is_finite(request: Any) -> bool:
+    fields = request.get_fields_and_field_types()
+    return all(
+        math.isfinite(getattr(request, name)) for name, kind in fields.items() if kind == 'double'
+    )
+
+
+class SimRobot(Node):
+    """Serves /navigate_to_pose, /spin, /dock and /take_photo for a robot on a plane.
+
+    Parameters: linear_speed (m/s, 0.5), angular_speed (rad/s, 1.0), update_rate (Hz, 10.0),
+    initial_x/_y/_theta (the start pose, the origin), dock_id ("home") and dock_x/_y/_theta
+    (the dock's pose, the origin: the robot starts on its dock).
+    """
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME)
+        values = {
+            name: self._float_parameter(name, default) for name, default in FLOAT_PARAMETERS.items()
+        }
+        self.dock_id = self.declare_parameter('dock_id', 'home').value
+        self.speeds = Speeds(values['linear_speed'], values['angular_speed'])
+        self.dock_pose = Pose(values['dock_x'], values['dock_y'], values['dock_theta'])
+        start = Pose(values['initial_x'], values['initial_y'], values['initial_theta'])
+        self.base = Base(start, 1.0 / values['update_rate'])
+        self._photos_taken = 0
+        self.create_timer(self.base.dt, self.base.tick)
+        group = ReentrantCallbackGroup()
+        self._action_server(NavigateToPose, NAVIGATE_ACTION, self._navigate, group)
+        self._action_server(Spin, SPIN_ACTION, self._spin, group)
+        self._action_server(Dock, DOCK_ACTION, self._dock, group)
+        self.create_service(TakePhoto, TAKE_PHOTO_SERVICE, self._take_photo, callback_group=group)
+        self.get_logger().info(
+            f'{ROBOT_READY_LOG} at {self.base.pose}: serving {NAVIGATE_ACTION}, {SPIN_ACTION}, '
+            f'{DOCK_ACTION}, {TAKE_PHOTO_SERVICE} (dock "{self.dock_id}" at {self.dock_pose})'
+        )
+
+    def _float_parameter(self, name: str, default: float) -> float:
+        descriptor = ParameterDescriptor(dynamic_typing=True)
+        raw = self.declare_parameter(name, default, descriptor).value
+        if isinstance(raw, bool) or not isinstance(raw, int | float):
+            raise ConfigurationError(f'parameter {name} must be a number, got {raw!r}')
+        value = float(raw)
+        if name in POSITIVE_PARAMETERS and not value > 0.0:
+            raise ConfigurationError(f'parameter {name} must be > 0, got {value}')
+        return value
+
+    def _action_server(
+        self, action_type: Any, topic: str, execute: Any, group: ReentrantCallbackGroup
+    ) -> ActionServer:
+        return ActionServer(
+            self,
+            action_type,
+            topic,
+            execute_callback=execute,
+            goal_callback=lambda request: (
+                GoalResponse.ACCEPT if _goal_is_finite(request) else GoalResponse.REJECT
+            ),
+            cancel_callback=lambda _: CancelResponse.ACCEPT,
+            callback_group=group,
+        )
+
+    async def _drive(
+        self, what: str, goal_handle: ServerGoalHandle, motion: Motion, feedback: Any
+    ) -> Outcome:
+        outcome = await self.base.start(goal_handle, motion, feedback)
+        finish_goal(goal_handle, outcome)
+        self.get_logger().info(f'{what}: {outcome.value} at {self.base.pose}')
+        return outcome
+
+    async def _navigate(self, goal_handle: ServerGoalHandle) -> NavigateToPose.Result:
+        request = goal_handle.request
+        motion = DriveToPose(Pose(request.x, request.y, request.theta), self.speeds)
+        self.get_logger().info(f'navigate: from {self.base.pose} to {motion.goal}')
+
+        def feedback(pose: Pose) -> NavigateToPose.Feedback:
+            return NavigateToPose.Feedback(
+                x=pose.x, y=pose.y, distance_remaining=motion.distance_remaining(pose)
+            )
+
+        await self._drive('navigate', goal_handle, motion, feedback)
+        pose = self.base.pose
+        return NavigateToPose.Result(x=pose.x, y=pose.y, theta=pose.theta)
+
+    async def _spin(self, goal_handle: ServerGoalHandle) -> Spin.Result:
+        motion = SpinBy(goal_handle.request.angle, self.speeds)
+        self.get_logger().info(f'spin: {motion.angle:.2f} rad from {self.base.pose}')
+        await self._drive(
+            'spin',
+            goal_handle,
+            motion,
+            lambda _: Spin.Feedback(angle_remaining=motion.remaining),
+        )
+        return Spin.Result(angle_travelled=motion.travelled)
+
+    async def _dock(self, goal_handle: ServerGoalHandle) -> Dock.Result:
+        dock_id = goal_handle.request.dock_id or self.dock_id
+        if dock_id != self.dock_id:
+            self.get_logger().error(f'dock: unknown dock "{dock_id}" (known: "{self.dock_id}")')
+            goal_handle.abort()
+            return Dock.Result(docked=False)
+        motion = DriveToPose(self.dock_pose, self.speeds)
+        self.get_logger().info(f'dock: from {self.base.pose} to dock "{dock_id}"')
+        outcome = await self._drive(
+            'dock',
+            goal_handle,
+            motion,
+            lambda pose: Dock.Feedback(distance_remaining=motion.distance_remaining(pose)),
+        )
+        return Dock.Result(docked=outcome is Outcome.SUCCEEDED)
+
+    def _take_photo(self, request: TakePhoto.Request, response: TakePhoto.Response) -> Any:
+        camera = request.camera or DEFAULT_CAMERA
+        if camera == BROKEN_CAMERA:
+            response.message = f'camera "{camera}" does not respond'
+            self.get_logger().error(f'take_photo: {response.message}')
+            return response
+        self._photos_taken += 1
+        response.success = True
+        response.photo_id = f'{camera}-{self._photos_taken:04d}'
+        response.message = f'photo {response.photo_id} taken at {self.base.pose}'
+        self.get_logger().info(f'take_photo: {response.message}')
+        return response
+
+    def destroy_node(self) -> None:
+        """Destroy the action servers first: destroy_node leaves them to the GC."""
+        for waitable in list(self.waitables):
+            waitable.destroy()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script `task-manager-demo-robot`: run the simulated robot until interrupted."""
+    rclpy.init(args=args if args is not None else sys.argv)
+    node = None
+    executor = SingleThreadedExecutor()
+    try:
+        node = SimRobot()
+        executor.add_node(node)
+        executor.spin()
+    except ConfigurationError as error:
+        rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid configuration: {error}')
+        return EXIT_CONFIGURATION_ERROR
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,59 @@
+"""`task-manager-demo`: stops both children on SIGTERM; fails loudly when a child dies early."""
+
+import signal
+import sys
+from pathlib import Path
+
+import psutil
+import pytest
+
+from task_manager.testing.process import write_params_file
+from task_manager_demo.testing import DemoProcess
+
+START_TIMEOUT_SEC = 30.0
+STOP_TIMEOUT_SEC = 30.0
+LAUNCHER = str(Path(sys.executable).with_name('task-manager-demo'))
+
+pytestmark = pytest.mark.ros
+
+
+def alive(processes: list[psutil.Process]) -> list[psutil.Process]:
+    return [p for p in processes if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+
+
+def test_sigterm_stops_the_robot_and_the_task_manager_and_exits_0(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setenv('RCUTILS_COLORIZED_OUTPUT', '1')  # as on a terminal
+    demo = DemoProcess('task-manager-demo', [LAUNCHER])
+    try:
+        demo.wait_for_line(r'^Ctrl-C stops', START_TIMEOUT_SEC)
+        assert '  tasks:  navigation/navigate_to_pose, navigation/spin,' in demo.output
+        children = psutil.Process(demo.pid).children()
+        assert len(children) == 2
+
+        demo.child.process.send_signal(signal.SIGTERM)
+
+        assert demo.wait_exit(STOP_TIMEOUT_SEC) == 0, demo.output
+    finally:
+        if demo.child.exit_code is None:
+            demo.stop()
+    assert alive(children) == []
+
+
+def test_a_child_that_dies_before_it_is_ready_fails_the_demo_with_its_output(
+    tmp_path: Path,
+) -> None:
+    unknown_interface = {'task_name': 'x/oops', 'topic': '/oops', 'msg_interface': 'no/srv/X'}
+    params = write_params_file(
+        tmp_path / 'bad.yaml', {'tasks': ['oops'], 'oops': unknown_interface}
+    )
+    demo = DemoProcess('task-manager-demo', [LAUNCHER, '--params-file', str(params)])
+
+    code = demo.wait_exit(STOP_TIMEOUT_SEC)
+
+    assert code == 1, demo.output
+    assert 'task_manager exited with code 2 before it was ready' in demo.output
+    assert 'x/oops' in demo.output
+    assert 'Task Manager ready' not in demo.output
+    assert 'killing' not in demo.output

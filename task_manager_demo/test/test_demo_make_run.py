@@ -1,0 +1,58 @@
+"""`make run`: the robot and the Task Manager come up, run a task, and stop on Ctrl-C."""
+
+import signal
+from pathlib import Path
+
+import psutil
+import pytest
+
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.probe import TaskManagerProbe
+from task_manager_demo.testing import DemoProcess
+
+REPO = Path(__file__).resolve().parents[2]
+# Generous: `make run` installs first when an input of `make install` changed.
+READY_TIMEOUT_SEC = 180.0
+STOP_TIMEOUT_SEC = 30.0
+CHILD_SCRIPTS = ('task-manager-demo-robot', 'task-manager')
+
+
+def script_name(process: psutil.Process) -> str:
+    """The console script a process runs (`python .../bin/task-manager ...`), or ''."""
+    try:
+        return next((Path(arg).name for arg in process.cmdline()[1:2]), '')
+    except psutil.Error:
+        return ''
+
+
+def still_running(processes: list[psutil.Process]) -> list[psutil.Process]:
+    return [p for p in processes if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
+
+
+@pytest.mark.ros
+def test_make_run_serves_tasks_and_stops_cleanly_on_ctrl_c(ros: RosHarness) -> None:
+    make = DemoProcess('make run', ['make', '--no-print-directory', 'run'], cwd=REPO)
+    try:
+        make.wait_for_line(r'^Ctrl-C stops', READY_TIMEOUT_SEC)
+        assert 'Task Manager ready' in make.output
+        assert '/task_manager/active_tasks' in make.output
+        descendants = psutil.Process(make.pid).children(recursive=True)
+        assert sorted(script_name(p) for p in descendants if script_name(p) in CHILD_SCRIPTS) == [
+            'task-manager',
+            'task-manager-demo-robot',
+        ]
+
+        probe = TaskManagerProbe(ros)
+        probe.wait_until_connected()
+        result = probe.run('navigation/navigate_to_pose', {'x': 0.3, 'y': 0.0})
+        probe.destroy()
+        assert (result.task_status, result.error_code) == ('DONE', ''), result
+
+        make.signal_group(signal.SIGINT)
+        # make waits for its job, then ends itself by the SIGINT it received.
+        assert make.wait_exit(STOP_TIMEOUT_SEC) in (0, -signal.SIGINT)
+    finally:
+        if make.child.exit_code is None:
+            make.stop()
+    assert 'the robot and the Task Manager have stopped' in make.output, make.output
+    assert still_running(descendants) == []
