@@ -27,6 +27,9 @@ from task_manager.ros.futures import (
 )
 from task_manager.ros.message_json import TaskDataError
 
+# How long tasks ended by force at shutdown may take to report their results.
+FORCED_END_TIMEOUT_SEC = 1.0
+
 
 class TaskReporter(Protocol):
     """Where the dispatcher tells the world about tasks (the node's publishers)."""
@@ -66,6 +69,9 @@ class TaskDispatcher:
         self._cancels_in_flight: dict[str, Future] = {}
         # ids of tasks whose start on their server is in flight
         self._starting_ids: set[str] = set()
+        self._closing_reason = ''
+        # completes once no task is active; replaced whenever a task is admitted
+        self._idle: Future = completed_future()
 
     # ---- running a request -------------------------------------------------------------
 
@@ -108,11 +114,15 @@ class TaskDispatcher:
             return self._rejected(
                 record, ErrorCode.DUPLICATE_TASK_ID, 'the id is in use by an active task'
             ), None
+        if self._closing_reason:
+            return self._rejected(record, ErrorCode.TASK_START_FAILED, self._closing_reason), None
         try:
             message = runner.parse(request.task_data)
         except TaskDataError as error:
             return self._rejected(record, ErrorCode.TASK_DATA_PARSING_FAILED, str(error)), None
         self.registry.admit(record)
+        if self._idle.done():
+            self._idle = Future()
         self._finished[task_id] = Future()
         self._started[task_id] = Future()
         return record, message
@@ -234,6 +244,23 @@ class TaskDispatcher:
         self._cancels_in_flight.pop(task_id, None)
         cancelled.set_result(ok)
 
+    async def close(self, reason: str, timeout_sec: float) -> bool:
+        """Refuse new tasks, cancel every active one, and wait (bounded) until all have ended.
+
+        Tasks that do not end in time (e.g. services still running) end ERROR, so every
+        request still gets its result. True when every task ended by itself in time.
+        """
+        self._closing_reason = reason
+        for record in self.registry:
+            self.cancel(record.task_id, CancelReason.SHUTDOWN)
+        if await wait_for(self._node, self._idle, timeout_sec):
+            return True
+        for record in self.registry:
+            self._log.warning(f'task {record.task_id} ({record.task_name}) did not end: {reason}')
+            self._settle(record.task_id, TaskEnd(TaskStatus.ERROR, {'error': reason}))
+        await wait_for(self._node, self._idle, FORCED_END_TIMEOUT_SEC)
+        return False
+
     # ---- ending ----------------------------------------------------------------------------
 
     def _finish(self, record: TaskRecord, end: TaskEnd) -> None:
@@ -247,6 +274,8 @@ class TaskDispatcher:
         if was_active:
             self._publish_active()
         self._reporter.publish_result(record)
+        if not len(self.registry) and not self._idle.done():
+            self._idle.set_result(None)
         self._log.info(
             f'task {record.task_id} ({record.task_name}) ended {record.status}'
             + (f' ({record.error_code})' if record.error_code else '')

@@ -17,6 +17,12 @@ class RunnerTimeouts:
     """How long a missing server may take to appear before the start fails."""
     goal_response_sec: float = 5.0
     """How long a server may take to accept or reject a goal."""
+    service_response_sec: float = 120.0
+    """How long a service task may take to respond."""
+    server_check_period_sec: float = 1.0
+    """How often the server of running tasks is checked."""
+    server_loss_timeout_sec: float = 5.0
+    """How long a server may give no sign of life before its tasks end ERROR."""
 
 
 class Execution(Protocol):

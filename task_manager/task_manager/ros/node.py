@@ -7,6 +7,7 @@ from typing import Any
 from rclpy.action import ActionServer, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
+from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
 from task_manager_msgs.srv import GetTaskResults
@@ -30,6 +31,8 @@ EXECUTE_TASK_ACTION = '/task_manager/execute_task'
 ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
+# Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
+SHUTDOWN_MARGIN_SEC = 1.0
 
 
 def active_task_msg(record: TaskRecord) -> ActiveTask:
@@ -89,11 +92,29 @@ class TaskManagerNode(Node):
             if settings.enable_task_servers
             else []
         )
+        self._shutting_down = False
         self.publish_active([])
         self.get_logger().info(
             f'Task Manager ready with {len(specs)} task(s): '
             + ', '.join(spec.task_name for spec in specs)
         )
+
+    async def shut_down(self, stopped: Future) -> None:
+        """Cancel every active task on its server, publish the results, then complete `stopped`.
+
+        A robot must not keep driving once its Task Manager is gone.
+        """
+        if self._shutting_down:
+            return
+        self._shutting_down = True
+        records = list(self.dispatcher.registry)
+        bound_sec = SHUTDOWN_MARGIN_SEC + max(
+            (r.spec.cancel_timeout_sec for r in records), default=0.0
+        )
+        self.get_logger().info(f'shutting down: cancelling {len(records)} active task(s)')
+        clean = await self.dispatcher.close('the Task Manager is shutting down', bound_sec)
+        if not stopped.done():
+            stopped.set_result(clean)
 
     def destroy_node(self) -> None:
         """Destroy action servers and clients first (see destroy_waitables)."""

@@ -15,7 +15,19 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'server_wait_timeout': ((int, float), RunnerTimeouts.server_wait_sec),
     'goal_response_timeout': ((int, float), RunnerTimeouts.goal_response_sec),
     'results_history_size': ((int,), 1000),
+    'service_response_timeout': ((int, float), RunnerTimeouts.service_response_sec),
+    'server_check_period': ((int, float), RunnerTimeouts.server_check_period_sec),
+    'server_loss_timeout': ((int, float), RunnerTimeouts.server_loss_timeout_sec),
 }
+
+
+POSITIVE_PARAMETERS = (
+    'server_wait_timeout',
+    'goal_response_timeout',
+    'service_response_timeout',
+    'server_check_period',
+    'server_loss_timeout',
+)
 
 
 @dataclass(frozen=True)
@@ -38,12 +50,18 @@ def read_settings(node: Node) -> NodeSettings:
     }
     if values['results_history_size'] < 0:
         raise ConfigurationError("parameter 'results_history_size' must be >= 0")
+    for name in POSITIVE_PARAMETERS:
+        if not values[name] > 0:
+            raise ConfigurationError(f'parameter {name!r} must be > 0, got {values[name]!r}')
     return NodeSettings(
         enable_task_servers=values['enable_task_servers'],
         results_history_size=values['results_history_size'],
         timeouts=RunnerTimeouts(
             server_wait_sec=float(values['server_wait_timeout']),
             goal_response_sec=float(values['goal_response_timeout']),
+            service_response_sec=float(values['service_response_timeout']),
+            server_check_period_sec=float(values['server_check_period']),
+            server_loss_timeout_sec=float(values['server_loss_timeout']),
         ),
     )
 

@@ -6,38 +6,61 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from task_manager.core.errors import TaskRequestError
-from task_manager.core.status import ErrorCode
+from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, status_for_service_response
 from task_manager.core.task_spec import TaskSpec
 from task_manager.ros.execution import RunnerTimeouts
 from task_manager.ros.futures import wait_for, wait_until_ready
 from task_manager.ros.message_json import message_from_json, message_to_dict
 from task_manager.ros.qos import DEEP_RELIABLE
+from task_manager.ros.server_watch import ServerWatch, WatchSettings
 
 
 class ServiceExecution:
     """A service call in flight. A service cannot be cancelled: cancel waits for the response."""
 
-    def __init__(self, node: Node, response_future: Future, spec: TaskSpec) -> None:
+    def __init__(
+        self, node: Node, client: Any, request: Any, spec: TaskSpec, response_timeout_sec: float
+    ) -> None:
         self._node = node
+        self._client = client
         self._spec = spec
         self.outcome: Future = Future()
-        response_future.add_done_callback(self._on_response)
+        self._response_future = client.call_async(request)
+        self._response_future.add_done_callback(self._on_response)
+        self._deadline = node.create_timer(
+            response_timeout_sec,
+            lambda: self.fail(
+                f'service {spec.topic} gave no response within {response_timeout_sec} s'
+            ),
+        )
+        self.outcome.add_done_callback(lambda _: self._clean_up())
 
     def _on_response(self, future: Future) -> None:
-        if self.outcome.done() or future.cancelled():
+        if self.outcome.done() or future.cancelled() or future.result() is None:
             return
         response = message_to_dict(future.result())
         self.outcome.set_result(
             TaskEnd(status_for_service_response(response, self._spec), response)
         )
 
+    def fail(self, reason: str) -> None:
+        """End the task ERROR without waiting for a response any longer."""
+        if not self.outcome.done():
+            self.outcome.set_result(TaskEnd(TaskStatus.ERROR, {'error': reason}))
+
+    def _clean_up(self) -> None:
+        self._deadline.cancel()
+        self._node.destroy_timer(self._deadline)
+        if not self._response_future.done():
+            self._client.remove_pending_request(self._response_future)
+
     async def cancel(self, timeout_sec: float) -> bool:
         return await wait_for(self._node, self.outcome, timeout_sec)
 
 
 class ServiceTaskRunner:
-    """Calls one declared service task."""
+    """Calls one declared service task and watches the service while calls are in flight."""
 
     def __init__(
         self, node: Node, spec: TaskSpec, service_type: Any, timeouts: RunnerTimeouts
@@ -47,6 +70,13 @@ class ServiceTaskRunner:
         self._service_type = service_type
         self._timeouts = timeouts
         self._client = node.create_client(service_type, spec.topic, qos_profile=DEEP_RELIABLE)
+        self._in_flight: set[ServiceExecution] = set()
+        self._watch = ServerWatch(
+            node,
+            self._client.service_is_ready,
+            WatchSettings(timeouts.server_check_period_sec, timeouts.server_loss_timeout_sec),
+            on_lost=self._server_lost,
+        )
 
     def parse(self, task_data: str) -> Any:
         return message_from_json(self._service_type.Request, task_data)
@@ -58,4 +88,21 @@ class ServiceTaskRunner:
             raise TaskRequestError(
                 ErrorCode.TASK_START_FAILED, f'service {self.spec.topic} is not available'
             )
-        return ServiceExecution(self._node, self._client.call_async(message), self.spec)
+        execution = ServiceExecution(
+            self._node, self._client, message, self.spec, self._timeouts.service_response_sec
+        )
+        self._in_flight.add(execution)
+        self._watch.watch()
+
+        def forget(_: Future) -> None:
+            self._in_flight.discard(execution)
+            self._watch.unwatch()
+
+        execution.outcome.add_done_callback(forget)
+        return execution
+
+    def _server_lost(self) -> None:
+        reason = f'service {self.spec.topic} left the ROS graph'
+        self._node.get_logger().error(f'{reason}; failing its {len(self._in_flight)} task(s)')
+        for execution in list(self._in_flight):
+            execution.fail(reason)

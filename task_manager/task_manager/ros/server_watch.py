@@ -1,0 +1,88 @@
+"""Noticing that the server behind running tasks is gone.
+
+While a runner has tasks in flight, a timer checks its server every `check_period_sec`:
+an action server must answer a harmless probe (a cancel request for a goal id that does
+not exist), a service must still be on the ROS graph. A server that has given no sign of
+life for `loss_timeout_sec` is lost, and its tasks end ERROR. A killed service process
+leaves the graph only when its DDS lease expires, so for services the bound counts from
+that moment, the moment the loss becomes visible.
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from rclpy.node import Node
+from rclpy.task import Future
+
+# A probe answers True (alive now), False (gone now), or a future that completes if alive.
+Probe = Callable[[], bool | Future]
+
+
+@dataclass(frozen=True)
+class WatchSettings:
+    """How often servers are checked and how long silence may last before they are lost."""
+
+    check_period_sec: float = 1.0
+    loss_timeout_sec: float = 5.0
+
+
+class ServerWatch:
+    """Watches one server while tasks run on it; calls `on_lost` once it is gone."""
+
+    def __init__(
+        self,
+        node: Node,
+        probe: Probe,
+        settings: WatchSettings,
+        on_lost: Callable[[], None],
+        on_tick: Callable[[], None] | None = None,
+    ) -> None:
+        self._node = node
+        self._probe = probe
+        self._settings = settings
+        self._on_lost = on_lost
+        self._on_tick = on_tick
+        self._watched = 0
+        self._timer = None
+        self._last_alive_ns = 0
+        self._probe_in_flight: Future | None = None
+
+    def _now_ns(self) -> int:
+        return self._node.get_clock().now().nanoseconds
+
+    def watch(self) -> None:
+        """One more task runs on the server; the watch runs while any does."""
+        self._watched += 1
+        if self._timer is None:
+            self._last_alive_ns = self._now_ns()
+            self._timer = self._node.create_timer(self._settings.check_period_sec, self._check)
+
+    def unwatch(self) -> None:
+        self._watched = max(0, self._watched - 1)
+        if self._watched == 0 and self._timer is not None:
+            self._timer.cancel()
+            self._node.destroy_timer(self._timer)
+            self._timer = None
+            self._probe_in_flight = None
+
+    def mark_alive(self) -> None:
+        """The server gave a sign of life (an answer, feedback, a result)."""
+        self._last_alive_ns = self._now_ns()
+
+    def _check(self) -> None:
+        if self._on_tick is not None:
+            self._on_tick()
+        if self._probe_in_flight is None or self._probe_in_flight.done():
+            self._send_probe()
+        silent_sec = (self._now_ns() - self._last_alive_ns) / 1e9
+        if silent_sec > self._settings.loss_timeout_sec and self._watched:
+            self._on_lost()
+
+    def _send_probe(self) -> None:
+        answer = self._probe()
+        if isinstance(answer, bool):
+            if answer:
+                self.mark_alive()
+            return
+        self._probe_in_flight = answer
+        answer.add_done_callback(lambda _: self.mark_alive())
