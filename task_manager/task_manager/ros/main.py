@@ -28,6 +28,7 @@ from task_manager.ros.cleanup import destroy_waitables  # noqa: E402
 from task_manager.ros.node import NODE_NAME, TaskManagerNode  # noqa: E402
 
 EXIT_CONFIGURATION_ERROR = 2
+DRAIN_MAX_CALLBACKS = 1000
 
 
 def _receive_signals(shutdown_requested: GuardCondition, stopped: Future) -> None:
@@ -38,6 +39,15 @@ def _receive_signals(shutdown_requested: GuardCondition, stopped: Future) -> Non
     if not stopped.done():
         stopped.set_result(False)
     shutdown_requested.trigger()
+
+
+def _drain(executor: SingleThreadedExecutor) -> None:
+    """Run the work that is ready (e.g. sending the last goal results) without waiting."""
+    for _ in range(DRAIN_MAX_CALLBACKS):
+        try:
+            executor.spin_once(timeout_sec=0.0)
+        except Exception:  # nothing left, or the context is going
+            return
 
 
 def main(args: list[str] | None = None) -> int:
@@ -63,6 +73,7 @@ def main(args: list[str] | None = None) -> int:
     executor.add_node(node)
     try:
         executor.spin_until_future_complete(stopped)
+        _drain(executor)
     finally:
         executor.shutdown()
         destroy_waitables(node)
