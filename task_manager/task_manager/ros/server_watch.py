@@ -35,13 +35,11 @@ class ServerWatch:
         probe: Probe,
         settings: WatchSettings,
         on_lost: Callable[[], None],
-        on_tick: Callable[[], None] | None = None,
     ) -> None:
         self._node = node
         self._probe = probe
         self._settings = settings
         self._on_lost = on_lost
-        self._on_tick = on_tick
         self._watched = 0
         self._timer = None
         self._last_alive_ns = 0
@@ -70,8 +68,6 @@ class ServerWatch:
         self._last_alive_ns = self._now_ns()
 
     def _check(self) -> None:
-        if self._on_tick is not None:
-            self._on_tick()
         if self._probe_in_flight is None or self._probe_in_flight.done():
             self._send_probe()
         silent_sec = (self._now_ns() - self._last_alive_ns) / 1e9

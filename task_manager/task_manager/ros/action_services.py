@@ -1,0 +1,94 @@
+"""A client of an action server that speaks through the action's services and feedback topic.
+
+rclpy's ActionClient keeps every pending future in a list that the executor walks on every
+event, removes finished requests by a linear scan, and deserializes each status message,
+which lists every goal the server keeps: its cost grows with the goals in flight. The
+Task Manager needs no status messages (a goal's end comes with its result), so it sends
+goals, asks for results and cancels on the action's three services, whose clients key
+pending requests by sequence number, and reads feedback from the feedback topic.
+"""
+
+import uuid
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.task import Future
+from unique_identifier_msgs.msg import UUID
+
+from task_manager.ros.qos import DEEP_RELIABLE
+
+
+def action_service_name(action_name: str, service: str) -> str:
+    """The name of one of an action's services: send_goal, get_result or cancel_goal."""
+    return f'{action_name.rstrip("/")}/_action/{service}'
+
+
+class ActionServicesClient:
+    """Sends goals, gets results, cancels and receives feedback of one action server."""
+
+    def __init__(self, node: Node, action_type: Any, action_name: str) -> None:
+        impl = action_type.Impl
+        self._impl = impl
+        self._node = node
+        self._send_goal = node.create_client(
+            impl.SendGoalService,
+            action_service_name(action_name, 'send_goal'),
+            qos_profile=DEEP_RELIABLE,
+        )
+        self._get_result = node.create_client(
+            impl.GetResultService,
+            action_service_name(action_name, 'get_result'),
+            qos_profile=DEEP_RELIABLE,
+        )
+        self._cancel = node.create_client(
+            impl.CancelGoalService,
+            action_service_name(action_name, 'cancel_goal'),
+            qos_profile=DEEP_RELIABLE,
+        )
+        # key: goal id (bytes), value: called with each feedback message of that goal
+        self._feedback_callbacks: dict[bytes, Callable[[Any], None]] = {}
+        self._feedback = node.create_subscription(
+            impl.FeedbackMessage,
+            f'{action_name.rstrip("/")}/_action/feedback',
+            self._on_feedback,
+            DEEP_RELIABLE,
+        )
+
+    def server_is_ready(self) -> bool:
+        return all(c.service_is_ready() for c in (self._send_goal, self._get_result, self._cancel))
+
+    def send_goal(
+        self, goal: Any, feedback_callback: Callable[[Any], None] | None = None
+    ) -> tuple[bytes, Future]:
+        """Send a goal; returns its id and a future of the SendGoal response (`accepted`)."""
+        goal_id = uuid.uuid4().bytes
+        if feedback_callback is not None:
+            self._feedback_callbacks[goal_id] = feedback_callback
+        request = self._impl.SendGoalService.Request(goal_id=_uuid(goal_id), goal=goal)
+        return goal_id, self._send_goal.call_async(request)
+
+    def get_result(self, goal_id: bytes) -> Future:
+        """A future of the GetResult response (`status`, `result`), once the goal has ended."""
+        return self._get_result.call_async(
+            self._impl.GetResultService.Request(goal_id=_uuid(goal_id))
+        )
+
+    def cancel(self, goal_id: bytes) -> Future:
+        """A future of the CancelGoal response for one goal."""
+        request = self._impl.CancelGoalService.Request()
+        request.goal_info.goal_id = _uuid(goal_id)
+        return self._cancel.call_async(request)
+
+    def forget(self, goal_id: bytes) -> None:
+        """The goal has ended: drop its feedback callback."""
+        self._feedback_callbacks.pop(goal_id, None)
+
+    def _on_feedback(self, message: Any) -> None:
+        callback = self._feedback_callbacks.get(bytes(message.goal_id.uuid))
+        if callback is not None:
+            callback(message.feedback)
+
+
+def _uuid(goal_id: bytes) -> UUID:
+    return UUID(uuid=list(goal_id))
