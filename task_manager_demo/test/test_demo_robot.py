@@ -51,9 +51,9 @@ class RobotClient:
 
     def __init__(self, ros: RosHarness) -> None:
         node = ros.node
-        self.navigate = ActionClient(node, NavigateToPose, NAVIGATE_ACTION)
-        self.spin = ActionClient(node, Spin, SPIN_ACTION)
-        self.dock = ActionClient(node, Dock, DOCK_ACTION)
+        self.navigate = ros.action_client(NavigateToPose, NAVIGATE_ACTION)
+        self.spin = ros.action_client(Spin, SPIN_ACTION)
+        self.dock = ros.action_client(Dock, DOCK_ACTION)
         self.take_photo = node.create_client(TakePhoto, TAKE_PHOTO_SERVICE)
         for client in (self.navigate, self.spin, self.dock):
             assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)

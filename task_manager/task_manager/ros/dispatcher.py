@@ -96,8 +96,9 @@ class TaskDispatcher:
         except Exception as error:  # the callback boundary: log, fail the task, keep serving
             self._log.error(f'task {record.task_id} ({record.task_name}) crashed: {error!r}')
             end = TaskEnd(TaskStatus.ERROR, {}, ErrorCode.TASK_START_FAILED)
-        finished = self._finished[record.task_id]
-        self._finish(record, finished.result() if finished.done() else end)
+        # Settled here too, so that whoever waits on this task (a cancel) sees it end.
+        self._settle(record.task_id, end)
+        self._finish(record, self._finished[record.task_id].result())
         return record
 
     def _admit(self, request: TaskRequest) -> tuple[TaskRecord, Any]:

@@ -10,6 +10,7 @@ from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 
 from task_manager.core.errors import ConfigurationError
+from task_manager.core.params_file import check_params_file, params_files
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import wake
 from task_manager.ros.node import NODE_NAME, TaskManagerNode
@@ -40,19 +41,32 @@ def _drain(executor: SingleThreadedExecutor) -> None:
             return
 
 
+def _refuse_configuration(error: Exception) -> int:
+    """One line saying what is wrong with the configuration; the exit code that says so."""
+    what = (
+        str(error) if isinstance(error, ConfigurationError) else f'{type(error).__name__}: {error}'
+    )
+    get_logger(NODE_NAME).fatal('invalid configuration: ' + ' '.join(what.split()))
+    return EXIT_CONFIGURATION_ERROR
+
+
 def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
     """Run the node; `shutdown_signals` must already be blocked in every thread."""
-    rclpy.init(
-        args=args,
-        signal_handler_options=SignalHandlerOptions.NO,
-    )
+    try:
+        for path in params_files(args):
+            check_params_file(path)
+    except ConfigurationError as error:
+        return _refuse_configuration(error)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    except Exception as error:  # rcl refuses the arguments or the parameters file
+        return _refuse_configuration(error)
     executor = SingleThreadedExecutor()
     try:
         node = TaskManagerNode()
-    except ConfigurationError as error:
-        get_logger(NODE_NAME).fatal(f'invalid configuration: {error}')
+    except Exception as error:  # a value rclpy refuses (a list of mixed types, a bad name)
         rclpy.try_shutdown()
-        return EXIT_CONFIGURATION_ERROR
+        return _refuse_configuration(error)
     stopped: Future = Future()
     executor.add_node(node)
     threading.Thread(

@@ -5,6 +5,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 import rclpy
+from rclpy.action import ActionClient
 from rclpy.event_handler import QoSSubscriptionMatchedInfo, SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -95,6 +96,19 @@ class RosHarness:
         except Exception:  # the context may be shutting down under us
             if rclpy.ok():
                 raise
+
+    def on_executor(self, function: Callable[[], T], timeout_sec: float = 10.0) -> T:
+        """Run `function` on the executor thread and return its result.
+
+        rclpy's ActionClient joins the node's waitables before it has its lock: made on
+        another thread while the executor spins, the executor may see it half-built and die.
+        Build action clients through this.
+        """
+        return wait_for_future(self.executor.create_task(function), timeout_sec, 'executor task')
+
+    def action_client(self, action_type: type, name: str, **options: Any) -> Any:
+        """An rclpy ActionClient on this node, built on the executor thread (see on_executor)."""
+        return self.on_executor(lambda: ActionClient(self.node, action_type, name, **options))
 
     def record(self, msg_type: type, topic: str, qos: QoSProfile | int = 10) -> TopicRecorder:
         return TopicRecorder(self.node, msg_type, topic, qos)

@@ -3,7 +3,6 @@
 import json
 from typing import Any
 
-from rclpy.action import ActionClient
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
 
@@ -28,8 +27,7 @@ class TaskManagerProbe:
     def __init__(self, ros: RosHarness, timeout_sec: float = DEFAULT_TIMEOUT_SEC) -> None:
         self.ros = ros
         self.timeout_sec = timeout_sec
-        self.client = ActionClient(
-            ros.node,
+        self.client = ros.action_client(
             ExecuteTask,
             EXECUTE_TASK_ACTION,
             goal_service_qos_profile=qos.DEEP_RELIABLE,

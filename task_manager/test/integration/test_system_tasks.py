@@ -2,7 +2,6 @@
 
 import json
 
-from rclpy.action import ActionClient
 from std_srvs.srv import SetBool
 from task_manager_msgs.action import Wait
 from test_msgs.action import Fibonacci
@@ -118,7 +117,7 @@ def test_wait_publishes_remaining_time_through_its_task_server(
     launch_task_manager(
         {'fib': action_task('fib', f'{topic_prefix}/fib')}, enable_task_servers=True
     )
-    client = ActionClient(ros.node, Wait, '/task_manager/task/system/wait')
+    client = ros.action_client(Wait, '/task_manager/task/system/wait')
     assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
     feedback: list[float] = []
 

@@ -1,6 +1,5 @@
 """enable_task_servers: every task also at /task_manager/task/<task_name>, same machinery."""
 
-from rclpy.action import ActionClient
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
 
@@ -33,7 +32,7 @@ def test_task_servers_run_tasks_through_the_task_manager(
         },
         enable_task_servers=True,
     )
-    action_client = ActionClient(ros.node, Fibonacci, '/task_manager/task/math/fib')
+    action_client = ros.action_client(Fibonacci, '/task_manager/task/math/fib')
     service_client = ros.node.create_client(SetBool, '/task_manager/task/set')
     assert action_client.wait_for_server(timeout_sec=TIMEOUT_SEC)
     assert service_client.wait_for_service(timeout_sec=TIMEOUT_SEC)

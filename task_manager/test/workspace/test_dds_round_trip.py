@@ -1,6 +1,6 @@
 """Our interfaces travel over real DDS between real rclpy clients and servers."""
 
-from rclpy.action import ActionClient, ActionServer
+from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.srv import CancelTasks
@@ -24,7 +24,7 @@ def test_execute_task_goal_and_result_cross_dds(ros: RosHarness) -> None:
         )
 
     server = ActionServer(ros.node, ExecuteTask, '/round_trip/execute_task', execute)
-    client = ActionClient(ros.node, ExecuteTask, '/round_trip/execute_task')
+    client = ros.action_client(ExecuteTask, '/round_trip/execute_task')
     assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
     goal = ExecuteTask.Goal(
         task_id='id-1', task_name='example/fibonacci', source='CLI', task_data='{"order": 1}'

@@ -1,0 +1,566 @@
+"""Stress: concurrent clients fire a seeded mix of ~300 requests at one Task Manager.
+
+Checked from the outside only: one /task_manager/results message and one ExecuteTask result
+per request, and both agree; never two blocking tasks IN_PROGRESS at once; the active list
+empties; the node's thread count stays bounded while more than a hundred tasks run.
+
+The scripted servers end each goal as its Fibonacci `order` says (see `_encode`): at once,
+after a number of later goal arrivals at any server, or when the test drains them after the
+stream. Set STRESS_SEED to replay another mix.
+"""
+
+import json
+import math
+import os
+import random
+import threading
+import time
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import psutil
+from action_msgs.msg import GoalStatus
+from rclpy.action import ActionClient, GoalResponse
+from task_manager_msgs.action import ExecuteTask
+from test_msgs.action import Fibonacci
+
+from task_manager.ros import qos
+from task_manager.testing.harness import (
+    RosHarness,
+    TopicRecorder,
+    WaitTimeoutError,
+    wait_for_future,
+)
+from task_manager.testing.probe import EXECUTE_TASK_ACTION
+from task_manager.testing.probe import WARM_UP_TASK as PROBE_WARM_UP_TASK
+from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.servers import CancelPolicy, ScriptedActionServer, ScriptedGoal
+
+T = TypeVar('T')
+SEED = int(os.environ.get('STRESS_SEED', '20240611'))
+CLIENTS = 4
+# key: kind of request, value: how many of them the stream holds (300 in all)
+KIND_COUNTS = {
+    'photo_held': 110,  # reentrant, held until the drain: the in-flight peak
+    'photo': 25,  # reentrant, any outcome
+    'nav': 25,  # blocking
+    'spin': 25,  # blocking, ignores cancels
+    'single': 30,  # same-name goals replace each other
+    'mission': 15,
+    'cancel': 20,  # system/cancel_task (or its alias) of earlier ids, known and unknown
+    'stop': 6,
+    'unknown': 12,
+    'bad_data': 12,
+    'duplicate': 20,  # the id of an earlier request, which may still be active
+}
+BLOCKING_NAMES = frozenset({'nav', 'spin'})
+PEAK_IN_FLIGHT = 100
+MAX_THREADS = 30
+IGNORED_CANCEL_TIMEOUT_SEC = 0.3
+SEND_TIMEOUT_SEC = 10.0
+END_TIMEOUT_SEC = 20.0
+WARM_UP_ATTEMPTS = 5
+WARM_UP_TIMEOUT_SEC = 2.0
+WARM_UP_TASK = '__warm_up__'
+BARRIER_ID = 'stress-barrier'
+BARRIER_TASK = '__barrier__'
+
+# Fibonacci `order` = outcome index * 1000 + hold; hold 0 ends at once, DRAIN at the drain.
+OUTCOMES = ('succeed', 'abort', 'reject')
+DRAIN = 999
+UNKNOWN_NAMES = ('nope', 'system/nope', '', 'NAV', 'nav ', 'système/ünïcode')
+BAD_DATA = (
+    ('nav', '{"order": '),
+    ('photo', '[]'),
+    ('single', '{"order": "abc"}'),
+    ('spin', '{}'),
+    ('nav', '{"order": 2147483648}'),
+    ('photo', ''),
+    ('single', 'NaN'),
+    ('system/mission', '{"subtasks": [{"task_name": "nope"}]}'),
+    ('system/mission', '{"subtasks": [{"task_name": "system/mission"}]}'),
+    ('system/cancel_task', 'null'),
+    ('system/cancel_task', '{"cancelled_tasks": "x"}'),
+    ('system/stop', '{"success": 1'),
+)
+DUPLICABLE = ('photo_held', 'photo', 'nav', 'spin', 'single', 'cancel', 'stop')
+
+
+def _encode(outcome: str, hold: int) -> int:
+    return OUTCOMES.index(outcome) * 1000 + hold
+
+
+def _decode(order: int) -> tuple[str, int]:
+    return OUTCOMES[order // 1000], order % 1000
+
+
+@dataclass
+class Request:
+    index: int
+    kind: str
+    task_id: str
+    task_name: str
+    task_data: str
+    subtask_ids: tuple[str, ...] = ()
+    expected: tuple[str, str] | None = None
+    """(status, error_code) when certain from the request alone."""
+
+
+@dataclass
+class Reply:
+    request: Request
+    goal_status: int
+    result: Any
+
+
+# ---- the scripted servers --------------------------------------------------------------------
+
+
+class GoalScript:
+    """Ends goals as their order says, on one clock of goal arrivals shared by all servers."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._arrivals = 0
+        self._draining = False
+        # (arrival count at which to end it, goal, outcome)
+        self._held: list[tuple[float, ScriptedGoal, str]] = []
+
+    def on_goal(self, goal: ScriptedGoal) -> None:
+        outcome, hold = _decode(goal.request.order)
+        with self._lock:
+            self._arrivals += 1
+            due = [h for h in self._held if h[0] <= self._arrivals]
+            self._held = [h for h in self._held if h[0] > self._arrivals]
+            if hold and not self._draining:
+                release_at = math.inf if hold == DRAIN else self._arrivals + hold
+                self._held.append((release_at, goal, outcome))
+            else:
+                due.append((0, goal, outcome))
+        for _, held_goal, held_outcome in due:
+            _end(held_goal, held_outcome)
+
+    def drain(self) -> int:
+        """End every held goal, and from now on every new goal at once; return how many."""
+        with self._lock:
+            self._draining = True
+            due, self._held = self._held, []
+        for _, goal, outcome in due:
+            _end(goal, outcome)
+        return len(due)
+
+
+def _end(goal: ScriptedGoal, outcome: str) -> None:
+    if outcome == 'succeed':
+        goal.succeed(Fibonacci.Result(sequence=[goal.request.order]))
+    else:
+        goal.abort()
+
+
+class OutcomeServer(ScriptedActionServer):
+    """A scripted server that also rejects the goals whose order says so."""
+
+    def _goal(self, request: Any) -> GoalResponse:
+        if _decode(request.order)[0] == 'reject':
+            self.rejected.add(request)
+            return GoalResponse.REJECT
+        return super()._goal(request)
+
+
+# ---- the request stream ----------------------------------------------------------------------
+
+
+def _server_order(rng: random.Random, max_hold: int) -> int:
+    outcome = rng.choices(OUTCOMES, weights=(6, 3, 1))[0]
+    if outcome == 'reject' or max_hold == 0 or rng.random() < 0.4:
+        return _encode(outcome, 0)
+    return _encode(outcome, rng.randint(1, max_hold))
+
+
+def _order_data(order: int) -> str:
+    return json.dumps({'order': order})
+
+
+def _kinds(rng: random.Random) -> list[str]:
+    """Every kind as often as KIND_COUNTS says, shuffled; no duplicate among the first ten."""
+    kinds = [
+        kind for kind, count in KIND_COUNTS.items() if kind != 'duplicate' for _ in range(count)
+    ]
+    rng.shuffle(kinds)
+    for _ in range(KIND_COUNTS['duplicate']):
+        kinds.insert(rng.randint(10, len(kinds)), 'duplicate')
+    return kinds
+
+
+def _plan(rng: random.Random) -> list[Request]:
+    requests: list[Request] = []
+    known_ids: list[str] = []  # every id so far, subtask ids included
+    for index, kind in enumerate(_kinds(rng)):
+        task_id = f'r{index:03d}'
+        if kind == 'photo_held':
+            order = _encode(rng.choice(('succeed', 'abort')), DRAIN)
+            request = Request(index, kind, task_id, 'photo', _order_data(order))
+        elif kind in ('photo', 'nav', 'spin', 'single'):
+            order = _server_order(rng, 40)
+            request = Request(index, kind, task_id, kind, _order_data(order))
+        elif kind == 'mission':
+            subtasks = []
+            for number in range(rng.randint(1, 3)):
+                name = rng.choice(('nav', 'single', 'photo'))
+                # photo ignores cancels: its subtasks end at once, so a mission cancel is quick
+                order = _server_order(rng, 0 if name == 'photo' else 10)
+                subtasks.append(
+                    {
+                        'task_id': f'{task_id}-s{number}',
+                        'task_name': name,
+                        'task_data': _order_data(order),
+                        'allow_skipping': rng.random() < 0.5,
+                    }
+                )
+            subtask_ids = tuple(s['task_id'] for s in subtasks)
+            data = json.dumps({'subtasks': subtasks})
+            request = Request(index, kind, task_id, 'system/mission', data, subtask_ids)
+            known_ids += subtask_ids
+        elif kind == 'cancel':
+            recent = known_ids[-40:]
+            ids = rng.sample(recent, min(len(recent), rng.randint(1, 3)))
+            if rng.random() < 0.5:
+                ids.append(f'ghost-{index}')
+            name = rng.choice(('system/cancel_task', 'system/cancel_tasks'))
+            data = json.dumps({'cancelled_tasks': ids})
+            request = Request(index, kind, task_id, name, data)
+        elif kind == 'stop':
+            request = Request(index, kind, task_id, 'system/stop', '{}')
+        elif kind == 'unknown':
+            name = rng.choice((*UNKNOWN_NAMES, f'unknown-{index}'))
+            data = _order_data(1)
+            request = Request(index, kind, task_id, name, data, expected=('ERROR', 'unknown_task'))
+        elif kind == 'bad_data':
+            name, data = rng.choice(BAD_DATA)
+            expected = ('ERROR', 'task_data_parsing_failed')
+            request = Request(index, kind, task_id, name, data, expected=expected)
+        else:  # duplicate: a copy of an earlier request, its id included
+            candidates = [r for r in requests if r.kind in DUPLICABLE]
+            held = [r for r in candidates if r.kind == 'photo_held']
+            original = rng.choice(held if held and rng.random() < 0.6 else candidates)
+            request = Request(index, kind, original.task_id, original.task_name, original.task_data)
+        requests.append(request)
+        if kind != 'duplicate':
+            known_ids.append(task_id)
+    return requests
+
+
+# ---- clients and observers -------------------------------------------------------------------
+
+
+class StressClient:
+    """One ExecuteTask client, sending its share of the stream from its own thread."""
+
+    def __init__(self, ros: RosHarness, number: int, requests: list[Request]) -> None:
+        self.number = number
+        self.requests = requests
+        self._ros = ros
+        self.client: ActionClient = ros.on_executor(
+            lambda: ActionClient(
+                ros.node,
+                ExecuteTask,
+                EXECUTE_TASK_ACTION,
+                goal_service_qos_profile=qos.DEEP_RELIABLE,
+                result_service_qos_profile=qos.DEEP_RELIABLE,
+                cancel_service_qos_profile=qos.DEEP_RELIABLE,
+            ),
+        )
+        self.pending: list[tuple[Request, Any]] = []  # (request, result future)
+        self.error: BaseException | None = None
+        self.sent = threading.Event()
+        self._thread = threading.Thread(target=self._send_all, name=f'stress-client-{number}')
+
+    def destroy(self) -> None:
+        self._ros.on_executor(self.client.destroy)
+
+    def warm_up(self) -> None:
+        """One round trip, so that DDS has matched this client's reply paths before the stream."""
+        assert self.client.wait_for_server(timeout_sec=SEND_TIMEOUT_SEC), 'no execute_task'
+        for attempt in range(WARM_UP_ATTEMPTS):
+            task_id = f'warm-up-c{self.number}-{attempt}'
+            goal = ExecuteTask.Goal(task_id=task_id, task_name=WARM_UP_TASK)
+            try:
+                handle = wait_for_future(
+                    self.client.send_goal_async(goal), WARM_UP_TIMEOUT_SEC, 'warm-up goal'
+                )
+                wait_for_future(handle.get_result_async(), WARM_UP_TIMEOUT_SEC, 'warm-up result')
+                return
+            except WaitTimeoutError:
+                continue
+        raise WaitTimeoutError(f'client {self.number}: no round trip in {WARM_UP_ATTEMPTS} tries')
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _send_all(self) -> None:
+        try:
+            for request in self.requests:
+                goal = ExecuteTask.Goal(
+                    task_id=request.task_id,
+                    task_name=request.task_name,
+                    source=f'stress-client-{self.number}',
+                    task_data=request.task_data,
+                )
+                handle = wait_for_future(
+                    self.client.send_goal_async(goal), SEND_TIMEOUT_SEC, f'goal {request.index}'
+                )
+                assert handle.accepted, f'goal {request.index} not accepted'
+                self.pending.append((request, handle.get_result_async()))
+        except BaseException as error:  # reported by the test thread
+            self.error = error
+        finally:
+            self.sent.set()
+
+    def wait_sent(self, timeout_sec: float) -> None:
+        if not self.sent.wait(timeout_sec):
+            raise WaitTimeoutError(f'client {self.number} still sending after {timeout_sec} s')
+        self._thread.join(timeout_sec)
+        if self.error is not None:
+            raise self.error
+
+    def replies(self, deadline: float) -> list[Reply]:
+        replies = []
+        for request, future in self.pending:
+            remaining = max(0.1, deadline - time.monotonic())
+            response = wait_for_future(future, remaining, f'result of request {request.index}')
+            replies.append(Reply(request, response.status, response.result))
+        return replies
+
+
+class ActiveTasksWatch:
+    """Follows /task_manager/active_tasks and samples the node's threads at every change."""
+
+    def __init__(self, active: TopicRecorder, pid: int) -> None:
+        self._active = active
+        self._process = psutil.Process(pid)
+        self.max_in_flight = 0
+        self.max_threads = self._process.num_threads()
+        self.threads_at_max_in_flight = self.max_threads
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._follow, name='active-tasks-watch')
+        self._thread.start()
+
+    def sample_threads(self) -> int:
+        threads = self._process.num_threads()
+        self.max_threads = max(self.max_threads, threads)
+        return threads
+
+    def _follow(self) -> None:
+        seen = 0
+        while not self._stop.is_set():
+            try:
+                seen, latest = self._active.wait_until(
+                    lambda msgs, seen=seen: (len(msgs), msgs[-1]) if len(msgs) > seen else None,
+                    0.5,
+                    'an active_tasks message',
+                )
+            except WaitTimeoutError:
+                continue
+            threads = self.sample_threads()
+            if len(latest.active_tasks) > self.max_in_flight:
+                self.max_in_flight = len(latest.active_tasks)
+                self.threads_at_max_in_flight = threads
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join(5.0)
+
+
+def _in_progress(message: Any) -> list[Any]:
+    return [t for t in message.active_tasks if t.task_status == 'IN_PROGRESS']
+
+
+# ---- the test --------------------------------------------------------------------------------
+
+
+def test_concurrent_mixed_requests_are_each_answered_once_and_consistently(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    rng = random.Random(SEED)
+    requests = _plan(rng)
+    script = GoalScript()
+    servers = {
+        'nav': OutcomeServer(ros.node, Fibonacci, f'{topic_prefix}/nav', on_goal=script.on_goal),
+        'spin': OutcomeServer(
+            ros.node,
+            Fibonacci,
+            f'{topic_prefix}/spin',
+            cancel_policy=CancelPolicy.IGNORE,
+            on_goal=script.on_goal,
+        ),
+        'single': OutcomeServer(
+            ros.node, Fibonacci, f'{topic_prefix}/single', on_goal=script.on_goal
+        ),
+        'photo': OutcomeServer(
+            ros.node,
+            Fibonacci,
+            f'{topic_prefix}/photo',
+            cancel_policy=CancelPolicy.IGNORE,
+            on_goal=script.on_goal,
+        ),
+    }
+    tm = launch_task_manager(
+        {
+            'nav': action_task('nav', f'{topic_prefix}/nav', blocking=True, cancel_on_stop=True),
+            'spin': action_task(
+                'spin',
+                f'{topic_prefix}/spin',
+                blocking=True,
+                cancel_on_stop=True,
+                cancel_timeout=IGNORED_CANCEL_TIMEOUT_SEC,
+            ),
+            'single': action_task('single', f'{topic_prefix}/single'),
+            'photo': action_task(
+                'photo',
+                f'{topic_prefix}/photo',
+                reentrant=True,
+                cancel_timeout=IGNORED_CANCEL_TIMEOUT_SEC,
+            ),
+        }
+    )
+    clients = [StressClient(ros, n, requests[n::CLIENTS]) for n in range(CLIENTS)]
+    watch = ActiveTasksWatch(tm.active, tm.process.process.pid)  # type: ignore[attr-defined]
+    try:
+        for client in clients:
+            client.warm_up()
+        began = time.monotonic()
+        for client in clients:
+            client.start()
+        for client in clients:
+            client.wait_sent(END_TIMEOUT_SEC)
+
+        # every held photo runs now: the peak, with the threads it takes
+        tm.active.wait_until(
+            lambda msgs: msgs and len(msgs[-1].active_tasks) >= PEAK_IN_FLIGHT,
+            END_TIMEOUT_SEC,
+            f'{PEAK_IN_FLIGHT} tasks in flight',
+        )
+        threads_at_peak = watch.sample_threads()
+        drained = script.drain()
+
+        deadline = time.monotonic() + END_TIMEOUT_SEC
+        replies = [reply for client in clients for reply in client.replies(deadline)]
+        tm.active.wait_until(
+            lambda msgs: msgs and not msgs[-1].active_tasks, END_TIMEOUT_SEC, 'no active task'
+        )
+        wall_sec = time.monotonic() - began
+        # results are published in order: once the barrier's is in, every earlier one is
+        barrier = tm.run(BARRIER_TASK, task_id=BARRIER_ID)
+        assert barrier.error_code == 'unknown_task'
+        tm.wait_result_message(BARRIER_ID)
+        threads_at_end = watch.sample_threads()
+    finally:
+        watch.stop()
+        for client in clients:
+            client.destroy()
+
+    actives = tm.active.snapshot()
+    max_in_flight = max(watch.max_in_flight, *(len(m.active_tasks) for m in actives))
+    print(
+        f'\nstress seed {SEED}: {len(replies)} requests from {len(clients)} clients in '
+        f'{wall_sec:.1f} s; max in flight {max_in_flight}; threads: max {watch.max_threads}, '
+        f'at peak {threads_at_peak}, at end {threads_at_end}; {drained} goals drained; '
+        f'outcomes {dict(Counter((r.result.task_status, r.result.error_code) for r in replies))}; '
+        'goals (received, rejected) by server '
+        + str({n: (len(s.goals.items), len(s.rejected.items)) for n, s in servers.items()})
+    )
+
+    # one ExecuteTask result per request, in the goal state its status calls for
+    requests_per_id = Counter(r.task_id for r in requests)
+    assert len(replies) == len(requests)
+    for reply in replies:
+        result = reply.result
+        if reply.request.task_id:
+            assert result.task_id == reply.request.task_id
+        if reply.request.expected is not None:
+            assert (result.task_status, result.error_code) == reply.request.expected, reply
+        expected_goal_status = (
+            GoalStatus.STATUS_SUCCEEDED
+            if result.task_status == 'DONE'
+            else GoalStatus.STATUS_ABORTED
+        )
+        assert reply.goal_status == expected_goal_status, reply
+        if result.error_code == 'duplicate_id':
+            # the copy may reach the node before its original: either can be the duplicate
+            assert requests_per_id[result.task_id] > 1 and result.task_status == 'ERROR', reply
+    assert any(r.result.error_code == 'duplicate_id' for r in replies)
+
+    # one /results message per request, agreeing with its ExecuteTask result
+    not_counted = {WARM_UP_TASK, PROBE_WARM_UP_TASK, BARRIER_TASK}
+    results = [m for m in tm.results.snapshot() if m.task_name not in not_counted]
+    replies_by_id: dict[str, list[Reply]] = {}
+    for reply in replies:
+        replies_by_id.setdefault(reply.result.task_id, []).append(reply)
+    subtask_ids = {s for r in requests for s in r.subtask_ids}
+    published_by_id: dict[str, list[Any]] = {}
+    for message in results:
+        published_by_id.setdefault(message.task_id, []).append(message)
+    assert set(published_by_id) <= set(replies_by_id) | subtask_ids
+    for task_id, its_replies in replies_by_id.items():
+        published = published_by_id.get(task_id, [])
+        assert Counter((m.task_status, m.error_code) for m in published) == Counter(
+            (r.result.task_status, r.result.error_code) for r in its_replies
+        ), task_id
+        assert all(m.source.startswith('stress-client-') for m in published), task_id
+
+    # mission subtasks: one result for each that ran, as the mission's row says
+    for reply in replies:
+        if reply.request.kind != 'mission':
+            continue
+        # no rows when the mission never started (e.g. replaced while it waited)
+        rows = json.loads(reply.result.task_result).get('mission_results')
+        if rows is None:
+            assert not any(s in published_by_id for s in reply.request.subtask_ids), reply
+            continue
+        assert [row['task_id'] for row in rows] == list(reply.request.subtask_ids)
+        for row in rows:
+            published = published_by_id.get(row['task_id'], [])
+            if row['task_status'] == 'RECEIVED':
+                assert published == [], row
+            else:
+                assert [(m.task_status, m.source) for m in published] == [
+                    (row['task_status'], 'Mission')
+                ], row
+
+    # never two blocking tasks at once; the list empties; threads stay bounded
+    for message in actives:
+        blocking = [t.task_id for t in _in_progress(message) if t.task_name in BLOCKING_NAMES]
+        assert len(blocking) <= 1, blocking
+    assert not actives[-1].active_tasks
+    assert max_in_flight >= PEAK_IN_FLIGHT
+    assert watch.max_threads <= MAX_THREADS
+    assert threads_at_end <= MAX_THREADS
+
+
+# ---- found by the stress test --------------------------------------------------------------
+
+
+def test_a_task_starts_when_the_conflicting_task_fails_to_start(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    ScriptedActionServer(
+        ros.node, Fibonacci, f'{topic_prefix}/nav', on_goal=lambda goal: goal.succeed()
+    )
+    tm = launch_task_manager(
+        {
+            # no server: its start fails after server_wait_timeout
+            'ghost': action_task('ghost', f'{topic_prefix}/ghost', blocking=True),
+            'nav': action_task('nav', f'{topic_prefix}/nav', blocking=True),
+        },
+        server_wait_timeout=0.5,
+    )
+    ghost = tm.send('ghost', {'order': 1}, task_id='ghost')
+
+    nav = tm.run('nav', {'order': 1}, task_id='nav')
+
+    assert (tm.result_of(ghost).result.error_code, nav.task_status, nav.error_code) == (
+        'task_start_failed',
+        'DONE',
+        '',
+    )
