@@ -1,6 +1,7 @@
 """taskctl driven as a user would: a subprocess against a real node and real servers."""
 
 import json
+import signal
 import subprocess
 import sys
 import time
@@ -140,3 +141,42 @@ def test_no_task_manager_is_reported_within_the_bound() -> None:
     assert missing.returncode == 4
     assert missing.stderr.startswith('TaskManagerUnavailable: no Task Manager answered')
     assert time.monotonic() - started < 10.0
+
+
+def _until_line(process: subprocess.Popen[str], text: str) -> list[str]:
+    """Read the process's output until a line contains `text` (bounded by the test timeout)."""
+    assert process.stdout is not None
+    lines = []
+    for line in process.stdout:
+        lines.append(line)
+        if text in line:
+            return lines
+    raise AssertionError(f'{text!r} never printed; output: {"".join(lines)}')
+
+
+def test_watch_and_follow_show_changes_until_ctrl_c(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm = _launch(ros, launch_task_manager, topic_prefix)
+    watching = subprocess.Popen(
+        [TASKCTL, 'active', '--watch'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    following = subprocess.Popen(
+        [TASKCTL, 'results', '--follow', '--last', '0', '--json'],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    _until_line(watching, 'active tasks (0)')  # connected: the table is drawn
+
+    tm.send('math/fib', {'order': 50}, task_id='watched')
+    seen_active = _until_line(watching, 'watched')
+    tm.run('math/fib', {'order': 1}, task_id='followed')
+    seen_result = _until_line(following, '"followed"')
+    for process in (watching, following):
+        process.send_signal(signal.SIGINT)
+
+    assert any('IN_PROGRESS' in line for line in seen_active)
+    assert json.loads(seen_result[-1])['status'] == 'DONE'
+    assert watching.wait(RUN_TIMEOUT_SEC) == 0
+    assert following.wait(RUN_TIMEOUT_SEC) == 0

@@ -29,12 +29,18 @@ def active(
         if not watch:
             output.print(active_table(tasks))
             return
-        with Live(active_table(tasks), console=output) as live:
-            try:
+        try:
+            if output.is_terminal:
+                with Live(active_table(tasks), console=output) as live:
+                    for update in client.active_task_updates():
+                        live.update(active_table(update))
+            else:  # a pipe: one table per change, as it happens
+                output.print(active_table(tasks))
                 for update in client.active_task_updates():
-                    live.update(active_table(update))
-            except KeyboardInterrupt:
-                pass
+                    output.print(active_table(update))
+                    output.file.flush()
+        except KeyboardInterrupt:
+            pass
 
 
 def result_line(result: TaskResult, as_json: bool) -> str:
