@@ -151,7 +151,9 @@ class TaskManagerClient:
             result_service_qos_profile=qos.DEEP_RELIABLE,
             cancel_service_qos_profile=qos.DEEP_RELIABLE,
         )
-        self._subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, self._on_active)
+        self._subscribe(
+            ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.LATEST_ACTIVE_TASKS, self._on_active
+        )
         self._subscribe(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS, self._on_result)
         self._executor = SingleThreadedExecutor(context=self._context)
         self._executor.add_node(self.node)

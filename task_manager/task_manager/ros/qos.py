@@ -20,3 +20,12 @@ ACTIVE_TASKS = QoSProfile(
 )
 
 RESULTS = DEEP_RELIABLE
+
+# A subscriber that wants the current list only: of the history a transient-local
+# publisher sends to a new subscriber, it keeps the newest message.
+LATEST_ACTIVE_TASKS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
