@@ -81,12 +81,12 @@ class ActionTaskRunner:
         self._action_type = action_type
         self._timeouts = timeouts
         self._client = ActionServicesClient(node, action_type, spec.topic)
-        self._in_flight: set[ActionExecution] = set()
         self._watch = ServerWatch(
             node,
             self._probe,
             WatchSettings(timeouts.server_check_period_sec, timeouts.server_loss_timeout_sec),
-            on_lost=self._server_lost,
+            loss=f'action server {spec.topic} stopped answering for more than '
+            f'{timeouts.server_loss_timeout_sec} s',
         )
 
     def parse(self, task_data: str) -> Any:
@@ -119,17 +119,8 @@ class ActionTaskRunner:
             raise TaskRequestError(
                 ErrorCode.TASK_START_FAILED, f'action server {topic} rejected the goal'
             )
-        return self._track(ActionExecution(self._node, self._client, goal_id, self.spec))
-
-    def _track(self, execution: ActionExecution) -> ActionExecution:
-        self._in_flight.add(execution)
-        self._watch.watch()
-
-        def forget(_: Future) -> None:
-            self._in_flight.discard(execution)
-            self._watch.unwatch()
-
-        execution.outcome.add_done_callback(forget)
+        execution = ActionExecution(self._node, self._client, goal_id, self.spec)
+        self._watch.track(execution)
         return execution
 
     def _probe(self) -> bool | Future:
@@ -145,12 +136,3 @@ class ActionTaskRunner:
         response = goal_future.result()
         if response is not None and response.accepted:
             self._client.cancel(goal_id)
-
-    def _server_lost(self) -> None:
-        reason = (
-            f'action server {self.spec.topic} stopped answering for more than '
-            f'{self._timeouts.server_loss_timeout_sec} s'
-        )
-        self._node.get_logger().error(f'{reason}; failing its {len(self._in_flight)} task(s)')
-        for execution in list(self._in_flight):
-            execution.fail(reason)

@@ -10,12 +10,21 @@ that moment, the moment the loss becomes visible.
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 from rclpy.node import Node
 from rclpy.task import Future
 
 # A probe answers True (alive now), False (gone now), or a future that completes if alive.
 Probe = Callable[[], bool | Future]
+
+
+class FailableExecution(Protocol):
+    """A running task that can be ended ERROR without its server."""
+
+    outcome: Future
+
+    def fail(self, reason: str) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -27,20 +36,15 @@ class WatchSettings:
 
 
 class ServerWatch:
-    """Watches one server while tasks run on it; calls `on_lost` once it is gone."""
+    """Watches one server while tasks run on it; once it is lost, they end ERROR."""
 
-    def __init__(
-        self,
-        node: Node,
-        probe: Probe,
-        settings: WatchSettings,
-        on_lost: Callable[[], None],
-    ) -> None:
+    def __init__(self, node: Node, probe: Probe, settings: WatchSettings, loss: str) -> None:
+        """`loss` says what happened, e.g. 'service /x left the ROS graph'."""
         self._node = node
         self._probe = probe
         self._settings = settings
-        self._on_lost = on_lost
-        self._watched = 0
+        self._loss = loss
+        self._in_flight: set[FailableExecution] = set()
         self._timer = None
         self._last_alive_ns = 0
         self._probe_in_flight: Future | None = None
@@ -48,16 +52,17 @@ class ServerWatch:
     def _now_ns(self) -> int:
         return self._node.get_clock().now().nanoseconds
 
-    def watch(self) -> None:
-        """One more task runs on the server; the watch runs while any does."""
-        self._watched += 1
+    def track(self, execution: FailableExecution) -> None:
+        """Watch the server while `execution` runs."""
+        self._in_flight.add(execution)
         if self._timer is None:
             self._last_alive_ns = self._now_ns()
             self._timer = self._node.create_timer(self._settings.check_period_sec, self._check)
+        execution.outcome.add_done_callback(lambda _: self._untrack(execution))
 
-    def unwatch(self) -> None:
-        self._watched = max(0, self._watched - 1)
-        if self._watched == 0 and self._timer is not None:
+    def _untrack(self, execution: FailableExecution) -> None:
+        self._in_flight.discard(execution)
+        if not self._in_flight and self._timer is not None:
             self._timer.cancel()
             self._node.destroy_timer(self._timer)
             self._timer = None
@@ -71,8 +76,12 @@ class ServerWatch:
         if self._probe_in_flight is None or self._probe_in_flight.done():
             self._send_probe()
         silent_sec = (self._now_ns() - self._last_alive_ns) / 1e9
-        if silent_sec > self._settings.loss_timeout_sec and self._watched:
-            self._on_lost()
+        if silent_sec > self._settings.loss_timeout_sec and self._in_flight:
+            self._node.get_logger().error(
+                f'{self._loss}; failing its {len(self._in_flight)} task(s)'
+            )
+            for execution in list(self._in_flight):
+                execution.fail(self._loss)
 
     def _send_probe(self) -> None:
         answer = self._probe()

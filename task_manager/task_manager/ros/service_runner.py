@@ -70,12 +70,11 @@ class ServiceTaskRunner:
         self._service_type = service_type
         self._timeouts = timeouts
         self._client = node.create_client(service_type, spec.topic, qos_profile=DEEP_RELIABLE)
-        self._in_flight: set[ServiceExecution] = set()
         self._watch = ServerWatch(
             node,
             self._client.service_is_ready,
             WatchSettings(timeouts.server_check_period_sec, timeouts.server_loss_timeout_sec),
-            on_lost=self._server_lost,
+            loss=f'service {spec.topic} left the ROS graph',
         )
 
     def parse(self, task_data: str) -> Any:
@@ -91,18 +90,5 @@ class ServiceTaskRunner:
         execution = ServiceExecution(
             self._node, self._client, message, self.spec, self._timeouts.service_response_sec
         )
-        self._in_flight.add(execution)
-        self._watch.watch()
-
-        def forget(_: Future) -> None:
-            self._in_flight.discard(execution)
-            self._watch.unwatch()
-
-        execution.outcome.add_done_callback(forget)
+        self._watch.track(execution)
         return execution
-
-    def _server_lost(self) -> None:
-        reason = f'service {self.spec.topic} left the ROS graph'
-        self._node.get_logger().error(f'{reason}; failing its {len(self._in_flight)} task(s)')
-        for execution in list(self._in_flight):
-            execution.fail(reason)
