@@ -70,6 +70,10 @@ class TaskDispatcher:
         # ids of tasks whose start on their server is in flight
         self._starting_ids: set[str] = set()
         self._closing_reason = ''
+        # Tasks that ended since the last active_tasks publication: shown once more, with
+        # their end status, before they leave the list.
+        self._ended_unpublished: list[TaskRecord] = []
+        self._publication_pending = False
         # completes once no task is active; replaced whenever a task is admitted
         self._idle: Future = completed_future()
 
@@ -150,8 +154,8 @@ class TaskDispatcher:
             self._started[task_id].set_result(None)
         self._executions[task_id] = execution
         record.mark_started()
-        self._log.info(f'task {task_id} ({record.task_name}) from {record.source!r} started')
-        self._publish_active()
+        self._log.debug(f'task {task_id} ({record.task_name}) from {record.source!r} started')
+        self._publish_active_soon()
         execution.outcome.add_done_callback(lambda done: self._settle(task_id, done.result()))
         if record.cancel_reason is not None:  # a cancel arrived while the task was starting
             self._cancel_future(record, record.cancel_reason)
@@ -267,22 +271,39 @@ class TaskDispatcher:
     def _finish(self, record: TaskRecord, end: TaskEnd) -> None:
         was_active = record.status is TaskStatus.IN_PROGRESS
         record.mark_ended(end.status, end.result, end.error_code)
-        if was_active:
-            self._publish_active()  # the final status, once, before the task leaves the list
         self.registry.remove(record.task_id)
         for table in (self._finished, self._started, self._executions):
             table.pop(record.task_id, None)
         if was_active:
-            self._publish_active()
+            self._ended_unpublished.append(record)
+            self._publish_active_soon()
         self._reporter.publish_result(record)
         if not len(self.registry) and not self._idle.done():
             self._idle.set_result(None)
+        ran_sec = (
+            f' after {record.ended_at - record.started_at:.2f} s'
+            if record.started_at is not None and record.ended_at is not None
+            else ''
+        )
         self._log.info(
-            f'task {record.task_id} ({record.task_name}) ended {record.status}'
-            + (f' ({record.error_code})' if record.error_code else '')
+            f'task {record.task_id} ({record.task_name}) from {record.source!r} ended '
+            f'{record.status}{ran_sec}' + (f' ({record.error_code})' if record.error_code else '')
         )
 
-    def _publish_active(self) -> None:
-        self._reporter.publish_active(
-            [r for r in self.registry if r.status is not TaskStatus.RECEIVED]
-        )
+    def _publish_active_soon(self) -> None:
+        """Publish active_tasks once the executor has handled what is ready now.
+
+        The changes of one executor turn share one publication: with hundreds of tasks,
+        a list per change would cost more than the tasks themselves.
+        """
+        if not self._publication_pending:
+            self._publication_pending = True
+            self._spawn(self._publish_active())
+
+    async def _publish_active(self) -> None:
+        self._publication_pending = False
+        in_progress = [r for r in self.registry if r.status is TaskStatus.IN_PROGRESS]
+        if self._ended_unpublished:
+            self._reporter.publish_active(in_progress + self._ended_unpublished)
+            self._ended_unpublished = []
+        self._reporter.publish_active(in_progress)

@@ -63,6 +63,8 @@ class TaskManagerNode(Node):
         settings = read_settings(self)
         specs = read_task_specs(self, reserved_names=set(SYSTEM_TASK_NAMES))
         user_runners = [self._create_runner(spec, settings.timeouts) for spec in specs]
+        # key: task id, value: its entry in active_tasks, built once and kept while it runs
+        self._active_task_msgs: dict[str, ActiveTask] = {}
         self._active_publisher = self.create_publisher(
             ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS
         )
@@ -134,9 +136,17 @@ class TaskManagerNode(Node):
     # ---- TaskReporter ----------------------------------------------------------------------
 
     def publish_active(self, records: list[TaskRecord]) -> None:
-        self._active_publisher.publish(
-            ActiveTaskArray(active_tasks=[active_task_msg(r) for r in records])
-        )
+        messages = []
+        for record in records:
+            message = self._active_task_msgs.get(record.task_id)
+            if message is None:
+                message = self._active_task_msgs[record.task_id] = active_task_msg(record)
+            elif message.task_status != record.status:
+                message.task_status = str(record.status)
+            if record.is_final:  # shown for the last time
+                del self._active_task_msgs[record.task_id]
+            messages.append(message)
+        self._active_publisher.publish(ActiveTaskArray(active_tasks=messages))
 
     def publish_result(self, record: TaskRecord) -> None:
         message = TaskDoneResult(
