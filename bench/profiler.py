@@ -37,7 +37,7 @@ GENERIC_AREAS = (
     ('rclpy actions, other', ('rclpy/action/',)),
     ('rclpy executor loop (pending tasks, wait sets)', ('rclpy/',)),
 )
-NODE_ENTRY_POINT = 'task_manager/ros/main.py'
+NODE_ENTRY_POINT = 'task_manager/ros/node_process.py'
 # a thread blocked in sigwait (waiting for a shutdown signal) is idle, but py-spy counts it
 IDLE_LEAF = 'sigwait ('
 

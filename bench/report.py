@@ -11,7 +11,7 @@ from pathlib import Path
 
 from rclpy.utilities import get_rmw_implementation_identifier
 
-NODE_ENTRY_POINT = 'task_manager.ros.main'
+NODE_ENTRY_POINT = 'task_manager.ros.node_process'
 BENCH_EXECUTOR = 'SingleThreadedExecutor (spun in a background thread)'
 SERVERS_EXECUTOR = 'SingleThreadedExecutor (separate process)'
 
@@ -53,7 +53,7 @@ def cpu_model() -> str:
 def node_executor() -> str:
     """The executor class the node's entry point spins, read from its source.
 
-    Not imported: importing an entry point may set process-wide state (signal masks).
+    Read, not imported: the node's modules are meant to be imported by its entry point.
     """
     spec = importlib.util.find_spec(NODE_ENTRY_POINT)
     source = Path(spec.origin).read_text() if spec and spec.origin else ''
@@ -88,7 +88,7 @@ def machine_lines() -> list[str]:
         f'python  : {platform.python_version()}; rclpy '
         f'{importlib.metadata.version("rclpy")}; RMW {get_rmw_implementation_identifier()}; '
         f'ROS_DOMAIN_ID {os.environ.get("ROS_DOMAIN_ID")}',
-        f'executor: node {node_executor()} (task_manager.ros.main); bench client '
+        f'executor: node {node_executor()} (task_manager.ros.node_process); bench client '
         f'{BENCH_EXECUTOR}; servers {SERVERS_EXECUTOR}',
         f'load    : {load_1:.2f} (1 min), {load_5:.2f} (5 min) at start',
     ]
