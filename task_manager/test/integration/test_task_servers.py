@@ -1,5 +1,7 @@
 """enable_task_servers: every task also at /task_manager/task/<task_name>, same machinery."""
 
+import threading
+
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
 
@@ -58,3 +60,34 @@ def test_task_servers_run_tasks_through_the_task_manager(
         ('set', 'DONE', 'task_server'),
     ]
     action_client.destroy()
+
+
+def test_feedback_of_an_action_task_reaches_the_task_servers_client(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    server = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib')
+    launch_task_manager(
+        {'fib': action_task('fib', f'{topic_prefix}/fib')}, enable_task_servers=True
+    )
+    client = ros.action_client(Fibonacci, '/task_manager/task/fib')
+    assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
+    received: list[list[int]] = []
+    got_feedback = threading.Event()
+
+    def on_feedback(message: Fibonacci.Impl.FeedbackMessage) -> None:
+        received.append(list(message.feedback.sequence))
+        got_feedback.set()
+
+    goal_handle = wait_for_future(
+        client.send_goal_async(Fibonacci.Goal(order=2), feedback_callback=on_feedback),
+        TIMEOUT_SEC,
+        'goal',
+    )
+    goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
+    goal.publish_feedback(Fibonacci.Feedback(sequence=[0, 1]))
+
+    assert got_feedback.wait(TIMEOUT_SEC)
+    goal.succeed(Fibonacci.Result(sequence=[0, 1, 1]))
+    result = wait_for_future(goal_handle.get_result_async(), TIMEOUT_SEC, 'result')
+    assert received[0] == [0, 1]
+    assert list(result.result.sequence) == [0, 1, 1]
