@@ -168,6 +168,7 @@ def test_watch_and_follow_show_changes_until_ctrl_c(
         text=True,
     )
     _until_line(watching, 'active tasks (0)')  # connected: the table is drawn
+    _until_line(following, 'probe-warm-up')  # connected: the kept results are printed
 
     tm.send('math/fib', {'order': 50}, task_id='watched')
     seen_active = _until_line(watching, 'watched')

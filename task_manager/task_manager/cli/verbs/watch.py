@@ -24,13 +24,12 @@ def active(
     watch: bool = typer.Option(False, '--watch', help='Keep the table up to date until Ctrl-C'),
 ) -> None:
     """Show the tasks in progress."""
-    with connected(ctx) as client:
-        tasks = client.active_tasks()
-        if not watch:
-            output.print(active_table(tasks))
-            return
-        try:
-            if output.is_terminal:
+    try:
+        with connected(ctx) as client:
+            tasks = client.active_tasks()
+            if not watch:
+                output.print(active_table(tasks))
+            elif output.is_terminal:
                 with Live(active_table(tasks), console=output) as live:
                     for update in client.active_task_updates():
                         live.update(active_table(update))
@@ -39,8 +38,8 @@ def active(
                 for update in client.active_task_updates():
                     output.print(active_table(update))
                     output.file.flush()
-        except KeyboardInterrupt:
-            pass
+    except KeyboardInterrupt:  # how watching ends, wherever it is
+        pass
 
 
 def result_line(result: TaskResult, as_json: bool) -> str:
@@ -72,13 +71,12 @@ def results(
     as_json: bool = typer.Option(False, '--json', help='One JSON object per line'),
 ) -> None:
     """Print the latest task results the Task Manager kept, oldest first."""
-    with connected(ctx) as client:
-        for result in client.recent_results(last):
-            print(result_line(result, as_json), flush=True)
-        if not follow:
-            return
-        try:
-            for result in client.results():
+    try:
+        with connected(ctx) as client:
+            for result in client.recent_results(last):
                 print(result_line(result, as_json), flush=True)
-        except KeyboardInterrupt:
-            pass
+            if follow:
+                for result in client.results():
+                    print(result_line(result, as_json), flush=True)
+    except KeyboardInterrupt:  # how following ends, wherever it is
+        pass
