@@ -1,8 +1,8 @@
 """Checks of a parameters file that ROS itself would refuse with a traceback, done first.
 
-rcl and rclpy reject lists that are empty or mix types, and read subnormal floats as
-strings; they say so in several lines or a traceback. Checking the YAML first gives one
-line that names the parameter.
+rcl and rclpy reject lists that are empty or mix types and empty mappings, and read
+subnormal floats as strings; they say so in several lines or a traceback. Checking the
+YAML first gives one line that names the parameter.
 """
 
 import sys
@@ -37,7 +37,7 @@ def check_params_file(path: Path) -> None:
 
 
 def _leaves(content: Any, prefix: str) -> Iterator[tuple[str, Any]]:
-    if isinstance(content, dict):
+    if isinstance(content, dict) and content:
         for key, value in content.items():
             yield from _leaves(value, f'{prefix}.{key}' if prefix else str(key))
     else:
@@ -49,6 +49,8 @@ def _is_subnormal(value: Any) -> bool:
 
 
 def _problem(value: Any) -> str:
+    if value == {}:
+        return 'an empty mapping is no value; give the entry its keys or remove it'
     if _is_subnormal(value) or (isinstance(value, list) and any(map(_is_subnormal, value))):
         return 'a float too small for ROS parameters (subnormal)'
     if not isinstance(value, list):

@@ -45,8 +45,11 @@ SYSTEM_NAMES = {
 
 
 def _settings(max_examples: int) -> settings:
+    # Derandomized: the same examples on every run, so that CI is deterministic. New
+    # inputs are explored by running with more examples and random seeds by hand.
     return settings(
         max_examples=max_examples,
+        derandomize=True,
         deadline=None,
         suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow],
     )

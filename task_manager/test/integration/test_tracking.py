@@ -28,11 +28,15 @@ def test_active_tasks_show_progress_then_final_status_then_removal(
 
     server.wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
     tm.result_of(handle)
-    tm.wait_active(lambda tasks: all(task_id != 'tracked' for task_id, _ in tasks))
 
-    states = [_ids(m) for m in tm.active.snapshot()]
-    in_progress = states.index([('tracked', 'IN_PROGRESS')])
-    assert states[in_progress + 1 :] == [[('tracked', 'DONE')], []]
+    def after_progress(messages: list[ActiveTaskArray]) -> list[list[tuple[str, str]]]:
+        states = [_ids(m) for m in messages]
+        return states[states.index([('tracked', 'IN_PROGRESS')]) + 1 :]
+
+    later = tm.active.wait_until(
+        lambda msgs: [] in after_progress(msgs) and after_progress(msgs), TIMEOUT_SEC
+    )
+    assert later == [[('tracked', 'DONE')], []]
 
 
 def test_late_subscriber_gets_the_current_active_list(

@@ -39,6 +39,7 @@ def test_params_files_are_found_in_the_ros_arguments() -> None:
         ('[true, 1]', 'mixes bool, int'),
         ('2.2e-309', 'subnormal'),
         ('[1.5, 2.2e-309]', 'subnormal'),
+        ('{}', 'an empty mapping is no value'),
     ],
 )
 def test_values_ros_cannot_hold_are_named(tmp_path: Path, value: str, problem: str) -> None:
