@@ -21,19 +21,44 @@ WARM_UP_ATTEMPTS = 5
 WARM_UP_TIMEOUT_SEC = 2.0
 
 
+def execute_task_client(ros: RosHarness) -> Any:
+    """An ExecuteTask action client with deep queues, so that bursts are not dropped."""
+    return ros.action_client(
+        ExecuteTask,
+        EXECUTE_TASK_ACTION,
+        goal_service_qos_profile=qos.DEEP_RELIABLE,
+        result_service_qos_profile=qos.DEEP_RELIABLE,
+        cancel_service_qos_profile=qos.DEEP_RELIABLE,
+    )
+
+
+def warm_up(client: Any, task_name: str, id_prefix: str) -> None:
+    """Retry a goal for an unknown task until one ExecuteTask round trip succeeds.
+
+    Seeing the server is not enough: DDS may match the server's reply path to a new
+    client a moment later, and a reply sent before that is lost. A goal for an unknown
+    task is answered at once and touches no task.
+    """
+    for attempt in range(WARM_UP_ATTEMPTS):
+        goal = ExecuteTask.Goal(task_id=f'{id_prefix}-{attempt}', task_name=task_name)
+        try:
+            handle = wait_for_future(
+                client.send_goal_async(goal), WARM_UP_TIMEOUT_SEC, 'warm-up goal'
+            )
+            wait_for_future(handle.get_result_async(), WARM_UP_TIMEOUT_SEC, 'warm-up result')
+            return
+        except WaitTimeoutError:
+            continue
+    raise WaitTimeoutError(f'{id_prefix}: no ExecuteTask round trip in {WARM_UP_ATTEMPTS} tries')
+
+
 class TaskManagerProbe:
     """Sends ExecuteTask goals and records /task_manager/active_tasks and /results."""
 
     def __init__(self, ros: RosHarness, timeout_sec: float = DEFAULT_TIMEOUT_SEC) -> None:
         self.ros = ros
         self.timeout_sec = timeout_sec
-        self.client = ros.action_client(
-            ExecuteTask,
-            EXECUTE_TASK_ACTION,
-            goal_service_qos_profile=qos.DEEP_RELIABLE,
-            result_service_qos_profile=qos.DEEP_RELIABLE,
-            cancel_service_qos_profile=qos.DEEP_RELIABLE,
-        )
+        self.client = execute_task_client(ros)
         self.results: TopicRecorder = ros.record(
             TaskDoneResult, '/task_manager/results', qos.RESULTS
         )
@@ -42,26 +67,11 @@ class TaskManagerProbe:
         )
 
     def wait_until_connected(self) -> None:
-        """Wait until goals, results and both topics work end to end.
-
-        Seeing the server is not enough: DDS may match the server's reply path to a new
-        client a moment later, and a reply sent before that is lost. A goal for an unknown
-        task (answered at once, touching no task) is retried until a round trip succeeds.
-        """
+        """Wait until goals, results and both topics work end to end (see warm_up)."""
         assert self.client.wait_for_server(timeout_sec=self.timeout_sec), 'no execute_task server'
         self.results.wait_matched(self.timeout_sec)
         self.active.wait_matched(self.timeout_sec)
-        for attempt in range(WARM_UP_ATTEMPTS):
-            goal = ExecuteTask.Goal(task_id=f'probe-warm-up-{attempt}', task_name=WARM_UP_TASK)
-            try:
-                handle = wait_for_future(
-                    self.client.send_goal_async(goal), WARM_UP_TIMEOUT_SEC, 'warm-up goal'
-                )
-                wait_for_future(handle.get_result_async(), WARM_UP_TIMEOUT_SEC, 'warm-up result')
-                return
-            except WaitTimeoutError:
-                continue
-        raise WaitTimeoutError(f'no ExecuteTask round trip in {WARM_UP_ATTEMPTS} attempts')
+        warm_up(self.client, WARM_UP_TASK, 'probe-warm-up')
 
     def send(
         self, task_name: str, task_data: Any = None, task_id: str = '', source: str = 'test'

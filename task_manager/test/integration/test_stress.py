@@ -25,15 +25,14 @@ from rclpy.action import ActionClient, GoalResponse
 from task_manager_msgs.action import ExecuteTask
 from test_msgs.action import Fibonacci
 
-from task_manager.ros import qos
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,
     WaitTimeoutError,
     wait_for_future,
 )
-from task_manager.testing.probe import EXECUTE_TASK_ACTION
 from task_manager.testing.probe import WARM_UP_TASK as PROBE_WARM_UP_TASK
+from task_manager.testing.probe import execute_task_client, warm_up
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import CancelPolicy, ScriptedActionServer, ScriptedGoal
 
@@ -60,8 +59,6 @@ MAX_THREADS = 30
 IGNORED_CANCEL_TIMEOUT_SEC = 0.3
 SEND_TIMEOUT_SEC = 10.0
 END_TIMEOUT_SEC = 20.0
-WARM_UP_ATTEMPTS = 5
-WARM_UP_TIMEOUT_SEC = 2.0
 WARM_UP_TASK = '__warm_up__'
 BARRIER_ID = 'stress-barrier'
 BARRIER_TASK = '__barrier__'
@@ -261,16 +258,7 @@ class StressClient:
         self.number = number
         self.requests = requests
         self._ros = ros
-        self.client: ActionClient = ros.on_executor(
-            lambda: ActionClient(
-                ros.node,
-                ExecuteTask,
-                EXECUTE_TASK_ACTION,
-                goal_service_qos_profile=qos.DEEP_RELIABLE,
-                result_service_qos_profile=qos.DEEP_RELIABLE,
-                cancel_service_qos_profile=qos.DEEP_RELIABLE,
-            ),
-        )
+        self.client: ActionClient = execute_task_client(ros)
         self.pending: list[tuple[Request, Any]] = []  # (request, result future)
         self.error: BaseException | None = None
         self.sent = threading.Event()
@@ -282,18 +270,7 @@ class StressClient:
     def warm_up(self) -> None:
         """One round trip, so that DDS has matched this client's reply paths before the stream."""
         assert self.client.wait_for_server(timeout_sec=SEND_TIMEOUT_SEC), 'no execute_task'
-        for attempt in range(WARM_UP_ATTEMPTS):
-            task_id = f'warm-up-c{self.number}-{attempt}'
-            goal = ExecuteTask.Goal(task_id=task_id, task_name=WARM_UP_TASK)
-            try:
-                handle = wait_for_future(
-                    self.client.send_goal_async(goal), WARM_UP_TIMEOUT_SEC, 'warm-up goal'
-                )
-                wait_for_future(handle.get_result_async(), WARM_UP_TIMEOUT_SEC, 'warm-up result')
-                return
-            except WaitTimeoutError:
-                continue
-        raise WaitTimeoutError(f'client {self.number}: no round trip in {WARM_UP_ATTEMPTS} tries')
+        warm_up(self.client, WARM_UP_TASK, f'warm-up-c{self.number}')
 
     def start(self) -> None:
         self._thread.start()
