@@ -302,7 +302,7 @@ class TaskDispatcher:
 
     async def _publish_active(self) -> None:
         self._publication_pending = False
-        in_progress = [r for r in self.registry if r.status is TaskStatus.IN_PROGRESS]
+        in_progress = self.registry.in_progress()
         if self._ended_unpublished:
             self._reporter.publish_active(in_progress + self._ended_unpublished)
             self._ended_unpublished = []
