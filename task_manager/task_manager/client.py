@@ -55,12 +55,20 @@ class TaskResult:
     def ok(self) -> bool:
         return self.status is TaskStatus.DONE
 
+    @property
+    def error_message(self) -> str:
+        """Why the Task Manager refused or failed the task (its `error`), or ''."""
+        error = self.result.get('error')
+        return error if isinstance(error, str) else ''
+
     @classmethod
-    def from_message(cls, message: Any, task_name: str = '') -> 'TaskResult':
-        """From a TaskDoneResult or an ExecuteTask result message."""
+    def from_message(cls, message: Any, task_name: str = '', source: str = '') -> 'TaskResult':
+        """From a TaskDoneResult, or an ExecuteTask result with the goal's name and source."""
         try:
             result = json.loads(message.task_result or '{}')
         except json.JSONDecodeError:
+            result = {'raw': message.task_result}
+        if not isinstance(result, dict):
             result = {'raw': message.task_result}
         return cls(
             task_id=message.task_id,
@@ -68,7 +76,7 @@ class TaskResult:
             status=TaskStatus(message.task_status),
             error_code=ErrorCode(message.error_code),
             result=result,
-            source=getattr(message, 'source', ''),
+            source=getattr(message, 'source', '') or source,
         )
 
 
@@ -99,9 +107,12 @@ def _json(data: dict[str, Any] | str | None) -> str:
 class TaskHandle:
     """A task started by this client."""
 
-    def __init__(self, client: 'TaskManagerClient', task_id: str, task_name: str) -> None:
+    def __init__(
+        self, client: 'TaskManagerClient', task_id: str, task_name: str, source: str = ''
+    ) -> None:
         self.task_id = task_id
         self.task_name = task_name
+        self.source = source
         self.result_future: Future = Future()
         """Completes with the TaskResult; awaitable from rclpy coroutines."""
         self.goal_handle: Any = None
@@ -222,7 +233,7 @@ class TaskManagerClient:
         source: str = 'python',
     ) -> TaskHandle:
         """Start a task; returns once the Task Manager has it (accepted, running or ended)."""
-        handle = TaskHandle(self, task_id or str(uuid.uuid4()), task_name)
+        handle = TaskHandle(self, task_id or str(uuid.uuid4()), task_name, source)
         with self._lock:
             self._handles_by_id[handle.task_id] = handle
         goal = ExecuteTask.Goal(
@@ -367,7 +378,8 @@ class TaskManagerClient:
             self._lock.notify_all()
         goal_handle.get_result_async().add_done_callback(
             lambda f: self._complete(
-                handle, TaskResult.from_message(f.result().result, handle.task_name)
+                handle,
+                TaskResult.from_message(f.result().result, handle.task_name, handle.source),
             )
         )
 

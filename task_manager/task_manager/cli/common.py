@@ -56,6 +56,9 @@ def result_json(result: TaskResult) -> str:
 
 
 def finish(result: TaskResult) -> None:
-    """Print a task's result as JSON and exit with the code of its status."""
+    """Print a task's result as JSON (and why it failed on stderr); exit with its status' code."""
     output.print_json(result_json(result))
+    if result.error_message:
+        what = result.error_code or result.status
+        progress.print(f'{what}: {result.error_message}', markup=False, soft_wrap=True)
     raise typer.Exit(EXIT_CODES[result.status])

@@ -3,9 +3,17 @@
 import uuid
 from dataclasses import dataclass
 
-from task_manager.core.status import CancelReason, TaskStatus
+from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 
 MISSION_SOURCE = 'Mission'
+
+
+@dataclass(frozen=True)
+class SubtaskRefusal:
+    """Why a subtask cannot run (unknown task, bad data): it fails when its turn comes."""
+
+    error_code: ErrorCode
+    reason: str
 
 
 @dataclass
@@ -19,6 +27,8 @@ class SubtaskRow:
     status: TaskStatus = TaskStatus.RECEIVED
     """RECEIVED until the subtask has run; never-run subtasks keep it."""
     skipped: bool = False
+    refusal: SubtaskRefusal | None = None
+    """Set when the subtask is invalid: it fails (or is skipped) without being started."""
 
 
 @dataclass
@@ -61,6 +71,16 @@ class MissionProgress:
         if row.allow_skipping and cancel_reason is not CancelReason.CONFLICT:
             row.skipped = True
             return
+        self.failed = True
+
+    def unskippable_refusals(self) -> list[SubtaskRow]:
+        """Invalid subtasks that may not be skipped: the mission must not start."""
+        return [row for row in self.rows if row.refusal is not None and not row.allow_skipping]
+
+    def fail_before_start(self) -> None:
+        """End the mission before its first subtask: its unskippable invalid subtasks ERROR."""
+        for row in self.unskippable_refusals():
+            row.status = TaskStatus.ERROR
         self.failed = True
 
     def cancel(self, reason: CancelReason) -> None:

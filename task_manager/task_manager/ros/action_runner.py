@@ -64,7 +64,8 @@ class ActionExecution:
         cancel_future = self._client.cancel(self._goal_id)
         if not await wait_for(self._node, cancel_future, timeout_sec):
             return self.outcome.done()
-        if cancel_future.result().return_code == CancelGoal.Response.ERROR_REJECTED:
+        response = cancel_future.result()
+        if response is None or response.return_code == CancelGoal.Response.ERROR_REJECTED:
             return self.outcome.done()
         elapsed_sec = (self._node.get_clock().now() - started).nanoseconds / 1e9
         return await wait_for(self._node, self.outcome, timeout_sec - elapsed_sec)
@@ -89,7 +90,7 @@ class ActionTaskRunner:
             f'{timeouts.server_loss_timeout_sec} s',
         )
 
-    def parse(self, task_data: str) -> Any:
+    def parse(self, task_data: str, task_id: str) -> Any:
         return message_from_json(self._action_type.Goal, task_data)
 
     async def start(self, message: Any, record: TaskRecord) -> ActionExecution:
@@ -114,7 +115,8 @@ class ActionTaskRunner:
                 f'action server {topic} did not answer the goal within '
                 f'{self._timeouts.goal_response_sec} s',
             )
-        if not goal_future.result().accepted:
+        response = goal_future.result()
+        if response is None or not response.accepted:
             self._client.forget(goal_id)
             raise TaskRequestError(
                 ErrorCode.TASK_START_FAILED, f'action server {topic} rejected the goal'

@@ -12,6 +12,7 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
+from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
@@ -31,17 +32,18 @@ class ActionServicesClient:
         impl = action_type.Impl
         self._impl = impl
         self._node = node
-        self._send_goal = node.create_client(
+        # The message classes are untyped (no stubs for generated code), hence Any.
+        self._send_goal: Client[Any, Any] = node.create_client(
             impl.SendGoalService,
             action_service_name(action_name, 'send_goal'),
             qos_profile=DEEP_RELIABLE,
         )
-        self._get_result = node.create_client(
+        self._get_result: Client[Any, Any] = node.create_client(
             impl.GetResultService,
             action_service_name(action_name, 'get_result'),
             qos_profile=DEEP_RELIABLE,
         )
-        self._cancel = node.create_client(
+        self._cancel: Client[Any, Any] = node.create_client(
             impl.CancelGoalService,
             action_service_name(action_name, 'cancel_goal'),
             qos_profile=DEEP_RELIABLE,
@@ -60,7 +62,7 @@ class ActionServicesClient:
 
     def send_goal(
         self, goal: Any, feedback_callback: Callable[[Any], None] | None = None
-    ) -> tuple[bytes, Future]:
+    ) -> tuple[bytes, Future[Any]]:
         """Send a goal; returns its id and a future of the SendGoal response (`accepted`)."""
         goal_id = uuid.uuid4().bytes
         if feedback_callback is not None:
@@ -68,13 +70,13 @@ class ActionServicesClient:
         request = self._impl.SendGoalService.Request(goal_id=_uuid(goal_id), goal=goal)
         return goal_id, self._send_goal.call_async(request)
 
-    def get_result(self, goal_id: bytes) -> Future:
+    def get_result(self, goal_id: bytes) -> Future[Any]:
         """A future of the GetResult response (`status`, `result`), once the goal has ended."""
         return self._get_result.call_async(
             self._impl.GetResultService.Request(goal_id=_uuid(goal_id))
         )
 
-    def cancel(self, goal_id: bytes) -> Future:
+    def cancel(self, goal_id: bytes) -> Future[Any]:
         """A future of the CancelGoal response for one goal."""
         request = self._impl.CancelGoalService.Request()
         request.goal_info.goal_id = _uuid(goal_id)

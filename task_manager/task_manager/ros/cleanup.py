@@ -1,6 +1,15 @@
 """Orderly teardown of rclpy entities that destroy_node leaves behind."""
 
+from typing import Protocol, runtime_checkable
+
 from rclpy.node import Node
+
+
+@runtime_checkable
+class _Destroyable(Protocol):
+    """What rclpy's action servers, action clients and event handlers have, and Waitable lacks."""
+
+    def destroy(self) -> None: ...
 
 
 def destroy_waitables(node: Node) -> None:
@@ -10,4 +19,5 @@ def destroy_waitables(node: Node) -> None:
     node is gone and crash the process.
     """
     for waitable in list(node.waitables):
-        waitable.destroy()
+        if isinstance(waitable, _Destroyable):
+            waitable.destroy()

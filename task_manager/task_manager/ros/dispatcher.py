@@ -55,7 +55,7 @@ class TaskDispatcher:
     ) -> None:
         self.registry = TaskRegistry()
         self.runners_by_name = runners
-        self._node = node
+        self.node = node
         self._reporter = reporter
         self._spawn = spawn
         self._log = node.get_logger()
@@ -96,35 +96,56 @@ class TaskDispatcher:
             end = await self._start_and_wait(record, message)
         except TaskRequestError as error:
             self._log.warning(f'task {record.task_id} ({record.task_name}) failed: {error}')
-            end = TaskEnd(TaskStatus.ERROR, {}, error.error_code)
+            end = TaskEnd(TaskStatus.ERROR, {'error': str(error)}, error.error_code)
         except Exception as error:  # the callback boundary: log, fail the task, keep serving
             self._log.error(f'task {record.task_id} ({record.task_name}) crashed: {error!r}')
-            end = TaskEnd(TaskStatus.ERROR, {}, ErrorCode.TASK_START_FAILED)
+            end = TaskEnd(
+                TaskStatus.ERROR,
+                {'error': f'the Task Manager failed to run the task: {error!r}'},
+                ErrorCode.TASK_START_FAILED,
+            )
         # Settled here too, so that whoever waits on this task (a cancel) sees it end.
         self._settle(record.task_id, end)
         self._finish(record, self._finished[record.task_id].result())
         return record
 
-    def _admit(self, request: TaskRequest) -> tuple[TaskRecord, Any]:
-        task_id = request.task_id or str(uuid.uuid4())
+    def refuse(self, request: TaskRequest, code: ErrorCode, reason: str) -> TaskRecord:
+        """End a request that must not run (e.g. an invalid subtask): logged and published."""
+        record = self._reject(self._new_record(request), code, reason)
+        self._reporter.publish_result(record)
+        return record
+
+    def unknown_task_reason(self, task_name: str) -> str:
+        """Why a task name is refused, with the names that would be accepted."""
+        known = ', '.join(sorted(self.runners_by_name))
+        return f'unknown task {task_name!r}; declared tasks: {known}'
+
+    def _new_record(self, request: TaskRequest) -> TaskRecord:
         runner = self.runners_by_name.get(request.task_name)
         spec = runner.spec if runner else _unknown_spec(request.task_name)
-        record = TaskRecord(task_id, spec, request.source, parent_id=request.parent_id)
+        task_id = request.task_id or str(uuid.uuid4())
+        return TaskRecord(task_id, spec, request.source, parent_id=request.parent_id)
+
+    def _admit(self, request: TaskRequest) -> tuple[TaskRecord, Any]:
+        record = self._new_record(request)
+        task_id = record.task_id
+        runner = self.runners_by_name.get(request.task_name)
         if runner is None:
-            known = ', '.join(sorted(self.runners_by_name))
-            return self._rejected(
-                record, ErrorCode.UNKNOWN_TASK, f'unknown task name; declared tasks: {known}'
-            ), None
+            reason = self.unknown_task_reason(request.task_name)
+            return self._reject(record, ErrorCode.UNKNOWN_TASK, reason), None
         if self.registry.get(task_id) is not None:
-            return self._rejected(
-                record, ErrorCode.DUPLICATE_TASK_ID, 'the id is in use by an active task'
-            ), None
+            reason = (
+                f'task id {task_id!r} is in use by an active task; '
+                'an id may be used again once its task has ended'
+            )
+            return self._reject(record, ErrorCode.DUPLICATE_TASK_ID, reason), None
         if self._closing_reason:
-            return self._rejected(record, ErrorCode.TASK_START_FAILED, self._closing_reason), None
+            return self._reject(record, ErrorCode.TASK_START_FAILED, self._closing_reason), None
         try:
-            message = runner.parse(request.task_data)
+            message = runner.parse(request.task_data, task_id)
         except TaskDataError as error:
-            return self._rejected(record, ErrorCode.TASK_DATA_PARSING_FAILED, str(error)), None
+            code = ErrorCode.TASK_DATA_PARSING_FAILED
+            return self._reject(record, code, str(error), error.result), None
         self.registry.admit(record)
         if self._idle.done():
             self._idle = Future()
@@ -132,12 +153,19 @@ class TaskDispatcher:
         self._started[task_id] = Future()
         return record, message
 
-    def _rejected(self, record: TaskRecord, code: ErrorCode, reason: str) -> TaskRecord:
+    def _reject(
+        self,
+        record: TaskRecord,
+        code: ErrorCode,
+        reason: str,
+        result: dict[str, Any] | None = None,
+    ) -> TaskRecord:
+        """End a request that will not run: ERROR, its result `{"error": reason}` (and `result`)."""
         self._log.warning(
             f'task {record.task_id} ({record.task_name}) from {record.source!r} '
             f'rejected, {code}: {reason}'
         )
-        record.mark_ended(TaskStatus.ERROR, {}, code)
+        record.mark_ended(TaskStatus.ERROR, {**(result or {}), 'error': reason}, code)
         return record
 
     async def _start_and_wait(self, record: TaskRecord, message: Any) -> TaskEnd:
@@ -159,7 +187,7 @@ class TaskDispatcher:
         execution.outcome.add_done_callback(lambda done: self._settle(task_id, done.result()))
         if record.cancel_reason is not None:  # a cancel arrived while the task was starting
             self._cancel_future(record, record.cancel_reason)
-        return await resolved(self._node, finished)
+        return await resolved(self.node, finished)
 
     async def _resolve_conflicts(self, record: TaskRecord) -> None:
         conflicts = self.registry.conflicts_of(record.spec, record.task_id)
@@ -171,7 +199,7 @@ class TaskDispatcher:
         )
         cancels = [self._cancel_future(c, CancelReason.CONFLICT) for c in conflicts]
         await resolved(
-            self._node, first_completed([all_completed(cancels), self._finished[record.task_id]])
+            self.node, first_completed([all_completed(cancels), self._finished[record.task_id]])
         )
         if self._finished[record.task_id].done():
             return
@@ -194,6 +222,8 @@ class TaskDispatcher:
         """Cancel an active task; the future completes with True once it has ended in time.
 
         An id that is not active completes True at once (there is nothing left to cancel).
+        False means the task did not end within its cancel_timeout and is still running
+        (e.g. a service call, which cannot be interrupted): it ends when its server says so.
         """
         record = self.registry.get(task_id)
         if record is None:
@@ -231,9 +261,9 @@ class TaskDispatcher:
         """Cancel a task that is starting or running, within its cancel_timeout."""
         task_id = record.task_id
         timeout_sec = record.spec.cancel_timeout_sec
-        clock = self._node.get_clock()
+        clock = self.node.get_clock()
         began = clock.now()
-        await wait_for(self._node, first_completed([started, finished]), timeout_sec)
+        await wait_for(self.node, first_completed([started, finished]), timeout_sec)
         execution = self._executions.get(task_id)
         ok = finished.done()
         if not ok and execution is not None:
@@ -242,10 +272,8 @@ class TaskDispatcher:
         if not ok:
             self._log.warning(
                 f'task {task_id} ({record.task_name}): cancel ({reason}) did not complete '
-                f'within cancel_timeout {timeout_sec} s'
+                f'within cancel_timeout {timeout_sec} s; the task goes on'
             )
-            if reason is CancelReason.CLIENT:
-                self._settle(task_id, TaskEnd(TaskStatus.ERROR, {}, ErrorCode.TASK_CANCEL_FAILED))
         self._cancels_in_flight.pop(task_id, None)
         cancelled.set_result(ok)
 
@@ -258,12 +286,12 @@ class TaskDispatcher:
         self._closing_reason = reason
         for record in self.registry:
             self.cancel(record.task_id, CancelReason.SHUTDOWN)
-        if await wait_for(self._node, self._idle, timeout_sec):
+        if await wait_for(self.node, self._idle, timeout_sec):
             return True
         for record in self.registry:
             self._log.warning(f'task {record.task_id} ({record.task_name}) did not end: {reason}')
             self._settle(record.task_id, TaskEnd(TaskStatus.ERROR, {'error': reason}))
-        await wait_for(self._node, self._idle, FORCED_END_TIMEOUT_SEC)
+        await wait_for(self.node, self._idle, FORCED_END_TIMEOUT_SEC)
         return False
 
     # ---- ending ----------------------------------------------------------------------------

@@ -40,8 +40,8 @@ class TaskRunner(Protocol):
 
     spec: TaskSpec
 
-    def parse(self, task_data: str) -> Any:
-        """The goal/request message of `task_data` (JSON); raises TaskDataError."""
+    def parse(self, task_data: str, task_id: str) -> Any:
+        """The goal/request message of task `task_id`'s `task_data` (JSON); raises TaskDataError."""
         ...
 
     async def start(self, message: Any, record: TaskRecord) -> Execution:

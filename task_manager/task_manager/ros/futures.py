@@ -6,11 +6,14 @@ task would sit until some unrelated event. `resolved` wakes it by queueing an em
 which every rclpy executor handles (guard conditions are not supported by all of them).
 """
 
-from collections.abc import Sequence
-from typing import Any
+from collections.abc import Callable, Sequence
+from functools import partial
+from typing import Any, TypeVar
 
 from rclpy.node import Node
 from rclpy.task import Future
+
+T = TypeVar('T')
 
 
 def _nothing() -> None:
@@ -23,42 +26,48 @@ def wake(node: Node) -> None:
         node.executor.create_task(_nothing)
 
 
-async def resolved(node: Node, future: Future) -> Any:
-    """Await `future` and return its result; the executor is woken as soon as it completes."""
+async def resolved(node: Node, future: Future[T]) -> T | None:
+    """Await `future` and return its result (None if cancelled), waking the executor at once."""
     if not future.done():
         future.add_done_callback(lambda _: wake(node))
         await future
     return future.result()
 
 
-def completed_future(value: Any = None) -> Future:
-    future: Future = Future()
+def completed_future(value: Any = None) -> Future[Any]:
+    future: Future[Any] = Future()
     future.set_result(value)
     return future
 
 
-def first_completed(futures: Sequence[Future]) -> Future:
+def _complete_with(target: Future[T], value: T, _: Future[Any]) -> None:
+    """A done callback: complete `target` with `value`, unless it is already done."""
+    if not target.done():
+        target.set_result(value)
+
+
+def first_completed(futures: Sequence[Future[Any]]) -> Future[int]:
     """A future that completes with the index of the first of `futures` to complete."""
-    first: Future = Future()
+    first: Future[int] = Future()
     for index, future in enumerate(futures):
         if future.done():
             first.set_result(index)
             return first
     for index, future in enumerate(futures):
-        future.add_done_callback(lambda _, i=index: None if first.done() else first.set_result(i))
+        future.add_done_callback(partial(_complete_with, first, index))
     return first
 
 
-def all_completed(futures: Sequence[Future]) -> Future:
+def all_completed(futures: Sequence[Future[Any]]) -> Future[None]:
     """A future that completes (with None) once every one of `futures` has completed."""
-    everything: Future = Future()
+    everything: Future[None] = Future()
     pending = [f for f in futures if not f.done()]
     remaining = [len(pending)]
     if not pending:
         everything.set_result(None)
         return everything
 
-    def on_done(_: Future) -> None:
+    def on_done(_: Future[Any]) -> None:
         remaining[0] -= 1
         if remaining[0] == 0 and not everything.done():
             everything.set_result(None)
@@ -68,13 +77,13 @@ def all_completed(futures: Sequence[Future]) -> Future:
     return everything
 
 
-async def wait_for(node: Node, future: Future, timeout_sec: float) -> bool:
+async def wait_for(node: Node, future: Future[Any], timeout_sec: float) -> bool:
     """Await `future` for at most `timeout_sec`; True if it completed in time."""
     if future.done():
         return True
     if timeout_sec <= 0:
         return False
-    deadline: Future = Future()
+    deadline: Future[None] = Future()
     timer = node.create_timer(
         timeout_sec, lambda: None if deadline.done() else deadline.set_result(None)
     )
@@ -91,12 +100,12 @@ async def wait_for(node: Node, future: Future, timeout_sec: float) -> bool:
 READINESS_CHECK_PERIOD_SEC = 0.05
 
 
-async def wait_until_ready(node: Node, is_ready: Any, timeout_sec: float) -> bool:
+async def wait_until_ready(node: Node, is_ready: Callable[[], bool], timeout_sec: float) -> bool:
     """Await `is_ready()` becoming true for at most `timeout_sec`."""
     if is_ready():
         return True
-    ready: Future = Future()
-    deadline: Future = Future()
+    ready: Future[None] = Future()
+    deadline: Future[None] = Future()
 
     def check() -> None:
         if not ready.done() and is_ready():

@@ -1,14 +1,25 @@
 """Action goals served by the node, bound to the tasks they run."""
 
 import contextlib
+import dataclasses
 from typing import Any
 
 from rclpy.action import CancelResponse
+from rclpy.task import Future
 
-from task_manager.core.status import CancelReason, TaskStatus
+from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.ros.dispatcher import TaskDispatcher
+from task_manager.ros.futures import first_completed, resolved
 from task_manager.ros.message_json import TaskDataError, message_from_dict
+
+
+@dataclasses.dataclass
+class _BoundGoal:
+    """A goal whose task is running: its task's id, and whether its client's cancel failed."""
+
+    task_id: str
+    cancel_failed: Future = dataclasses.field(default_factory=Future)
 
 
 class GoalTaskBinding:
@@ -16,37 +27,68 @@ class GoalTaskBinding:
 
     def __init__(self, dispatcher: TaskDispatcher) -> None:
         self._dispatcher = dispatcher
-        # key: goal id (bytes), value: the id of the task the goal runs
-        self._task_ids_by_goal: dict[bytes, str] = {}
+        # key: goal id (bytes), value: the goal's task, once admitted
+        self._bound_goals: dict[bytes, _BoundGoal] = {}
 
     async def run(
         self, goal_handle: Any, request: TaskRequest, feedback_type: Any = None
     ) -> TaskRecord:
-        """Run the goal's task to its end and put the goal in the matching terminal state.
+        """Run the goal's task until the goal has its answer; put the goal in its end state.
 
+        The answer is the task's end, unless the goal's client cancelled it and the cancel
+        failed (a service call cannot be interrupted): then the goal ends at once with
+        ERROR / task_cancel_failed while the task goes on, and the task's real end is
+        published on /task_manager/results when it comes.
         With `feedback_type`, the task's feedback is forwarded to the goal's client.
         """
         goal_key = bytes(goal_handle.goal_id.uuid)
+        bound = _BoundGoal('')
 
         def bind(record: TaskRecord) -> None:
-            self._task_ids_by_goal[goal_key] = record.task_id
+            bound.task_id = record.task_id
+            self._bound_goals[goal_key] = bound
             if feedback_type is not None:
                 record.feedback_listener = lambda feedback: _forward_feedback(
                     goal_handle, feedback_type, feedback
                 )
 
-        record = await self._dispatcher.run(request, on_admitted=bind)
-        self._task_ids_by_goal.pop(goal_key, None)
+        node = self._dispatcher.node
+        assert node.executor is not None
+        task = node.executor.create_task(self._dispatcher.run(request, on_admitted=bind))
+        try:
+            await resolved(node, first_completed([task, bound.cancel_failed]))
+        finally:
+            self._bound_goals.pop(goal_key, None)
+        record = task.result() if task.done() else bound.cancel_failed.result()
         finish_goal(goal_handle, record)
         return record
 
     def cancel_callback(self, goal_handle: Any) -> CancelResponse:
         """Accept a client's cancel and start cancelling the goal's task."""
-        task_id = self._task_ids_by_goal.get(bytes(goal_handle.goal_id.uuid))
-        if task_id is None:
+        bound = self._bound_goals.get(bytes(goal_handle.goal_id.uuid))
+        if bound is None:
             return CancelResponse.REJECT
-        self._dispatcher.cancel(task_id, CancelReason.CLIENT)
+        cancelled = self._dispatcher.cancel(bound.task_id, CancelReason.CLIENT)
+        cancelled.add_done_callback(lambda done: self._on_cancel_done(bound, done))
         return CancelResponse.ACCEPT
+
+    def _on_cancel_done(self, bound: _BoundGoal, cancelled: Future) -> None:
+        record = self._dispatcher.registry.get(bound.task_id)
+        if cancelled.result() or record is None or bound.cancel_failed.done():
+            return
+        timeout_sec = record.spec.cancel_timeout_sec
+        bound.cancel_failed.set_result(
+            dataclasses.replace(
+                record,
+                status=TaskStatus.ERROR,
+                error_code=ErrorCode.TASK_CANCEL_FAILED,
+                result={
+                    'error': f'the task did not stop within its cancel_timeout of '
+                    f'{timeout_sec} s and is still running; its end will be published '
+                    'on /task_manager/results'
+                },
+            )
+        )
 
 
 def _forward_feedback(goal_handle: Any, feedback_type: Any, feedback: dict[str, Any]) -> None:

@@ -63,9 +63,13 @@ _REPR.maxlist = _REPR.maxtuple = _REPR.maxdict = 6
 class TaskDataError(ValueError):
     """task_data cannot become the message: names the field, the value given and what it expects."""
 
-    def __init__(self, field: str, problem: str) -> None:
-        """Record ``field`` (a dotted path, '' for the top level) and describe the problem."""
+    def __init__(self, field: str, problem: str, result: dict[str, Any] | None = None) -> None:
+        """Record ``field`` (a dotted path, '' for the top level) and describe the problem.
+
+        ``result`` is what the requester gets besides the error (e.g. a mission's rows).
+        """
         self.field = field
+        self.result = result or {}
         super().__init__(f"field '{field}': {problem}" if field else f'task_data: {problem}')
 
 

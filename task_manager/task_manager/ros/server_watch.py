@@ -14,6 +14,7 @@ from typing import Protocol
 
 from rclpy.node import Node
 from rclpy.task import Future
+from rclpy.timer import Timer
 
 # A probe answers True (alive now), False (gone now), or a future that completes if alive.
 Probe = Callable[[], bool | Future]
@@ -45,7 +46,7 @@ class ServerWatch:
         self._settings = settings
         self._loss = loss
         self._in_flight: set[FailableExecution] = set()
-        self._timer = None
+        self._timer: Timer | None = None
         self._last_alive_ns = 0
         self._probe_in_flight: Future | None = None
 

@@ -77,7 +77,7 @@ class ServiceTaskRunner:
             loss=f'service {spec.topic} left the ROS graph',
         )
 
-    def parse(self, task_data: str) -> Any:
+    def parse(self, task_data: str, task_id: str) -> Any:
         return message_from_json(self._service_type.Request, task_data)
 
     async def start(self, message: Any, record: TaskRecord) -> ServiceExecution:

@@ -1,6 +1,7 @@
 """/task_manager/execute_task: ids, errors, end statuses, cancels (BEHAVIOUR.md rules 1-10)."""
 
 import json
+import re
 import uuid
 
 from action_msgs.msg import GoalStatus
@@ -46,7 +47,7 @@ def test_empty_id_gets_a_uuid_and_the_result_carries_it(
     assert json.loads(published.task_result) == {'sequence': [0, 1, 1]}
 
 
-def test_unknown_task_is_an_error_with_an_empty_result(
+def test_unknown_task_is_an_error_whose_result_lists_the_declared_tasks(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib')})
@@ -55,7 +56,10 @@ def test_unknown_task_is_an_error_with_an_empty_result(
     response = tm.result_of(handle)
 
     assert (response.result.task_status, response.result.error_code) == ('ERROR', 'unknown_task')
-    assert response.result.task_result == '{}'
+    assert json.loads(response.result.task_result) == {
+        'error': "unknown task 'no/such_task'; declared tasks: fib, system/cancel_task, "
+        'system/cancel_tasks, system/mission, system/stop, system/wait'
+    }
     assert response.status == GoalStatus.STATUS_ABORTED
     published = tm.wait_result_message('u1')
     assert (published.task_status, published.error_code, published.task_name) == (
@@ -63,6 +67,7 @@ def test_unknown_task_is_an_error_with_an_empty_result(
         'unknown_task',
         'no/such_task',
     )
+    assert published.task_result == response.result.task_result
 
 
 BAD_TASK_DATA = [
@@ -96,11 +101,17 @@ def test_bad_task_data_is_rejected_and_nothing_reaches_the_server(
     accepted = tm.run('fib', '{"order": 2, "unknown_key": 1}')
 
     for data, result in outcomes.items():
-        assert (result.task_status, result.error_code, result.task_result) == (
-            'ERROR',
-            'task_data_parsing_failed',
-            '{}',
-        ), data
+        assert (result.task_status, result.error_code) == ('ERROR', 'task_data_parsing_failed')
+        assert list(json.loads(result.task_result)) == ['error'], data
+    reasons = {data: json.loads(outcomes[data].task_result)['error'] for data in outcomes}
+    assert reasons['{"order": "abc"}'] == "field 'order': expected int32, got 'abc' (str)"
+    assert reasons['{"order": 2147483648}'] == (
+        "field 'order': 2147483648 is out of range for int32 [-2147483648, 2147483647]"
+    )
+    assert reasons['[]'].startswith('task_data: ') and 'object' in reasons['[]']
+    # The log says the same as the caller is told.
+    abc_reason = reasons['{"order": "abc"}']
+    tm.process.wait_for_log(re.escape(f'rejected, task_data_parsing_failed: {abc_reason}'), 5.0)
     assert accepted.task_status == 'DONE'
     assert [g.request.order for g in server.wait_for_goals(1, TIMEOUT_SEC)] == [2]
     assert len(server.goals.items) == 1
@@ -117,6 +128,10 @@ def test_duplicate_active_id_is_rejected_and_the_active_task_is_untouched(
     duplicate = tm.run('fib', {'order': 2}, task_id='dup')
 
     assert (duplicate.task_status, duplicate.error_code) == ('ERROR', 'duplicate_id')
+    assert json.loads(duplicate.task_result) == {
+        'error': "task id 'dup' is in use by an active task; "
+        'an id may be used again once its task has ended'
+    }
     goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
     assert not goal.cancel_requested.is_set() and len(server.goals.items) == 1
     goal.succeed()
@@ -202,7 +217,7 @@ def test_service_task_done_or_error_by_its_success_field(
     assert (checked_false.task_status, checked_false.error_code) == ('ERROR', '')
 
 
-def test_client_cancel_of_a_service_task_that_does_not_return_fails(
+def test_client_cancel_of_a_service_task_that_does_not_return_fails_but_the_task_goes_on(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     service = ScriptedService(ros.node, SetBool, f'{topic_prefix}/set')
@@ -219,8 +234,22 @@ def test_client_cancel_of_a_service_task_that_does_not_return_fails(
         'ERROR',
         'task_cancel_failed',
     )
+    assert 'still running' in json.loads(response.result.task_result)['error']
     assert response.status == GoalStatus.STATUS_ABORTED
+    # The call goes on: still in progress, and no result published for it yet.
+    latest_active = tm.active.snapshot()[-1]
+    assert [(t.task_id, t.task_status) for t in latest_active.active_tasks] == [
+        ('slow-1', 'IN_PROGRESS')
+    ]
+    assert tm.results_for('slow-1') == []
+
     service.wait_for_calls(1, TIMEOUT_SEC)[0].respond(success=True)
+
+    published = tm.wait_result_message('slow-1')
+    assert (published.task_status, published.error_code) == ('DONE', '')
+    assert json.loads(published.task_result)['success'] is True
+    tm.wait_active(lambda tasks: tasks == [], 'slow-1 gone from the active tasks')
+    assert len(tm.results_for('slow-1')) == 1
 
 
 def test_missing_or_rejecting_server_fails_the_start(
@@ -236,9 +265,16 @@ def test_missing_or_rejecting_server_fails_the_start(
         server_wait_timeout=0.5,
     )
 
+    reasons = {}
     for name in ('missing', 'missing_srv', 'rejecting'):
         result = tm.run(name, {'order': 1} if name != 'missing_srv' else {'data': True})
         assert (result.task_status, result.error_code) == ('ERROR', 'task_start_failed'), name
+        reasons[name] = json.loads(result.task_result)['error']
+    assert reasons == {
+        'missing': f'action server {topic_prefix}/nobody is not available',
+        'missing_srv': f'service {topic_prefix}/nobody_srv is not available',
+        'rejecting': f'action server {topic_prefix}/rej rejected the goal',
+    }
     assert len(rejecting.rejected.items) == 1
 
 

@@ -120,25 +120,105 @@ def test_skippable_failing_subtask_is_skipped_and_the_mission_goes_on(
     assert tm.wait_result_message('b').task_status == 'ERROR'
 
 
-def test_mission_with_an_unknown_or_malformed_subtask_is_rejected_before_it_starts(
+def test_invalid_unskippable_subtask_fails_the_mission_before_anything_runs_with_its_rows(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm, nav, _ = _launch(ros, launch_task_manager, topic_prefix)
+    bad_data = {'task_id': 'bad', 'task_name': 'navigate', 'task_data': '{"order": "x"}'}
+
+    unknown = tm.run(
+        'system/mission', {'subtasks': [_subtask('navigate', 1, 'n'), _subtask('fly', 1, 'f')]}
+    )
+    malformed = tm.run('system/mission', {'subtasks': [_subtask('navigate', 1, 'm'), bad_data]})
+    nested = tm.run(
+        'system/mission',
+        {'subtasks': [{'task_id': 'inner', 'task_name': 'system/mission', 'task_data': '{}'}]},
+    )
+
+    for result in (unknown, malformed, nested):
+        assert (result.task_status, result.error_code) == ('ERROR', 'task_data_parsing_failed')
+    assert _rows(unknown) == [('n', 'RECEIVED', False), ('f', 'ERROR', False)]
+    assert json.loads(unknown.task_result)['error'].startswith(
+        "field 'subtasks[1].task_name': unknown task 'fly'; declared tasks: navigate, spin, "
+    )
+    assert _rows(malformed) == [('m', 'RECEIVED', False), ('bad', 'ERROR', False)]
+    assert json.loads(malformed.task_result)['error'] == (
+        "field 'subtasks[1].task_data': field 'order': expected int32, got 'x' (str)"
+    )
+    assert _rows(nested) == [('inner', 'ERROR', False)]
+    assert 'a mission cannot contain a mission' in json.loads(nested.task_result)['error']
+    # Each invalid subtask has its own result, as any refused request; the others never ran.
+    for task_id, code in (('f', 'unknown_task'), ('bad', 'task_data_parsing_failed')):
+        published = tm.wait_result_message(task_id)
+        assert (published.task_status, published.error_code, published.source) == (
+            'ERROR',
+            code,
+            'Mission',
+        )
+        assert json.loads(published.task_result)['error']
+    assert tm.results_for('n') == [] and tm.results_for('m') == []
+    assert nav.goals.items == []
+
+
+def test_malformed_mission_is_refused_without_rows(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     tm, nav, _ = _launch(ros, launch_task_manager, topic_prefix)
 
-    unknown = tm.run('system/mission', {'subtasks': [_subtask('navigate', 1), _subtask('fly', 1)]})
-    malformed = tm.run(
-        'system/mission',
-        {
-            'subtasks': [
-                _subtask('navigate', 1),
-                {'task_name': 'navigate', 'task_data': '{"order": "x"}'},
-            ]
-        },
+    not_a_list = tm.run('system/mission', '{"subtasks": 5}')
+    nameless = tm.run(
+        'system/mission', {'subtasks': [_subtask('navigate', 1), _subtask('', 1, 'x')]}
+    )
+    twice = tm.run(
+        'system/mission', {'subtasks': [_subtask('navigate', 1, 'a'), _subtask('navigate', 2, 'a')]}
     )
 
-    for result in (unknown, malformed):
+    for result in (not_a_list, nameless, twice):
         assert (result.task_status, result.error_code) == ('ERROR', 'task_data_parsing_failed')
-    assert nav.goals.items == []
+        assert list(json.loads(result.task_result)) == ['error']
+    assert json.loads(nameless.task_result)['error'] == (
+        "field 'subtasks[1].task_name': every subtask needs a name"
+    )
+    assert "given more than once: ['a']" in json.loads(twice.task_result)['error']
+    assert tm.results_for('x') == [] and nav.goals.items == []
+
+
+def test_invalid_skippable_subtasks_are_skipped_when_their_turn_comes(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm, nav, _ = _launch(ros, launch_task_manager, topic_prefix)
+    subtasks = [
+        _subtask('navigate', 1, 'a'),
+        _subtask('fly', 1, 'b', allow_skipping=True),
+        {
+            'task_id': 'c',
+            'task_name': 'take_photo',
+            'task_data': '{"order": "x"}',
+            'allow_skipping': True,
+        },
+        _subtask('navigate', 3, 'd'),
+    ]
+
+    result = tm.run('system/mission', {'subtasks': subtasks}, task_id='m')
+
+    assert (result.task_status, result.error_code) == ('DONE', '')
+    assert _rows(result) == [
+        ('a', 'DONE', False),
+        ('b', 'ERROR', True),
+        ('c', 'ERROR', True),
+        ('d', 'DONE', False),
+    ]
+    assert [g.request.order for g in nav.wait_for_goals(2, TIMEOUT_SEC)] == [1, 3]
+    unknown, bad_data = tm.wait_result_message('b'), tm.wait_result_message('c')
+    assert (unknown.error_code, unknown.source) == ('unknown_task', 'Mission')
+    assert "unknown task 'fly'" in json.loads(unknown.task_result)['error']
+    assert (bad_data.error_code, bad_data.source) == ('task_data_parsing_failed', 'Mission')
+    assert json.loads(bad_data.task_result) == {
+        'error': "field 'order': expected int32, got 'x' (str)"
+    }
+    # Results in the order the subtasks came to their turn.
+    order = [m.task_id for m in tm.results.snapshot() if m.task_id in 'abcd']
+    assert order == ['a', 'b', 'c', 'd']
 
 
 def _start_held_mission(tm: Any, nav: Any, mission_id: str) -> Any:

@@ -474,7 +474,13 @@ def test_concurrent_mixed_requests_are_each_answered_once_and_consistently(
     replies_by_id: dict[str, list[Reply]] = {}
     for reply in replies:
         replies_by_id.setdefault(reply.result.task_id, []).append(reply)
-    subtask_ids = {s for r in requests for s in r.subtask_ids}
+    # subtasks without an id in the request (the invalid ones) are named by their mission's rows
+    subtask_ids = {s for r in requests for s in r.subtask_ids} | {
+        row['task_id']
+        for reply in replies
+        if reply.request.kind == 'bad_data'
+        for row in json.loads(reply.result.task_result).get('mission_results', [])
+    }
     published_by_id: dict[str, list[Any]] = {}
     for message in results:
         published_by_id.setdefault(message.task_id, []).append(message)

@@ -56,6 +56,14 @@ def test_start_waits_and_exits_by_status(
     assert failed.returncode == 1 and json.loads(failed.stdout)['status'] == 'ERROR'
     assert unknown.returncode == 1
     assert json.loads(unknown.stdout)['error_code'] == 'unknown_task'
+    # why, on stderr, in one line (the same text as the result's `error`)
+    why = (
+        "unknown task 'no/such'; declared tasks: math/fib, system/cancel_task, "
+        'system/cancel_tasks, system/mission, system/stop, system/wait'
+    )
+    assert json.loads(unknown.stdout)['result'] == {'error': why}
+    assert unknown.stderr.strip().splitlines()[-1] == f'unknown_task: {why}'
+    assert 'error' not in done.stderr
     assert bad_json.returncode == 2 and 'not valid JSON' in bad_json.stderr
 
 
@@ -104,6 +112,7 @@ def test_mission_from_a_yaml_file(
     failed = taskctl('mission', str(failing))
 
     assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)['source'] == 'CLI'
     rows = json.loads(done.stdout)['result']['mission_results']
     assert [(r['task_id'], r['task_status'], r['skipped']) for r in rows] == [
         ('s1', 'DONE', False),

@@ -35,7 +35,7 @@ class CancelTasksRunner:
         self._node = node
         self._dispatcher = dispatcher
 
-    def parse(self, task_data: str) -> Any:
+    def parse(self, task_data: str, task_id: str) -> Any:
         return message_from_json(CancelTasks.Request, task_data)
 
     async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
@@ -64,7 +64,7 @@ class StopTasksRunner:
         self._node = node
         self._dispatcher = dispatcher
 
-    def parse(self, task_data: str) -> Any:
+    def parse(self, task_data: str, task_id: str) -> Any:
         return message_from_json(StopTasks.Request, task_data)
 
     async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:

@@ -17,7 +17,7 @@ class CoroutineExecution:
         self._node = node
         self.outcome: Future = Future()
         assert node.executor is not None
-        node.executor.create_task(self._run(body))
+        node.executor.create_task(self._run, body)
 
     async def _run(self, body: Coroutine[Any, Any, TaskEnd]) -> None:
         end = await body

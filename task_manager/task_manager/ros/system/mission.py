@@ -6,8 +6,8 @@ from rclpy.node import Node
 from task_manager_msgs.action import Mission
 from task_manager_msgs.msg import SubtaskResult
 
-from task_manager.core.mission import MISSION_SOURCE, MissionProgress
-from task_manager.core.status import CancelReason
+from task_manager.core.mission import MISSION_SOURCE, MissionProgress, SubtaskRefusal, SubtaskRow
+from task_manager.core.status import CancelReason, ErrorCode
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.futures import wait_for
@@ -31,25 +31,16 @@ class MissionExecution(CoroutineExecution):
     async def _run_subtasks(self) -> TaskEnd:
         while (row := self._progress.next_subtask()) is not None:
             self._running_id = row.task_id
-            request = TaskRequest(
-                row.task_id, row.task_name, MISSION_SOURCE, row.task_data, self._mission_id
-            )
-            subtask = await self._dispatcher.run(request)
+            request = subtask_request(row, self._mission_id)
+            if row.refusal is not None:  # invalid and skippable: it fails without starting
+                subtask = self._dispatcher.refuse(
+                    request, row.refusal.error_code, row.refusal.reason
+                )
+            else:
+                subtask = await self._dispatcher.run(request)
             self._progress.subtask_ended(subtask.status, subtask.cancel_reason)
         self._running_id = ''
-        return TaskEnd(self._progress.final_status, self._results())
-
-    def _results(self) -> dict[str, Any]:
-        rows = [
-            SubtaskResult(
-                task_id=r.task_id,
-                task_name=r.task_name,
-                task_status=str(r.status),
-                skipped=r.skipped,
-            )
-            for r in self._progress.rows
-        ]
-        return message_to_dict(Mission.Result(mission_results=rows))
+        return TaskEnd(self._progress.final_status, mission_results(self._progress))
 
     async def cancel(self, timeout_sec: float) -> bool:
         self._progress.cancel(CancelReason.MISSION)
@@ -59,7 +50,13 @@ class MissionExecution(CoroutineExecution):
 
 
 class MissionRunner:
-    """Starts missions, checking every subtask's name and data before the first one runs."""
+    """Starts missions, checking every subtask's name and data before the first one runs.
+
+    An invalid subtask (unknown task, bad data, a nested mission) that may be skipped fails
+    when its turn comes, and the mission goes on. One that may not be skipped fails the
+    mission before anything runs: the mission is refused with its mission_results (that
+    subtask ERROR, the others RECEIVED), and the subtask's own result is published.
+    """
 
     spec = MISSION_SPEC
 
@@ -67,26 +64,70 @@ class MissionRunner:
         self._node = node
         self._dispatcher = dispatcher
 
-    def parse(self, task_data: str) -> MissionProgress:
+    def parse(self, task_data: str, task_id: str) -> MissionProgress:
         goal = message_from_json(Mission.Goal, task_data)
         for index, subtask in enumerate(goal.subtasks):
-            self._check_subtask(index, subtask)
+            if not subtask.task_name.strip():
+                raise TaskDataError(f'subtasks[{index}].task_name', 'every subtask needs a name')
         progress = MissionProgress.plan(
             [(s.task_id, s.task_name, s.task_data, s.allow_skipping) for s in goal.subtasks]
         )
         if duplicates := progress.duplicate_ids():
             raise TaskDataError('subtasks', f'subtask ids given more than once: {duplicates}')
+        problems: dict[str, str] = {}  # key: the field at fault, value: why
+        for index, row in enumerate(progress.rows):
+            field, row.refusal = self._check(index, row)
+            if row.refusal is not None and not row.allow_skipping:
+                problems[field] = row.refusal.reason
+        if problems:
+            self._refuse(progress, task_id)
+            field, reason = next(iter(problems.items()))
+            if len(problems) > 1:
+                reason += f' (and {len(problems) - 1} more invalid subtask(s))'
+            raise TaskDataError(field, reason, mission_results(progress))
         return progress
 
-    def _check_subtask(self, index: int, subtask: Any) -> None:
-        runner = self._dispatcher.runners_by_name.get(subtask.task_name)
-        if runner is None or runner.spec.task_name == MISSION:
-            problem = 'a mission cannot contain a mission' if runner else 'unknown task'
-            raise TaskDataError(f'subtasks[{index}].task_name', f'{problem}: {subtask.task_name!r}')
+    def _check(self, index: int, row: SubtaskRow) -> tuple[str, SubtaskRefusal | None]:
+        """The field that is wrong and why the subtask cannot run; ('', None) if it can."""
+        runner = self._dispatcher.runners_by_name.get(row.task_name)
+        name_field = f'subtasks[{index}].task_name'
+        if runner is None:
+            reason = self._dispatcher.unknown_task_reason(row.task_name)
+            return name_field, SubtaskRefusal(ErrorCode.UNKNOWN_TASK, reason)
+        if runner.spec.task_name == MISSION:
+            reason = 'a mission cannot contain a mission'
+            return name_field, SubtaskRefusal(ErrorCode.TASK_DATA_PARSING_FAILED, reason)
         try:
-            runner.parse(subtask.task_data)
+            runner.parse(row.task_data, row.task_id)
         except TaskDataError as error:
-            raise TaskDataError(f'subtasks[{index}].task_data', str(error)) from error
+            refusal = SubtaskRefusal(ErrorCode.TASK_DATA_PARSING_FAILED, str(error))
+            return f'subtasks[{index}].task_data', refusal
+        return '', None
+
+    def _refuse(self, progress: MissionProgress, mission_id: str) -> None:
+        """Fail the mission before it starts; each unskippable invalid subtask gets its result."""
+        for row in progress.unskippable_refusals():
+            assert row.refusal is not None
+            self._dispatcher.refuse(
+                subtask_request(row, mission_id), row.refusal.error_code, row.refusal.reason
+            )
+        progress.fail_before_start()
 
     async def start(self, message: MissionProgress, record: TaskRecord) -> MissionExecution:
         return MissionExecution(self._node, self._dispatcher, message, record.task_id)
+
+
+def subtask_request(row: SubtaskRow, mission_id: str) -> TaskRequest:
+    """The request a mission makes for one of its subtasks (source `Mission`)."""
+    return TaskRequest(row.task_id, row.task_name, MISSION_SOURCE, row.task_data, mission_id)
+
+
+def mission_results(progress: MissionProgress) -> dict[str, Any]:
+    """The mission's task_result: a row per subtask."""
+    rows = [
+        SubtaskResult(
+            task_id=r.task_id, task_name=r.task_name, task_status=str(r.status), skipped=r.skipped
+        )
+        for r in progress.rows
+    ]
+    return message_to_dict(Mission.Result(mission_results=rows))

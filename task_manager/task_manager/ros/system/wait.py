@@ -64,7 +64,7 @@ class WaitRunner:
     def __init__(self, node: Node) -> None:
         self._node = node
 
-    def parse(self, task_data: str) -> Any:
+    def parse(self, task_data: str, task_id: str) -> Any:
         return message_from_json(Wait.Goal, task_data)
 
     async def start(self, message: Any, record: TaskRecord) -> WaitExecution:
