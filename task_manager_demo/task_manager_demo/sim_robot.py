@@ -18,6 +18,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.event_handler import EventHandler
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
@@ -81,7 +82,7 @@ class _Drive:
     goal_handle: ServerGoalHandle
     motion: Motion
     feedback: Callable[[Pose], Any]
-    outcome: Future
+    outcome: Future[Outcome]
 
 
 class Base:
@@ -94,7 +95,7 @@ class Base:
 
     def start(
         self, goal_handle: ServerGoalHandle, motion: Motion, feedback: Callable[[Pose], Any]
-    ) -> Future:
+    ) -> Future[Outcome]:
         """Start `motion` for `goal_handle`, pre-empting the running one; returns its Outcome."""
         self._end(Outcome.PREEMPTED)
         self._drive = _Drive(goal_handle, motion, feedback, Future())
@@ -139,7 +140,8 @@ class SimRobot(Node):
         values = {
             name: self._float_parameter(name, default) for name, default in FLOAT_PARAMETERS.items()
         }
-        self.dock_id = self.declare_parameter('dock_id', 'home').value
+        # a string: rclpy refuses an override of another type than the default's
+        self.dock_id: str = self.declare_parameter('dock_id', 'home').value
         self.speeds = Speeds(values['linear_speed'], values['angular_speed'])
         self.dock_pose = Pose(values['dock_x'], values['dock_y'], values['dock_theta'])
         start = Pose(values['initial_x'], values['initial_y'], values['initial_theta'])
@@ -158,7 +160,7 @@ class SimRobot(Node):
 
     def _float_parameter(self, name: str, default: float) -> float:
         descriptor = ParameterDescriptor(dynamic_typing=True)
-        raw = self.declare_parameter(name, default, descriptor).value
+        raw: object = self.declare_parameter(name, default, descriptor).value
         if isinstance(raw, bool) or not isinstance(raw, int | float):
             raise ConfigurationError(f'parameter {name} must be a number, got {raw!r}')
         value = float(raw)
@@ -185,6 +187,8 @@ class SimRobot(Node):
         self, what: str, goal_handle: ServerGoalHandle, motion: Motion, feedback: Any
     ) -> Outcome:
         outcome = await self.base.start(goal_handle, motion, feedback)
+        if outcome is None:  # only for a cancelled future, and the base cancels none
+            raise RuntimeError(f'{what}: the motion ended without an outcome')
         finish_goal(goal_handle, outcome)
         self.get_logger().info(f'{what}: {outcome.value} at {self.base.pose}')
         return outcome
@@ -246,7 +250,8 @@ class SimRobot(Node):
     def destroy_node(self) -> None:
         """Destroy the action servers first: destroy_node leaves them to the GC."""
         for waitable in list(self.waitables):
-            waitable.destroy()
+            if isinstance(waitable, ActionServer | EventHandler):  # every kind this node has
+                waitable.destroy()
         super().destroy_node()
 
 

@@ -8,6 +8,7 @@ from typing import Any
 import pytest
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
+from rclpy.client import Client
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto
 
@@ -54,7 +55,9 @@ class RobotClient:
         self.navigate = ros.action_client(NavigateToPose, NAVIGATE_ACTION)
         self.spin = ros.action_client(Spin, SPIN_ACTION)
         self.dock = ros.action_client(Dock, DOCK_ACTION)
-        self.take_photo = node.create_client(TakePhoto, TAKE_PHOTO_SERVICE)
+        self.take_photo: Client[TakePhoto.Request, TakePhoto.Response] = node.create_client(
+            TakePhoto, TAKE_PHOTO_SERVICE
+        )
         for client in (self.navigate, self.spin, self.dock):
             assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
         assert self.take_photo.wait_for_service(timeout_sec=TIMEOUT_SEC)

@@ -23,6 +23,7 @@ from task_manager.ros.futures import (
     completed_future,
     first_completed,
     resolved,
+    result_of,
     wait_for,
 )
 from task_manager.ros.message_json import TaskDataError
@@ -60,7 +61,7 @@ class TaskDispatcher:
         self._spawn = spawn
         self._log = node.get_logger()
         # key: task id, value: completes with the task's TaskEnd (first writer wins)
-        self._finished: dict[str, Future] = {}
+        self._finished: dict[str, Future[TaskEnd]] = {}
         # key: task id, value: completes once the task has started on its server, or failed to
         self._started: dict[str, Future] = {}
         # key: task id, value: the running task on its server
@@ -106,7 +107,7 @@ class TaskDispatcher:
             )
         # Settled here too, so that whoever waits on this task (a cancel) sees it end.
         self._settle(record.task_id, end)
-        self._finish(record, self._finished[record.task_id].result())
+        self._finish(record, result_of(self._finished[record.task_id]))
         return record
 
     def refuse(self, request: TaskRequest, code: ErrorCode, reason: str) -> TaskRecord:
@@ -173,7 +174,7 @@ class TaskDispatcher:
         finished = self._finished[task_id]
         await self._resolve_conflicts(record)
         if finished.done():  # cancelled while it waited for its conflicts
-            return finished.result()
+            return result_of(finished)
         self._starting_ids.add(task_id)
         try:
             execution = await self.runners_by_name[record.task_name].start(message, record)
@@ -184,10 +185,11 @@ class TaskDispatcher:
         record.mark_started()
         self._log.debug(f'task {task_id} ({record.task_name}) from {record.source!r} started')
         self._publish_active_soon()
-        execution.outcome.add_done_callback(lambda done: self._settle(task_id, done.result()))
+        execution.outcome.add_done_callback(lambda done: self._settle(task_id, result_of(done)))
         if record.cancel_reason is not None:  # a cancel arrived while the task was starting
             self._cancel_future(record, record.cancel_reason)
-        return await resolved(self.node, finished)
+        await resolved(self.node, finished)
+        return result_of(finished)
 
     async def _resolve_conflicts(self, record: TaskRecord) -> None:
         conflicts = self.registry.conflicts_of(record.spec, record.task_id)

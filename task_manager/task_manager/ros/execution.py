@@ -5,7 +5,7 @@ from typing import Any, Protocol
 
 from rclpy.task import Future
 
-from task_manager.core.task import TaskRecord
+from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
 
 
@@ -28,7 +28,7 @@ class RunnerTimeouts:
 class Execution(Protocol):
     """A task that has started; `outcome` completes with its TaskEnd."""
 
-    outcome: Future
+    outcome: Future[TaskEnd]
 
     async def cancel(self, timeout_sec: float) -> bool:
         """Ask the task to stop; True once it has ended within `timeout_sec`."""

@@ -34,6 +34,22 @@ async def resolved(node: Node, future: Future[T]) -> T | None:
     return future.result()
 
 
+def result_of(future: Future[T]) -> T:
+    """The result of a completed `future` whose result is never None.
+
+    rclpy's `result()` also returns None for a pending or cancelled future; that is an error
+    here (RuntimeError), not a value.
+    """
+    result = future.result()
+    if result is None:
+        if future.cancelled():
+            raise RuntimeError('expected the result of a future that was cancelled')
+        if not future.done():
+            raise RuntimeError('expected the result of a future that is not done')
+        raise RuntimeError('a future completed with None where a result was expected')
+    return result
+
+
 def completed_future(value: Any = None) -> Future[Any]:
     future: Future[Any] = Future()
     future.set_result(value)

@@ -10,7 +10,7 @@ from rclpy.task import Future
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.futures import first_completed, resolved
+from task_manager.ros.futures import first_completed, resolved, result_of
 from task_manager.ros.message_json import TaskDataError, message_from_dict
 
 
@@ -19,7 +19,7 @@ class _BoundGoal:
     """A goal whose task is running: its task's id, and whether its client's cancel failed."""
 
     task_id: str
-    cancel_failed: Future = dataclasses.field(default_factory=Future)
+    cancel_failed: Future[TaskRecord] = dataclasses.field(default_factory=Future)
 
 
 class GoalTaskBinding:
@@ -54,12 +54,15 @@ class GoalTaskBinding:
 
         node = self._dispatcher.node
         assert node.executor is not None
-        task = node.executor.create_task(self._dispatcher.run(request, on_admitted=bind))
+        # rclpy runs coroutines too, but types create_task for callables only
+        task: Future[TaskRecord] = node.executor.create_task(  # type: ignore[call-overload]
+            self._dispatcher.run(request, on_admitted=bind)
+        )
         try:
             await resolved(node, first_completed([task, bound.cancel_failed]))
         finally:
             self._bound_goals.pop(goal_key, None)
-        record = task.result() if task.done() else bound.cancel_failed.result()
+        record = result_of(task) if task.done() else result_of(bound.cancel_failed)
         finish_goal(goal_handle, record)
         return record
 

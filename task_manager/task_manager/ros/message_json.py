@@ -126,7 +126,9 @@ def _ros_name(slot: idl.AbstractType) -> str:
         return '/'.join(slot.namespaced_name())
     if isinstance(slot, idl.AbstractGenericString):
         base = 'wstring' if isinstance(slot, idl.AbstractWString) else 'string'
-        return f'{base}<={slot.maximum_size}' if slot.has_maximum_size() else base
+        if isinstance(slot, idl.BoundedString | idl.BoundedWString):
+            return f'{base}<={slot.maximum_size}'
+        return base
     if isinstance(slot, idl.Array):
         return f'{_ros_name(slot.value_type)}[{slot.size}]'
     if isinstance(slot, idl.BoundedSequence):
@@ -256,9 +258,10 @@ def _decoder(slot: idl.AbstractType) -> Decoder:
         return _sequence_decoder(slot, _decoder(slot.value_type))
     if isinstance(slot, idl.NamespacedType):
         return partial(_from_dict, _import_class(slot))
+    if isinstance(slot, idl.BoundedString | idl.BoundedWString):
+        return _string_decoder(_ros_name(slot), int(slot.maximum_size))
     if isinstance(slot, idl.AbstractGenericString):
-        bound = int(slot.maximum_size) if slot.has_maximum_size() else None
-        return _string_decoder(_ros_name(slot), bound)
+        return _string_decoder(_ros_name(slot), None)
     return _basic_decoder(_ros_name(slot))
 
 
@@ -328,7 +331,7 @@ def _from_dict(msg_class: type[T], data: Any, path: str) -> T:
     """Build a ``msg_class`` instance from ``data`` found at ``path``."""
     if not isinstance(data, dict):
         raise _expected(path, f'{_class_name(msg_class)} (a JSON object)', data)
-    fields = _fields(msg_class)
+    fields = _fields(msg_class)  # type: ignore[arg-type]  # classes are Hashable (mypy#11470)
     if not path:
         _check_known_keys(msg_class, fields, data)
     msg = msg_class()
@@ -383,7 +386,8 @@ def message_from_dict(msg_class: type[T], data: dict[str, Any]) -> T:
 
 def message_to_dict(msg: Any) -> dict[str, Any]:
     """Return every field of ``msg`` by name, in declaration order, as plain Python values."""
-    return {field.name: field.encode(getattr(msg, field.name)) for field in _fields(type(msg))}
+    fields = _fields(type(msg))  # type: ignore[arg-type]  # classes are Hashable (mypy#11470)
+    return {field.name: field.encode(getattr(msg, field.name)) for field in fields}
 
 
 def _nulls(value: Any) -> Any:

@@ -2,6 +2,7 @@
 
 from typing import Any
 
+from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.task import Future
 
@@ -69,7 +70,10 @@ class ServiceTaskRunner:
         self._node = node
         self._service_type = service_type
         self._timeouts = timeouts
-        self._client = node.create_client(service_type, spec.topic, qos_profile=DEEP_RELIABLE)
+        # The message classes are untyped (no stubs for generated code), hence Any.
+        self._client: Client[Any, Any] = node.create_client(
+            service_type, spec.topic, qos_profile=DEEP_RELIABLE
+        )
         self._watch = ServerWatch(
             node,
             self._client.service_is_ready,

@@ -62,7 +62,10 @@ class TopicRecorder:
             self._changed.notify_all()
 
     def wait_until(
-        self, predicate: Callable[[list[Any]], T], timeout_sec: float, what: str = 'condition'
+        self,
+        predicate: Callable[[list[Any]], T | None],
+        timeout_sec: float,
+        what: str = 'condition',
     ) -> T:
         """Wait until `predicate(messages)` is truthy and return its value."""
         with self._changed:

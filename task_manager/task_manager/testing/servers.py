@@ -16,6 +16,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
 
+from task_manager.ros.futures import result_of
 from task_manager.testing.harness import WaitTimeoutError
 
 
@@ -75,7 +76,8 @@ class ScriptedGoal:
         self.request = goal_handle.request
         self.cancel_requested = threading.Event()
         self.ended = threading.Event()
-        self._end: Future = Future()
+        # completes with (outcome, result): what the test decided
+        self._end: Future[tuple[str, Any]] = Future()
         self._hop = hop
 
     def _decide(self, outcome: str, result: Any) -> None:
@@ -144,7 +146,8 @@ class ScriptedActionServer:
         self.goals.add(goal)
         if self._on_goal is not None:
             self._on_goal(goal)
-        outcome, result = await goal._end
+        await goal._end
+        outcome, result = result_of(goal._end)
         if outcome == 'canceled' and goal_handle.is_cancel_requested:
             goal_handle.canceled()
         elif outcome == 'succeed':

@@ -113,7 +113,7 @@ def test_sigint_cancels_running_tasks_publishes_results_and_exits_0(
     driving_result = driving.get_result_async()  # asked at once, as real clients do
     tm.send('set', {'data': True}, task_id='setting')
     tm.wait_active(lambda tasks: {'driving', 'setting'} <= {t for t, _ in tasks})
-    process = tm.process  # type: ignore[attr-defined]
+    process = tm.process
     pid = process.process.pid
     threads = psutil.Process(pid).num_threads()
 

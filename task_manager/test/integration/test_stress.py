@@ -202,7 +202,7 @@ def _plan(rng: random.Random) -> list[Request]:
             order = _server_order(rng, 40)
             request = Request(index, kind, task_id, kind, _order_data(order))
         elif kind == 'mission':
-            subtasks = []
+            subtasks: list[dict[str, Any]] = []
             for number in range(rng.randint(1, 3)):
                 name = rng.choice(('nav', 'single', 'photo'))
                 # photo ignores cancels: its subtasks end at once, so a mission cancel is quick
@@ -331,12 +331,12 @@ class ActiveTasksWatch:
     def _follow(self) -> None:
         seen = 0
         while not self._stop.is_set():
+
+            def newer(msgs: list[Any], seen: int = seen) -> tuple[int, Any] | None:
+                return (len(msgs), msgs[-1]) if len(msgs) > seen else None
+
             try:
-                seen, latest = self._active.wait_until(
-                    lambda msgs, seen=seen: (len(msgs), msgs[-1]) if len(msgs) > seen else None,
-                    0.5,
-                    'an active_tasks message',
-                )
+                seen, latest = self._active.wait_until(newer, 0.5, 'an active_tasks message')
             except WaitTimeoutError:
                 continue
             threads = self.sample_threads()
@@ -402,7 +402,7 @@ def test_concurrent_mixed_requests_are_each_answered_once_and_consistently(
         }
     )
     clients = [StressClient(ros, n, requests[n::CLIENTS]) for n in range(CLIENTS)]
-    watch = ActiveTasksWatch(tm.active, tm.process.process.pid)  # type: ignore[attr-defined]
+    watch = ActiveTasksWatch(tm.active, tm.process.process.pid)
     try:
         for client in clients:
             client.warm_up()

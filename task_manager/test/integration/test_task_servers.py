@@ -2,6 +2,7 @@
 
 import threading
 
+from rclpy.client import Client
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
 
@@ -35,7 +36,9 @@ def test_task_servers_run_tasks_through_the_task_manager(
         enable_task_servers=True,
     )
     action_client = ros.action_client(Fibonacci, '/task_manager/task/math/fib')
-    service_client = ros.node.create_client(SetBool, '/task_manager/task/set')
+    service_client: Client[SetBool.Request, SetBool.Response] = ros.node.create_client(
+        SetBool, '/task_manager/task/set'
+    )
     assert action_client.wait_for_server(timeout_sec=TIMEOUT_SEC)
     assert service_client.wait_for_service(timeout_sec=TIMEOUT_SEC)
 

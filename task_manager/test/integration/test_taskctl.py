@@ -89,6 +89,7 @@ def test_start_without_waiting_cancel_and_the_canceled_exit_code(
     assert cancelled.returncode == 0, cancelled.stderr
     assert json.loads(cancelled.stdout)['result']['successful_cancels'] == ['held', 'ghost']
     assert waiting.wait(RUN_TIMEOUT_SEC) == 3  # CANCELED
+    assert waiting.stdout is not None
     assert json.loads(waiting.stdout.read())['status'] == 'CANCELED'
     assert stopped.returncode == 0
     assert tm.wait_result_message(other_id).task_status == 'CANCELED'

@@ -1,5 +1,6 @@
 """/task_manager/active_tasks and /task_manager/results (BEHAVIOUR.md, What everyone can see)."""
 
+from rclpy.client import Client
 from task_manager_msgs.msg import ActiveTaskArray
 from task_manager_msgs.srv import GetTaskResults
 from test_msgs.action import Fibonacci
@@ -94,7 +95,9 @@ def test_kept_results_can_be_fetched_after_the_fact(
     for task_id in ('r1', 'r2', 'r3', 'r4'):
         tm.run('fib', {'order': 1}, task_id=task_id)
     tm.run('nope', {}, task_id='r5')
-    client = ros.node.create_client(GetTaskResults, '/task_manager/get_task_results')
+    client: Client[GetTaskResults.Request, GetTaskResults.Response] = ros.node.create_client(
+        GetTaskResults, '/task_manager/get_task_results'
+    )
     assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
 
     everything = wait_for_future(

@@ -33,6 +33,7 @@ from task_manager.ros.message_json import (
     message_to_dict,
     message_to_json,
 )
+from task_manager.testing.messages import GeneratedMessage
 
 Goal = Fibonacci.Goal
 FAST = settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -444,7 +445,9 @@ def _assert_plain(value: Any) -> None:
     'msg_class',
     [BasicTypes, Arrays, BoundedSequences, UnboundedSequences, Nested, Strings, WStrings],
 )
-def test_to_dict_has_every_field_in_order_as_plain_values(msg_class: type) -> None:
+def test_to_dict_has_every_field_in_order_as_plain_values(
+    msg_class: type[GeneratedMessage],
+) -> None:
     data = message_to_dict(msg_class())
     assert list(data) == list(msg_class.get_fields_and_field_types())
     _assert_plain(data)
@@ -485,8 +488,12 @@ def _values(slot: idl.AbstractType) -> st.SearchStrategy[Any]:
     if isinstance(slot, idl.NamespacedType):
         module = __import__('.'.join(slot.namespaces), fromlist=[slot.name])
         return _full_dicts(getattr(module, slot.name))
+    if isinstance(slot, idl.BoundedString | idl.BoundedWString):
+        return st.text(max_size=int(slot.maximum_size))
     if isinstance(slot, idl.AbstractGenericString):
-        return st.text(max_size=slot.maximum_size if slot.has_maximum_size() else 30)
+        return st.text(max_size=30)
+    if not isinstance(slot, idl.BasicType):
+        raise TypeError(f'no strategy for the ROS field type {slot!r}')
     name = slot.typename
     if name == 'boolean':
         return st.booleans()
@@ -500,7 +507,7 @@ def _values(slot: idl.AbstractType) -> st.SearchStrategy[Any]:
     return st.integers(-(2 ** (bits - 1)), 2 ** (bits - 1) - 1)
 
 
-def _full_dicts(msg_class: type) -> st.SearchStrategy[dict[str, Any]]:
+def _full_dicts(msg_class: type[GeneratedMessage]) -> st.SearchStrategy[dict[str, Any]]:
     """Generate complete field dicts for a message class."""
     names = msg_class.get_fields_and_field_types()
     slots = msg_class.SLOT_TYPES
@@ -523,7 +530,7 @@ ROUND_TRIP_CLASSES = [
 
 
 @pytest.mark.parametrize('msg_class', ROUND_TRIP_CLASSES)
-def test_round_trip(msg_class: type) -> None:
+def test_round_trip(msg_class: type[GeneratedMessage]) -> None:
     @FAST
     @given(_full_dicts(msg_class))
     def check(data: dict[str, Any]) -> None:
@@ -564,7 +571,9 @@ DEEP = st.integers(1, 3000).map(lambda depth: '[' * depth + ']' * depth)
     st.sampled_from(FUZZ_CLASSES),
     st.one_of(JSON_VALUES.map(json.dumps), st.text(max_size=50), DEEP),
 )
-def test_any_json_text_gives_a_message_or_a_task_data_error(msg_class: type, text: str) -> None:
+def test_any_json_text_gives_a_message_or_a_task_data_error(
+    msg_class: type[GeneratedMessage], text: str
+) -> None:
     try:
         msg = message_from_json(msg_class, text)
     except TaskDataError as error:
@@ -582,7 +591,9 @@ def test_any_json_text_gives_a_message_or_a_task_data_error(msg_class: type, tex
         max_size=6,
     ),
 )
-def test_any_dict_gives_a_message_or_a_task_data_error(msg_class: type, data: dict) -> None:
+def test_any_dict_gives_a_message_or_a_task_data_error(
+    msg_class: type[GeneratedMessage], data: dict
+) -> None:
     try:
         msg = message_from_dict(msg_class, data)
     except TaskDataError as error:

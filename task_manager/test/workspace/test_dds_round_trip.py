@@ -2,6 +2,7 @@
 
 from rclpy.action import ActionServer
 from rclpy.action.server import ServerGoalHandle
+from rclpy.client import Client
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.srv import CancelTasks
 
@@ -53,7 +54,9 @@ def test_cancel_tasks_request_and_response_cross_dds(ros: RosHarness) -> None:
         return response
 
     service = ros.node.create_service(CancelTasks, '/round_trip/cancel_tasks', cancel)
-    client = ros.node.create_client(CancelTasks, '/round_trip/cancel_tasks')
+    client: Client[CancelTasks.Request, CancelTasks.Response] = ros.node.create_client(
+        CancelTasks, '/round_trip/cancel_tasks'
+    )
     assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
     request = CancelTasks.Request(cancelled_tasks=['a', 'stuck', 'b'])
     response = wait_for_future(client.call_async(request), TIMEOUT_SEC, 'cancel response')

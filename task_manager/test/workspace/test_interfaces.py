@@ -12,6 +12,8 @@ from task_manager_msgs.msg import (
 )
 from task_manager_msgs.srv import CancelTasks, GetTaskResults, StopTasks
 
+from task_manager.testing.messages import GeneratedMessage
+
 # key: generated class, value: its fields in wire order as (name, rosidl type)
 EXPECTED_FIELDS = {
     ExecuteTask.Goal: [
@@ -88,7 +90,7 @@ EXPECTED_CONSTANTS = {
 }
 
 
-def _user_fields(msg_class: type) -> list[tuple[str, str]]:
+def _user_fields(msg_class: type[GeneratedMessage]) -> list[tuple[str, str]]:
     # Messages without fields get a generated placeholder member; it is not on the wire
     # of the original either (same .msg source), so it is left out of the comparison.
     return [
@@ -99,7 +101,7 @@ def _user_fields(msg_class: type) -> list[tuple[str, str]]:
 
 
 @pytest.mark.parametrize('msg_class', list(EXPECTED_FIELDS), ids=lambda c: c.__qualname__)
-def test_fields_types_and_order_match_the_spec(msg_class: type) -> None:
+def test_fields_types_and_order_match_the_spec(msg_class: type[GeneratedMessage]) -> None:
     assert _user_fields(msg_class) == EXPECTED_FIELDS[msg_class]
 
 
