@@ -14,7 +14,10 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
-STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+from task_manager_demo.parent_death import die_with_parent
+
+# SIGHUP: the terminal was closed, which stops the demo as Ctrl-C does.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 @dataclass(frozen=True)
@@ -38,7 +41,7 @@ Events = queue.SimpleQueue[Event]
 
 
 def forward_stop_signals(events: Events) -> None:
-    """Turn SIGINT and SIGTERM to this process into Signalled events.
+    """Turn SIGINT, SIGTERM and SIGHUP to this process into Signalled events.
 
     SimpleQueue.put may be called from a signal handler (it is reentrant).
     """
@@ -59,6 +62,7 @@ class Child:
 
     It runs in its own process group, so a terminal's Ctrl-C reaches only the launcher,
     which passes it on once (a second SIGINT may make a ROS node skip its clean shutdown).
+    It gets SIGTERM when the launcher dies, however it dies, so it is never left behind.
     """
 
     def __init__(
@@ -68,7 +72,7 @@ class Child:
         self.output: list[str] = []
         self._events = events
         self.process = subprocess.Popen(
-            command,
+            die_with_parent(command),
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,

@@ -1,11 +1,13 @@
 """Console script `task-manager-demo`: the simulated robot and the Task Manager, ready to use.
 
 Starts both as child processes, waits (bounded) until each logs that it is ready, then prints
-what to try next and streams their logs. Ctrl-C or SIGTERM stops both (SIGINT, a bounded
-wait, a kill only as a last resort) and exits 0. A child that dies first fails the demo.
+what to try next and streams their logs. Ctrl-C, SIGTERM or SIGHUP (the terminal closed)
+stops both (SIGINT, a bounded wait, a kill only as a last resort) and exits 0. A child that
+dies first fails the demo. If the launcher itself is killed, its children get SIGTERM.
 """
 
 import argparse
+import contextlib
 import os
 import queue
 import re
@@ -100,7 +102,9 @@ def banner(tasks: str, robot_pose: str, params_file: Path) -> str:
 
 
 def say(text: str) -> None:
-    print(text, flush=True)
+    # OSError: the terminal is gone (its window was closed); the demo goes on stopping.
+    with contextlib.suppress(OSError):
+        print(text, flush=True)
 
 
 class Demo:

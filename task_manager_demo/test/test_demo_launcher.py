@@ -1,4 +1,5 @@
-"""`task-manager-demo`: stops both children on SIGTERM; fails loudly when a child dies early."""
+"""`task-manager-demo`: stops both children on a signal, leaves none behind when killed, and
+fails loudly when a child dies early."""
 
 import signal
 import sys
@@ -39,6 +40,41 @@ def test_sigterm_stops_the_robot_and_the_task_manager_and_exits_0(
         if demo.child.exit_code is None:
             demo.stop()
     assert alive(children) == []
+
+
+def test_sighup_stops_everything_as_ctrl_c_does() -> None:
+    demo = DemoProcess('task-manager-demo', [LAUNCHER])
+    try:
+        demo.wait_for_line(r'^Ctrl-C stops', START_TIMEOUT_SEC)
+        children = psutil.Process(demo.pid).children()
+
+        demo.child.process.send_signal(signal.SIGHUP)  # the terminal window was closed
+
+        assert demo.wait_exit(STOP_TIMEOUT_SEC) == 0, demo.output
+    finally:
+        if demo.child.exit_code is None:
+            demo.stop()
+    assert 'the robot and the Task Manager have stopped' in demo.output
+    assert alive(children) == []
+
+
+def test_a_killed_launcher_leaves_no_child_behind() -> None:
+    demo = DemoProcess('task-manager-demo', [LAUNCHER])
+    try:
+        demo.wait_for_line(r'^Ctrl-C stops', START_TIMEOUT_SEC)
+        children = psutil.Process(demo.pid).children()
+        assert len(children) == 2
+
+        demo.child.process.kill()  # SIGKILL: the launcher cannot stop its children itself
+
+        _, still_running = psutil.wait_procs(children, timeout=STOP_TIMEOUT_SEC)
+    finally:
+        if demo.child.exit_code is None:
+            demo.stop()
+    for orphan in still_running:
+        orphan.kill()
+    assert still_running == []
+    assert demo.wait_exit(STOP_TIMEOUT_SEC) == -signal.SIGKILL
 
 
 def test_a_child_that_dies_before_it_is_ready_fails_the_demo_with_its_output(

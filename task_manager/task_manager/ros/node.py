@@ -20,6 +20,7 @@ from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.goal_binding import GoalTaskBinding
+from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
 from task_manager.ros.service_runner import ServiceTaskRunner
@@ -51,7 +52,8 @@ def result_json(record: TaskRecord) -> str:
 class TaskManagerNode(Node):
     """Serves the Task Manager's public ROS interfaces.
 
-    Raises ConfigurationError from the constructor when the parameters are unusable.
+    Raises ConfigurationError from the constructor when the parameters are unusable. It
+    announces itself at once (see instances.py) and serves from `serve()` on.
     """
 
     def __init__(self) -> None:
@@ -60,23 +62,30 @@ class TaskManagerNode(Node):
             allow_undeclared_parameters=True,
             automatically_declare_parameters_from_overrides=True,
         )
-        settings = read_settings(self)
-        specs = read_task_specs(self, reserved_names=set(SYSTEM_TASK_NAMES))
-        user_runners = [self._create_runner(spec, settings.timeouts) for spec in specs]
+        self.instances = InstanceWatch(self)
+        self.settings = read_settings(self)
+        self._specs = read_task_specs(self, reserved_names=set(SYSTEM_TASK_NAMES))
+        user_runners = [self._create_runner(spec, self.settings.timeouts) for spec in self._specs]
         # key: task id, value: its entry in active_tasks, built once and kept while it runs
         self._active_task_msgs: dict[str, ActiveTask] = {}
+        self._results_history: deque[TaskDoneResult] = deque(
+            maxlen=self.settings.results_history_size
+        )
+        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn)
+        self._runners = [*user_runners, *create_system_runners(self, self.dispatcher)]
+        self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in self._runners})
+        self._goals = GoalTaskBinding(self.dispatcher)
+        self._shutting_down = False
+
+    def serve(self) -> None:
+        """Serve ExecuteTask and publish active tasks and results (once, when no twin is seen)."""
         self._active_publisher = self.create_publisher(
             ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS
         )
         self._result_publisher = self.create_publisher(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS)
-        self._results_history: deque[TaskDoneResult] = deque(maxlen=settings.results_history_size)
         self._results_service = self.create_service(
             GetTaskResults, GET_TASK_RESULTS_SERVICE, self._get_task_results
         )
-        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn)
-        runners = [*user_runners, *create_system_runners(self, self.dispatcher)]
-        self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in runners})
-        self._goals = GoalTaskBinding(self.dispatcher)
         self._execute_server = ActionServer(
             self,
             ExecuteTask,
@@ -90,15 +99,14 @@ class TaskManagerNode(Node):
             callback_group=ReentrantCallbackGroup(),
         )
         self._task_servers = (
-            create_task_servers(self, self.dispatcher, [r.spec for r in runners])
-            if settings.enable_task_servers
+            create_task_servers(self, self.dispatcher, [r.spec for r in self._runners])
+            if self.settings.enable_task_servers
             else []
         )
-        self._shutting_down = False
         self.publish_active([])
         self.get_logger().info(
-            f'Task Manager ready with {len(specs)} task(s): '
-            + ', '.join(spec.task_name for spec in specs)
+            f'Task Manager ready with {len(self._specs)} task(s): '
+            + ', '.join(spec.task_name for spec in self._specs)
         )
 
     async def shut_down(self, stopped: Future) -> None:

@@ -13,9 +13,11 @@ from task_manager.core.errors import ConfigurationError
 from task_manager.core.params_file import check_params_file, params_files
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import wake
-from task_manager.ros.node import NODE_NAME, TaskManagerNode
+from task_manager.ros.instances import describe
+from task_manager.ros.node import EXECUTE_TASK_ACTION, NODE_NAME, TaskManagerNode
 
 EXIT_CONFIGURATION_ERROR = 2
+EXIT_ANOTHER_TASK_MANAGER = 2
 DRAIN_MAX_CALLBACKS = 1000
 
 
@@ -68,11 +70,20 @@ def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
         rclpy.try_shutdown()
         return _refuse_configuration(error)
     stopped: Future = Future()
+    exit_code = [0]
     executor.add_node(node)
-    threading.Thread(
-        target=_receive_signals, args=(node, stopped, shutdown_signals), daemon=True
-    ).start()
     try:
+        executor.spin_until_future_complete(
+            node.instances.older, timeout_sec=node.settings.instance_check_timeout_sec
+        )
+        if node.instances.older.done():
+            _report_older(node, 'not starting')
+            return EXIT_ANOTHER_TASK_MANAGER
+        node.serve()
+        node.instances.older.add_done_callback(lambda _: _yield_to_older(node, stopped, exit_code))
+        threading.Thread(
+            target=_receive_signals, args=(node, stopped, shutdown_signals), daemon=True
+        ).start()
         executor.spin_until_future_complete(stopped)
         _drain(executor)
     finally:
@@ -80,4 +91,22 @@ def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
         destroy_waitables(node)
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return exit_code[0]
+
+
+def _report_older(node: TaskManagerNode, what: str) -> None:
+    older = node.instances.older.result()
+    assert older is not None
+    get_logger(NODE_NAME).fatal(
+        f'{what}: another Task Manager already serves {EXECUTE_TASK_ACTION} on ROS domain '
+        f'{node.context.get_domain_id()} ({describe(older)}); stop it first, or give this one '
+        'another ROS_DOMAIN_ID'
+    )
+
+
+def _yield_to_older(node: TaskManagerNode, stopped: Future, exit_code: list[int]) -> None:
+    """An older Task Manager was discovered late: this one stops as if signalled, exit 2."""
+    _report_older(node, 'stopping')
+    exit_code[0] = EXIT_ANOTHER_TASK_MANAGER
+    assert node.executor is not None
+    node.executor.create_task(node.shut_down, stopped)

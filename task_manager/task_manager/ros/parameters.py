@@ -18,6 +18,7 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'service_response_timeout': ((int, float), RunnerTimeouts.service_response_sec),
     'server_check_period': ((int, float), RunnerTimeouts.server_check_period_sec),
     'server_loss_timeout': ((int, float), RunnerTimeouts.server_loss_timeout_sec),
+    'instance_check_timeout': ((int, float), 0.3),
 }
 
 
@@ -37,6 +38,7 @@ class NodeSettings:
     enable_task_servers: bool
     timeouts: RunnerTimeouts
     results_history_size: int
+    instance_check_timeout_sec: float
 
 
 def read_settings(node: Node) -> NodeSettings:
@@ -50,12 +52,15 @@ def read_settings(node: Node) -> NodeSettings:
     }
     if values['results_history_size'] < 0:
         raise ConfigurationError("parameter 'results_history_size' must be >= 0")
+    if values['instance_check_timeout'] < 0:
+        raise ConfigurationError("parameter 'instance_check_timeout' must be >= 0")
     for name in POSITIVE_PARAMETERS:
         if not values[name] > 0:
             raise ConfigurationError(f'parameter {name!r} must be > 0, got {values[name]!r}')
     return NodeSettings(
         enable_task_servers=values['enable_task_servers'],
         results_history_size=values['results_history_size'],
+        instance_check_timeout_sec=float(values['instance_check_timeout']),
         timeouts=RunnerTimeouts(
             server_wait_sec=float(values['server_wait_timeout']),
             goal_response_sec=float(values['goal_response_timeout']),

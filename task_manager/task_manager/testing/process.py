@@ -58,6 +58,7 @@ class NodeProcess:
         if ros_args:
             command += ['--ros-args', *ros_args]
         self.log_lines: list[str] = []
+        self._output_ended = False
         self._changed = threading.Condition()
         env = dict(os.environ, RCUTILS_LOGGING_BUFFERED_STREAM='0', PYTHONUNBUFFERED='1')
         self.process = subprocess.Popen(
@@ -77,24 +78,27 @@ class NodeProcess:
                 self.log_lines.append(line.rstrip('\n'))
                 self._changed.notify_all()
         with self._changed:
+            self._output_ended = True
             self._changed.notify_all()
 
     def wait_for_log(self, pattern: str, timeout_sec: float) -> str:
         """Wait for a log line matching the regular expression `pattern`; return it."""
         regex = re.compile(pattern)
 
-        def match() -> str | None:
+        def match() -> tuple[str | None] | None:
+            """(the line,) once found, (None,) once the output has ended without it, else None."""
             found = next((line for line in self.log_lines if regex.search(line)), None)
-            return found or ('' if self.process.poll() is not None else None)
+            return (found,) if found is not None or self._output_ended else None
 
         with self._changed:
-            line = self._changed.wait_for(match, timeout_sec)
-        if not line:
+            outcome = self._changed.wait_for(match, timeout_sec)
+        if outcome is None or outcome[0] is None:
+            ended = 'the process has exited' if outcome else f'{timeout_sec} s passed'
             raise WaitTimeoutError(
-                f'no log line matching {pattern!r} within {timeout_sec} s; '
-                f'log so far:\n' + '\n'.join(self.log_lines)
+                f'no log line matching {pattern!r} ({ended}); log so far:\n'
+                + '\n'.join(self.log_lines)
             )
-        return line
+        return outcome[0]
 
     def wait_exit(self, timeout_sec: float) -> int:
         code = self.process.wait(timeout_sec)

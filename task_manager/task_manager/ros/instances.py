@@ -1,0 +1,71 @@
+"""One Task Manager per ROS domain: each announces itself, and the younger of two yields.
+
+Two Task Managers serving `/task_manager/execute_task` would both accept every goal: each
+task would run twice, and each would cancel the other's blocking tasks. Every Task Manager
+publishes a TaskManagerInstance once on a transient-local topic, so every other one, however
+late it discovers it, receives it. The younger of two (later `started`, then the greater
+`instance_id`) learns it is the younger and stops; the older goes on undisturbed.
+"""
+
+import os
+import socket
+import time
+import uuid
+from datetime import datetime
+
+from builtin_interfaces.msg import Time
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from task_manager_msgs.msg import TaskManagerInstance
+
+INSTANCES_TOPIC = '/task_manager/instances'
+NANOSECONDS = 1_000_000_000
+
+# Each publisher keeps its one message for subscribers that join later.
+INSTANCES_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
+
+def this_instance() -> TaskManagerInstance:
+    now_ns = time.time_ns()
+    return TaskManagerInstance(
+        started=Time(sec=now_ns // NANOSECONDS, nanosec=now_ns % NANOSECONDS),
+        host=socket.gethostname(),
+        pid=os.getpid(),
+        instance_id=str(uuid.uuid4()),
+    )
+
+
+def _age_key(instance: TaskManagerInstance) -> tuple[int, int, str]:
+    """Orders instances from the oldest."""
+    return (instance.started.sec, instance.started.nanosec, instance.instance_id)
+
+
+def describe(instance: TaskManagerInstance) -> str:
+    """E.g. "pid 4711 on host robot-1, started 2026-11-23 14:02:11"."""
+    started = datetime.fromtimestamp(instance.started.sec).isoformat(sep=' ')
+    return f'pid {instance.pid} on host {instance.host!r}, started {started}'
+
+
+class InstanceWatch:
+    """Announces this Task Manager; `older` completes with an older one once one is seen."""
+
+    def __init__(self, node: Node) -> None:
+        self.own = this_instance()
+        self.older: Future[TaskManagerInstance] = Future()
+        self._publisher = node.create_publisher(TaskManagerInstance, INSTANCES_TOPIC, INSTANCES_QOS)
+        self._subscription = node.create_subscription(
+            TaskManagerInstance, INSTANCES_TOPIC, self._on_instance, INSTANCES_QOS
+        )
+        self._publisher.publish(self.own)
+
+    def _on_instance(self, other: TaskManagerInstance) -> None:
+        if self.older.done() or other.instance_id == self.own.instance_id:
+            return
+        if _age_key(other) < _age_key(self.own):
+            self.older.set_result(other)
