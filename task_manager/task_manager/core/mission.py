@@ -94,6 +94,28 @@ class MissionProgress:
             return TaskStatus.CANCELED
         return TaskStatus.ERROR if self.failed else TaskStatus.DONE
 
+    def feedback(self, running: bool) -> dict[str, object]:
+        """The mission's progress as its feedback: the subtask at its turn and every row.
+
+        `running`: the subtask at `next_index` has started (shown IN_PROGRESS).
+        """
+        rows = [
+            {
+                'task_id': row.task_id,
+                'task_name': row.task_name,
+                'task_status': str(row.status),
+                'skipped': row.skipped,
+            }
+            for row in self.rows
+        ]
+        current = self.next_subtask()
+        if running and current is not None:
+            rows[self.next_index]['task_status'] = str(TaskStatus.IN_PROGRESS)
+        return {
+            'current_index': self.next_index if current is not None else -1,
+            'subtasks': rows,
+        }
+
     def duplicate_ids(self) -> list[str]:
         """Subtask ids given more than once in the mission."""
         ids = [row.task_id for row in self.rows]

@@ -58,8 +58,10 @@ class TaskRecord:
     cancel_reason: CancelReason | None = None
     parent_id: str = ''
     """The mission this task runs in, if any."""
-    feedback_listener: Callable[[dict[str, Any]], None] | None = field(default=None, repr=False)
-    """Called with every new feedback (e.g. to forward it to a task server's client)."""
+    feedback_listeners: list[Callable[['TaskRecord'], None]] = field(
+        default_factory=list, repr=False
+    )
+    """Called on every new feedback (the event stream; a task server's client)."""
 
     @property
     def task_name(self) -> str:
@@ -97,8 +99,8 @@ class TaskRecord:
     def record_feedback(self, feedback: dict[str, Any], now: float | None = None) -> None:
         self.latest_feedback = feedback
         self.feedback_at = time.time() if now is None else now
-        if self.feedback_listener is not None:
-            self.feedback_listener(feedback)
+        for listener in self.feedback_listeners:
+            listener(self)
 
     def request_cancel(self, reason: CancelReason) -> None:
         """Remember the first reason a cancel was asked for; later requests keep it."""

@@ -27,6 +27,7 @@ from task_manager.ros.futures import (
     wait_for,
 )
 from task_manager.ros.message_json import TaskDataError
+from task_manager.ros.task_events import TaskEventStream
 
 # How long tasks ended by force at shutdown may take to report their results.
 FORCED_END_TIMEOUT_SEC = 1.0
@@ -53,8 +54,10 @@ class TaskDispatcher:
         runners: dict[str, TaskRunner],
         reporter: TaskReporter,
         spawn: Callable[[Coroutine[Any, Any, Any]], Any],
+        events: TaskEventStream,
     ) -> None:
         self.registry = TaskRegistry()
+        self.events = events
         self.runners_by_name = runners
         self.node = node
         self._reporter = reporter
@@ -89,7 +92,7 @@ class TaskDispatcher:
         """
         record, message = self._admit(request)
         if record.is_final:
-            self._reporter.publish_result(record)
+            self._publish_end(record)
             return record
         if on_admitted is not None:
             on_admitted(record)
@@ -113,7 +116,7 @@ class TaskDispatcher:
     def refuse(self, request: TaskRequest, code: ErrorCode, reason: str) -> TaskRecord:
         """End a request that must not run (e.g. an invalid subtask): logged and published."""
         record = self._reject(self._new_record(request), code, reason)
-        self._reporter.publish_result(record)
+        self._publish_end(record)
         return record
 
     def unknown_task_reason(self, task_name: str) -> str:
@@ -125,7 +128,9 @@ class TaskDispatcher:
         runner = self.runners_by_name.get(request.task_name)
         spec = runner.spec if runner else _unknown_spec(request.task_name)
         task_id = request.task_id or str(uuid.uuid4())
-        return TaskRecord(task_id, spec, request.source, parent_id=request.parent_id)
+        record = TaskRecord(task_id, spec, request.source, parent_id=request.parent_id)
+        self.events.received(record)
+        return record
 
     def _admit(self, request: TaskRequest) -> tuple[TaskRecord, Any]:
         record = self._new_record(request)
@@ -183,6 +188,7 @@ class TaskDispatcher:
             self._started[task_id].set_result(None)
         self._executions[task_id] = execution
         record.mark_started()
+        self.events.started(record)
         self._log.debug(f'task {task_id} ({record.task_name}) from {record.source!r} started')
         self._publish_active_soon()
         execution.outcome.add_done_callback(lambda done: self._settle(task_id, result_of(done)))
@@ -307,7 +313,7 @@ class TaskDispatcher:
         if was_active:
             self._ended_unpublished.append(record)
             self._publish_active_soon()
-        self._reporter.publish_result(record)
+        self._publish_end(record)
         if not len(self.registry) and not self._idle.done():
             self._idle.set_result(None)
         ran_sec = (
@@ -319,6 +325,10 @@ class TaskDispatcher:
             f'task {record.task_id} ({record.task_name}) from {record.source!r} ended '
             f'{record.status}{ran_sec}' + (f' ({record.error_code})' if record.error_code else '')
         )
+
+    def _publish_end(self, record: TaskRecord) -> None:
+        self.events.ended(record)
+        self._reporter.publish_result(record)
 
     def _publish_active_soon(self) -> None:
         """Publish active_tasks once the executor has handled what is ready now.

@@ -48,8 +48,8 @@ class GoalTaskBinding:
             bound.task_id = record.task_id
             self._bound_goals[goal_key] = bound
             if feedback_type is not None:
-                record.feedback_listener = lambda feedback: _forward_feedback(
-                    goal_handle, feedback_type, feedback
+                record.feedback_listeners.append(
+                    lambda task: _forward_feedback(goal_handle, feedback_type, task.latest_feedback)
                 )
 
         node = self._dispatcher.node
@@ -94,8 +94,10 @@ class GoalTaskBinding:
         )
 
 
-def _forward_feedback(goal_handle: Any, feedback_type: Any, feedback: dict[str, Any]) -> None:
-    if not goal_handle.is_active:
+def _forward_feedback(
+    goal_handle: Any, feedback_type: Any, feedback: dict[str, Any] | None
+) -> None:
+    if feedback is None or not goal_handle.is_active:
         return
     # feedback of another shape than the interface's has nothing to forward
     with contextlib.suppress(TaskDataError):

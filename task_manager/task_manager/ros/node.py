@@ -1,6 +1,5 @@
 """The `task_manager` node: declared tasks, ExecuteTask, active tasks and results."""
 
-import json
 from collections import deque
 from typing import Any
 
@@ -9,8 +8,8 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask
-from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
-from task_manager_msgs.srv import GetTaskResults
+from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult, TaskState
+from task_manager_msgs.srv import GetTaskResults, GetTaskStates
 
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
@@ -25,6 +24,7 @@ from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
 from task_manager.ros.service_runner import ServiceTaskRunner
 from task_manager.ros.system import SYSTEM_TASK_NAMES, create_system_runners
+from task_manager.ros.task_events import TaskEventStream, task_state_msg, to_json
 from task_manager.ros.task_servers import create_task_servers
 
 NODE_NAME = 'task_manager'
@@ -32,6 +32,7 @@ EXECUTE_TASK_ACTION = '/task_manager/execute_task'
 ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
+GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
 SHUTDOWN_MARGIN_SEC = 1.0
 
@@ -46,7 +47,7 @@ def active_task_msg(record: TaskRecord) -> ActiveTask:
 
 
 def result_json(record: TaskRecord) -> str:
-    return json.dumps(record.result, ensure_ascii=False, allow_nan=False, separators=(',', ':'))
+    return to_json(record.result)
 
 
 class TaskManagerNode(Node):
@@ -68,10 +69,14 @@ class TaskManagerNode(Node):
         user_runners = [self._create_runner(spec, self.settings.timeouts) for spec in self._specs]
         # key: task id, value: its entry in active_tasks, built once and kept while it runs
         self._active_task_msgs: dict[str, ActiveTask] = {}
-        self._results_history: deque[TaskDoneResult] = deque(
+        # the ended tasks kept for get_task_results and get_task_states, oldest first
+        self._results_history: deque[tuple[TaskDoneResult, TaskState]] = deque(
             maxlen=self.settings.results_history_size
         )
-        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn)
+        self._events = TaskEventStream(
+            self, self.settings.publish_task_events, self.settings.feedback_rate_hz
+        )
+        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn, self._events)
         self._runners = [*user_runners, *create_system_runners(self, self.dispatcher)]
         self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in self._runners})
         self._goals = GoalTaskBinding(self.dispatcher)
@@ -86,6 +91,10 @@ class TaskManagerNode(Node):
         self._results_service = self.create_service(
             GetTaskResults, GET_TASK_RESULTS_SERVICE, self._get_task_results
         )
+        self._states_service = self.create_service(
+            GetTaskStates, GET_TASK_STATES_SERVICE, self._get_task_states
+        )
+        self._events.open()
         self._execute_server = ActionServer(
             self,
             ExecuteTask,
@@ -166,13 +175,26 @@ class TaskManagerNode(Node):
             task_result=result_json(record),
         )
         self._result_publisher.publish(message)
-        self._results_history.append(message)
+        self._results_history.append((message, task_state_msg(record)))
 
     def _get_task_results(
         self, request: GetTaskResults.Request, response: GetTaskResults.Response
     ) -> GetTaskResults.Response:
-        kept = list(self._results_history)
+        kept = [result for result, _ in self._results_history]
         response.results = kept[-request.max_results :] if request.max_results else kept
+        return response
+
+    def _get_task_states(
+        self, request: GetTaskStates.Request, response: GetTaskStates.Response
+    ) -> GetTaskStates.Response:
+        active = [task_state_msg(record) for record in self.dispatcher.registry]
+        if not request.task_ids:
+            response.tasks = active
+            return response
+        # key: task id, value: its state (an active task over an ended one of the same id)
+        known = {state.task_id: state for _, state in self._results_history}
+        known.update((state.task_id, state) for state in active)
+        response.tasks = [known[task_id] for task_id in request.task_ids if task_id in known]
         return response
 
     # ---- /task_manager/execute_task ----------------------------------------------------------

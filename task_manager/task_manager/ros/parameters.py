@@ -19,6 +19,8 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'server_check_period': ((int, float), RunnerTimeouts.server_check_period_sec),
     'server_loss_timeout': ((int, float), RunnerTimeouts.server_loss_timeout_sec),
     'instance_check_timeout': ((int, float), 0.3),
+    'publish_task_events': ((bool,), True),
+    'feedback_rate_hz': ((int, float), 10.0),
 }
 
 
@@ -28,6 +30,7 @@ POSITIVE_PARAMETERS = (
     'service_response_timeout',
     'server_check_period',
     'server_loss_timeout',
+    'feedback_rate_hz',
 )
 
 
@@ -39,6 +42,8 @@ class NodeSettings:
     timeouts: RunnerTimeouts
     results_history_size: int
     instance_check_timeout_sec: float
+    publish_task_events: bool
+    feedback_rate_hz: float
 
 
 def read_settings(node: Node) -> NodeSettings:
@@ -61,6 +66,8 @@ def read_settings(node: Node) -> NodeSettings:
         enable_task_servers=values['enable_task_servers'],
         results_history_size=values['results_history_size'],
         instance_check_timeout_sec=float(values['instance_check_timeout']),
+        publish_task_events=values['publish_task_events'],
+        feedback_rate_hz=float(values['feedback_rate_hz']),
         timeouts=RunnerTimeouts(
             server_wait_sec=float(values['server_wait_timeout']),
             goal_response_sec=float(values['goal_response_timeout']),

@@ -21,6 +21,9 @@ ACTIVE_TASKS = QoSProfile(
 
 RESULTS = DEEP_RELIABLE
 
+# Volatile: a subscriber that joins late asks /task_manager/get_task_states for the present.
+TASK_EVENTS = DEEP_RELIABLE
+
 # A subscriber that wants the current list only: of the history a transient-local
 # publisher sends to a new subscriber, it keeps the newest message.
 LATEST_ACTIVE_TASKS = QoSProfile(

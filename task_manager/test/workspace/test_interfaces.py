@@ -8,6 +8,7 @@ from task_manager_msgs.msg import (
     SubtaskGoal,
     SubtaskResult,
     TaskDoneResult,
+    TaskManagerInstance,
     TaskStatus,
 )
 from task_manager_msgs.srv import CancelTasks, GetTaskResults, StopTasks
@@ -69,6 +70,13 @@ EXPECTED_FIELDS = {
     GetTaskResults.Response: [('results', 'sequence<task_manager_msgs/TaskDoneResult>')],
     StopTasks.Request: [],
     StopTasks.Response: [('success', 'boolean')],
+    # New types (not in the original package)
+    TaskManagerInstance: [
+        ('started', 'builtin_interfaces/Time'),
+        ('host', 'string'),
+        ('pid', 'int32'),
+        ('instance_id', 'string'),
+    ],
 }
 
 # key: generated class, value: its constants (name -> value)

@@ -20,27 +20,36 @@ class MissionExecution(CoroutineExecution):
     """A running mission; cancelling it cancels its running subtask."""
 
     def __init__(
-        self, node: Node, dispatcher: TaskDispatcher, progress: MissionProgress, mission_id: str
+        self,
+        node: Node,
+        dispatcher: TaskDispatcher,
+        progress: MissionProgress,
+        mission: TaskRecord,
     ) -> None:
         self._dispatcher = dispatcher
         self._progress = progress
-        self._mission_id = mission_id
+        self._mission = mission
         self._running_id = ''
         super().__init__(node, self._run_subtasks())
 
     async def _run_subtasks(self) -> TaskEnd:
+        """Each subtask in turn; the mission's feedback shows each start and end."""
         while (row := self._progress.next_subtask()) is not None:
             self._running_id = row.task_id
-            request = subtask_request(row, self._mission_id)
+            request = subtask_request(row, self._mission.task_id)
             if row.refusal is not None:  # invalid and skippable: it fails without starting
                 subtask = self._dispatcher.refuse(
                     request, row.refusal.error_code, row.refusal.reason
                 )
             else:
-                subtask = await self._dispatcher.run(request)
+                subtask = await self._dispatcher.run(request, on_admitted=self._on_subtask_turn)
             self._progress.subtask_ended(subtask.status, subtask.cancel_reason)
+            self._mission.record_feedback(self._progress.feedback(running=False))
         self._running_id = ''
         return TaskEnd(self._progress.final_status, mission_results(self._progress))
+
+    def _on_subtask_turn(self, _: TaskRecord) -> None:
+        self._mission.record_feedback(self._progress.feedback(running=True))
 
     async def cancel(self, timeout_sec: float) -> bool:
         self._progress.cancel(CancelReason.MISSION)
@@ -114,7 +123,7 @@ class MissionRunner:
         progress.fail_before_start()
 
     async def start(self, message: MissionProgress, record: TaskRecord) -> MissionExecution:
-        return MissionExecution(self._node, self._dispatcher, message, record.task_id)
+        return MissionExecution(self._node, self._dispatcher, message, record)
 
 
 def subtask_request(row: SubtaskRow, mission_id: str) -> TaskRequest:

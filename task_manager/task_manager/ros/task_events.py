@@ -1,0 +1,123 @@
+"""/task_manager/task_events: one TaskEvent per change of a task, feedback rate-limited.
+
+Every task gets RECEIVED, then STARTED (unless it ends before starting), FEEDBACK updates,
+and ENDED, in that order, each with the task's whole state. Feedback goes out at most
+`feedback_rate_hz` times a second per task (see core/feedback_rate.py); a feedback held
+back when the task ends goes out just before its ENDED event.
+"""
+
+import json
+import time
+from typing import Any
+
+from builtin_interfaces.msg import Time
+from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.timer import Timer
+from task_manager_msgs.msg import TaskEvent, TaskState
+
+from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
+from task_manager.core.task import TaskRecord
+from task_manager.ros import qos
+
+TASK_EVENTS_TOPIC = '/task_manager/task_events'
+NANOSECONDS = 1_000_000_000
+
+
+def stamp(seconds: float | None) -> Time:
+    """A wall-clock time as builtin_interfaces/Time; zero for None (not yet)."""
+    if seconds is None:
+        return Time()
+    total_ns = round(seconds * NANOSECONDS)
+    return Time(sec=total_ns // NANOSECONDS, nanosec=total_ns % NANOSECONDS)
+
+
+def to_json(value: dict[str, Any] | None) -> str:
+    """Compact JSON of a result or feedback (already JSON-safe: see message_to_dict)."""
+    if value is None:
+        return ''
+    return json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(',', ':'))
+
+
+def task_state_msg(record: TaskRecord) -> TaskState:
+    return TaskState(
+        task_id=record.task_id,
+        task_name=record.task_name,
+        source=record.source,
+        task_status=str(record.status),
+        error_code=str(record.error_code),
+        mission_id=record.parent_id,
+        received=stamp(record.received_at),
+        started=stamp(record.started_at),
+        ended=stamp(record.ended_at),
+        feedback=to_json(record.latest_feedback),
+        task_result=to_json(record.result) if record.is_final else '',
+    )
+
+
+class TaskEventStream:
+    """Publishes the events of every task; does nothing when switched off."""
+
+    def __init__(self, node: Node, enabled: bool, feedback_rate_hz: float) -> None:
+        self.enabled = enabled
+        self._node = node
+        self._min_interval_sec = 1.0 / feedback_rate_hz
+        self._publisher: Publisher[TaskEvent] | None = None
+        # key: task id, value: its feedback rate limit, while the task is active
+        self._gates: dict[str, FeedbackGate] = {}
+        # key: task id, value: the one-shot timer that sends its held feedback
+        self._timers: dict[str, Timer] = {}
+
+    def open(self) -> None:
+        """Create the publisher (when the node starts serving)."""
+        if self.enabled:
+            self._publisher = self._node.create_publisher(
+                TaskEvent, TASK_EVENTS_TOPIC, qos.TASK_EVENTS
+            )
+
+    def received(self, record: TaskRecord) -> None:
+        if self._publisher is None:
+            return
+        record.feedback_listeners.append(self.feedback)
+        self._publish(TaskEvent.RECEIVED, record)
+
+    def started(self, record: TaskRecord) -> None:
+        if self._publisher is not None:
+            self._publish(TaskEvent.STARTED, record)
+
+    def feedback(self, record: TaskRecord) -> None:
+        if record.is_final:  # a late update after the end is not an event
+            return
+        gate = self._gates.get(record.task_id)
+        if gate is None:
+            gate = self._gates[record.task_id] = FeedbackGate(self._min_interval_sec)
+        now = time.monotonic()
+        action = gate.offer(now)
+        if action is FeedbackAction.SEND:
+            self._publish(TaskEvent.FEEDBACK, record)
+        elif action is FeedbackAction.HOLD:
+            self._timers[record.task_id] = self._node.create_timer(
+                gate.delay_until_slot(now), lambda: self._release(record)
+            )
+
+    def ended(self, record: TaskRecord) -> None:
+        if self._publisher is None:
+            return
+        self._release(record)
+        self._gates.pop(record.task_id, None)
+        self._publish(TaskEvent.ENDED, record)
+
+    def _release(self, record: TaskRecord) -> None:
+        """Send the held feedback of `record`, if any (its slot has come, or it ends)."""
+        timer = self._timers.pop(record.task_id, None)
+        if timer is not None:
+            self._node.destroy_timer(timer)
+        gate = self._gates.get(record.task_id)
+        if gate is not None and gate.release(time.monotonic()):
+            self._publish(TaskEvent.FEEDBACK, record)
+
+    def _publish(self, event: str, record: TaskRecord) -> None:
+        assert self._publisher is not None
+        self._publisher.publish(
+            TaskEvent(event=event, stamp=stamp(time.time()), task=task_state_msg(record))
+        )
