@@ -190,7 +190,7 @@ def test_a_mission_publishes_its_progress_as_feedback(
     tm.result_of(handle)
     mine = _until_ended(events, 'm1')
 
-    rows = [_progress(m) for m in mine if m.event == TaskEvent.FEEDBACK]
+    rows = [row for m in mine if (row := _progress(m)) is not None]
     first = [('s1', 'IN_PROGRESS', False), ('s2', 'RECEIVED', False), ('s3', 'RECEIVED', False)]
     last = [('s1', 'DONE', False), ('s2', 'ERROR', True), ('s3', 'DONE', False)]
     assert rows[0] == (0, first)
