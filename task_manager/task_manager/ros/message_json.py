@@ -401,10 +401,14 @@ def _nulls(value: Any) -> Any:
     return value
 
 
-def message_to_json(msg: Any) -> str:
-    """Return ``msg`` as compact JSON; NaN and infinities are written as null."""
-    data = message_to_dict(msg)
+def dict_to_json(data: dict[str, Any]) -> str:
+    """Compact JSON of a message's dict (see message_to_dict); NaN and infinities become null."""
     try:
         return json.dumps(data, allow_nan=False, ensure_ascii=False, separators=(',', ':'))
     except ValueError:
         return json.dumps(_nulls(data), allow_nan=False, ensure_ascii=False, separators=(',', ':'))
+
+
+def message_to_json(msg: Any) -> str:
+    """Return ``msg`` as compact JSON; NaN and infinities are written as null."""
+    return dict_to_json(message_to_dict(msg))

@@ -6,7 +6,6 @@ and ENDED, in that order, each with the task's whole state. Feedback goes out at
 back when the task ends goes out just before its ENDED event.
 """
 
-import json
 import time
 from typing import Any
 
@@ -19,6 +18,7 @@ from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.task import TaskRecord
 from task_manager.ros import qos
+from task_manager.ros.message_json import dict_to_json
 
 TASK_EVENTS_TOPIC = '/task_manager/task_events'
 NANOSECONDS = 1_000_000_000
@@ -33,10 +33,8 @@ def stamp(seconds: float | None) -> Time:
 
 
 def to_json(value: dict[str, Any] | None) -> str:
-    """Compact JSON of a result or feedback (already JSON-safe: see message_to_dict)."""
-    if value is None:
-        return ''
-    return json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(',', ':'))
+    """Compact JSON of a result or feedback ('' for None); NaN and infinities become null."""
+    return '' if value is None else dict_to_json(value)
 
 
 def task_state_msg(record: TaskRecord) -> TaskState:

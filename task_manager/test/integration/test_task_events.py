@@ -3,6 +3,7 @@
 import contextlib
 import itertools
 import json
+import math
 import threading
 import time
 from typing import Any
@@ -11,6 +12,7 @@ from rclpy.client import Client
 from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager_msgs.srv import GetTaskStates
 from test_msgs.action import Fibonacci
+from test_msgs.srv import BasicTypes
 
 from task_manager.ros import qos
 from task_manager.ros.task_events import TASK_EVENTS_TOPIC
@@ -21,8 +23,8 @@ from task_manager.testing.harness import (
     wait_for_future,
 )
 from task_manager.testing.probe import TaskManagerProbe
-from task_manager.testing.process import LaunchTaskManager, action_task
-from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
+from task_manager.testing.process import LaunchTaskManager, action_task, service_task
+from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal, ScriptedService
 
 TIMEOUT_SEC = 15.0
 FAST_FEEDBACK_PERIOD_SEC = 0.01  # 100 Hz
@@ -242,3 +244,27 @@ def test_the_event_stream_can_be_switched_off(
     publishers = ros.node.get_publishers_info_by_topic(TASK_EVENTS_TOPIC)
 
     assert publishers == []
+
+
+def test_a_result_json_cannot_hold_is_converted_and_the_node_goes_on(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    ScriptedService(
+        ros.node,
+        BasicTypes,
+        f'{topic_prefix}/basic',
+        on_call=lambda call: call.respond(float64_value=math.nan, float32_value=math.inf),
+    )
+    tm = launch_task_manager(
+        {'basic': service_task('basic', f'{topic_prefix}/basic', 'test_msgs/srv/BasicTypes')}
+    )
+    events = _events(ros)
+
+    result = tm.run('basic', {'bool_value': True}, task_id='nan')
+    ended = _until_ended(events, 'nan')[-1].task
+
+    assert (result.task_status, result.error_code) == ('DONE', '')
+    for text in (result.task_result, ended.task_result, tm.wait_result_message('nan').task_result):
+        converted = json.loads(text)
+        assert (converted['float64_value'], converted['float32_value']) == (None, None)
+    assert tm.run('basic', {'bool_value': True}).task_status == 'DONE'  # still serving
