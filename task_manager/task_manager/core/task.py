@@ -58,6 +58,8 @@ class TaskRecord:
     cancel_reason: CancelReason | None = None
     parent_id: str = ''
     """The mission this task runs in, if any."""
+    task_data: str = ''
+    """The request's task_data, as the client sent it."""
     feedback_listeners: list[Callable[['TaskRecord'], None]] = field(
         default_factory=list, repr=False
     )

@@ -128,7 +128,9 @@ class TaskDispatcher:
         runner = self.runners_by_name.get(request.task_name)
         spec = runner.spec if runner else _unknown_spec(request.task_name)
         task_id = request.task_id or str(uuid.uuid4())
-        record = TaskRecord(task_id, spec, request.source, parent_id=request.parent_id)
+        record = TaskRecord(
+            task_id, spec, request.source, parent_id=request.parent_id, task_data=request.task_data
+        )
         self.events.received(record)
         return record
 

@@ -29,6 +29,8 @@ from typing import Any, TypeVar
 import numpy
 from rosidl_parser import definition as idl
 
+from task_manager.core.json_text import compact_json
+
 T = TypeVar('T')
 Decoder = Callable[[Any, str], Any]
 Encoder = Callable[[Any], Any]
@@ -390,23 +392,9 @@ def message_to_dict(msg: Any) -> dict[str, Any]:
     return {field.name: field.encode(getattr(msg, field.name)) for field in fields}
 
 
-def _nulls(value: Any) -> Any:
-    """Replace non-finite floats (which JSON cannot hold) by None, recursively."""
-    if isinstance(value, float):
-        return value if math.isfinite(value) else None
-    if isinstance(value, dict):
-        return {key: _nulls(item) for key, item in value.items()}
-    if isinstance(value, list):
-        return [_nulls(item) for item in value]
-    return value
-
-
 def dict_to_json(data: dict[str, Any]) -> str:
     """Compact JSON of a message's dict (see message_to_dict); NaN and infinities become null."""
-    try:
-        return json.dumps(data, allow_nan=False, ensure_ascii=False, separators=(',', ':'))
-    except ValueError:
-        return json.dumps(_nulls(data), allow_nan=False, ensure_ascii=False, separators=(',', ':'))
+    return compact_json(data)
 
 
 def message_to_json(msg: Any) -> str:

@@ -1,0 +1,288 @@
+"""The durable task history: every request, its stamps, data, result and end, in SQLite.
+
+One row per request (a task id may be used again once its task has ended, so rows have their
+own `entry` number). Changes are buffered and written by `flush`, one transaction for all the
+changes of one executor turn, so a burst of 500 results is one commit, not 500. Each ended
+task gets a `sequence` number that only grows, so a consumer can ask for "everything after N".
+
+The file uses WAL journaling: readers never block the writer. Nothing here knows ROS.
+"""
+
+import dataclasses
+import sqlite3
+import time
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from task_manager.core.json_text import compact_json
+from task_manager.core.task import TaskRecord
+
+SCHEMA_VERSION = 1
+MEMORY = ':memory:'
+
+_SCHEMA_V1 = """
+CREATE TABLE tasks (
+    entry INTEGER PRIMARY KEY,
+    task_id TEXT NOT NULL,
+    task_name TEXT NOT NULL,
+    source TEXT NOT NULL,
+    mission_id TEXT NOT NULL,
+    task_data TEXT NOT NULL,
+    status TEXT NOT NULL,
+    error_code TEXT NOT NULL,
+    result TEXT,
+    received REAL NOT NULL,
+    started REAL,
+    ended REAL,
+    sequence INTEGER UNIQUE
+);
+CREATE INDEX tasks_unfinished ON tasks (entry) WHERE sequence IS NULL;
+CREATE INDEX tasks_by_name ON tasks (task_name, sequence);
+CREATE INDEX tasks_by_end ON tasks (ended);
+"""
+
+# Each step upgrades the schema from the version before it; index 0 creates version 1.
+_MIGRATIONS = (_SCHEMA_V1,)
+
+
+class HistoryError(Exception):
+    """The history file cannot be used (not a database, or of an unknown schema)."""
+
+
+@dataclass(frozen=True)
+class HistoryRow:
+    """One request as stored."""
+
+    entry: int
+    task_id: str
+    task_name: str
+    source: str
+    mission_id: str
+    task_data: str
+    status: str
+    error_code: str
+    result: str | None
+    received: float
+    started: float | None
+    ended: float | None
+    sequence: int | None
+
+
+COLUMNS = tuple(f.name for f in fields(HistoryRow))
+_UPSERT = (
+    f'INSERT INTO tasks ({", ".join(COLUMNS)}) VALUES ({", ".join("?" for _ in COLUMNS)}) '
+    'ON CONFLICT (entry) DO UPDATE SET '
+    + ', '.join(f'{c} = excluded.{c}' for c in COLUMNS if c != 'entry')
+)
+
+
+@dataclass(frozen=True)
+class HistoryQuery:
+    """Which ended tasks to return; empty fields do not filter."""
+
+    task_name: str = ''
+    status: str = ''
+    source: str = ''
+    mission_id: str = ''
+    ended_after: float | None = None
+    ended_before: float | None = None
+    after_sequence: int = 0
+    limit: int = 100
+    oldest_first: bool = False
+    """By sequence, oldest first (to resume after a sequence number); else newest first."""
+
+    def where(self) -> tuple[str, list[object]]:
+        clauses, values = ['sequence IS NOT NULL'], []
+        for column in ('task_name', 'status', 'source', 'mission_id'):
+            if value := getattr(self, column):
+                clauses.append(f'{column} = ?')
+                values.append(value)
+        if self.ended_after is not None:
+            clauses.append('ended >= ?')
+            values.append(self.ended_after)
+        if self.ended_before is not None:
+            clauses.append('ended < ?')
+            values.append(self.ended_before)
+        if self.after_sequence:
+            clauses.append('sequence > ?')
+            values.append(self.after_sequence)
+        return ' AND '.join(clauses), values
+
+
+def _row(record: TaskRecord, entry: int, sequence: int | None) -> tuple[object, ...]:
+    return (
+        entry,
+        record.task_id,
+        record.task_name,
+        record.source,
+        record.parent_id,
+        record.task_data,
+        str(record.status),
+        str(record.error_code),
+        compact_json(record.result) if record.is_final else None,
+        record.received_at,
+        record.started_at,
+        record.ended_at,
+        sequence,
+    )
+
+
+class TaskHistory:
+    """The history store of one Task Manager."""
+
+    def __init__(self, path: str) -> None:
+        """Open (or create) the store at `path`; '' or ':memory:' keeps it in memory only.
+
+        Raises HistoryError when the file is not a database this version can use, and
+        OSError / sqlite3.Error when it cannot be opened or written.
+        """
+        self.path = path or MEMORY
+        if self.path != MEMORY:
+            Path(self.path).parent.mkdir(parents=True, exist_ok=True)
+        self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
+        try:
+            self._prepare()
+        except sqlite3.DatabaseError as error:
+            self._db.close()
+            raise HistoryError(f'{self.path} is not a task history database ({error})') from None
+        except HistoryError:
+            self._db.close()
+            raise
+        self._next_entry = self._max('entry') + 1
+        self._next_sequence = self._max('sequence') + 1
+        # key: record (by identity), value: its entry number, while it is not ended
+        self._entries: dict[int, int] = {}
+        # key: entry, value: the row to write at the next flush (later changes replace it)
+        self._pending: dict[int, tuple[object, ...]] = {}
+
+    def _prepare(self) -> None:
+        self._db.execute('PRAGMA journal_mode = WAL')
+        self._db.execute('PRAGMA synchronous = NORMAL')
+        version = self._db.execute('PRAGMA user_version').fetchone()[0]
+        if version > SCHEMA_VERSION:
+            raise HistoryError(
+                f'{self.path} has schema version {version}; this Task Manager knows up to '
+                f'{SCHEMA_VERSION}'
+            )
+        if version == 0 and self._has_tables():
+            raise HistoryError(f'{self.path} is a database, but not a task history')
+        with self.transaction():
+            for step in _MIGRATIONS[version:]:
+                for statement in filter(str.strip, step.split(';')):
+                    self._db.execute(statement)
+            self._db.execute(f'PRAGMA user_version = {SCHEMA_VERSION}')
+
+    def _has_tables(self) -> bool:
+        return bool(self._db.execute("SELECT 1 FROM sqlite_master WHERE type = 'table'").fetchone())
+
+    def _max(self, column: str) -> int:
+        return int(self._db.execute(f'SELECT coalesce(max({column}), 0) FROM tasks').fetchone()[0])
+
+    def transaction(self) -> '_Transaction':
+        return _Transaction(self._db)
+
+    # ---- changes (buffered) -----------------------------------------------------------
+
+    def write(self, record: TaskRecord) -> int | None:
+        """Remember the record's current state for the next flush.
+
+        Returns its sequence number once it has ended (assigned here, exactly once).
+        """
+        entry = self._entries.get(id(record))
+        if entry is None:
+            entry = self._next_entry
+            self._next_entry += 1
+            self._entries[id(record)] = entry
+        sequence = None
+        if record.is_final:
+            del self._entries[id(record)]
+            sequence = self._next_sequence
+            self._next_sequence += 1
+        self._pending[entry] = _row(record, entry, sequence)
+        return sequence
+
+    @property
+    def pending(self) -> int:
+        return len(self._pending)
+
+    def flush(self) -> None:
+        """Write every buffered change in one transaction; on failure they stay buffered."""
+        if not self._pending:
+            return
+        rows = list(self._pending.values())
+        with self.transaction():
+            self._db.executemany(_UPSERT, rows)
+        self._pending.clear()
+
+    # ---- reading ----------------------------------------------------------------------
+
+    def unfinished(self) -> list[HistoryRow]:
+        """Requests that were received but never ended (the node died while they ran)."""
+        return self._select('sequence IS NULL', [], 'entry', -1)
+
+    def close_unfinished(self, reason: str, now: float | None = None) -> list[HistoryRow]:
+        """End every unfinished request ERROR with `{"error": reason}`; returns them ended."""
+        ended_at = time.time() if now is None else now
+        closed = []
+        result = compact_json({'error': reason})
+        with self.transaction():
+            for row in self.unfinished():
+                sequence = self._next_sequence
+                self._next_sequence += 1
+                self._db.execute(
+                    'UPDATE tasks SET status = ?, result = ?, ended = ?, sequence = ? '
+                    'WHERE entry = ?',
+                    ('ERROR', result, ended_at, sequence, row.entry),
+                )
+                closed.append(
+                    dataclasses.replace(
+                        row, status='ERROR', result=result, ended=ended_at, sequence=sequence
+                    )
+                )
+        return closed
+
+    def query(self, query: HistoryQuery) -> list[HistoryRow]:
+        where, values = query.where()
+        order = 'sequence' if query.oldest_first else 'sequence DESC'
+        return self._select(where, values, order, query.limit)
+
+    def _select(self, where: str, values: list[object], order: str, limit: int) -> list[HistoryRow]:
+        sql = f'SELECT {", ".join(COLUMNS)} FROM tasks WHERE {where} ORDER BY {order} LIMIT ?'
+        return [HistoryRow(*row) for row in self._db.execute(sql, [*values, limit])]
+
+    def prune(self, max_results: int, max_age_days: float, now: float | None = None) -> int:
+        """Delete ended tasks beyond the newest `max_results` or older than the age (0: no
+        limit); returns how many were deleted."""
+        deleted = 0
+        with self.transaction():
+            if max_results > 0:
+                cursor = self._db.execute(
+                    'DELETE FROM tasks WHERE sequence <= ('
+                    '  SELECT sequence FROM tasks WHERE sequence IS NOT NULL'
+                    '  ORDER BY sequence DESC LIMIT 1 OFFSET ?)',
+                    (max_results,),
+                )
+                deleted += cursor.rowcount
+            if max_age_days > 0:
+                oldest = (time.time() if now is None else now) - max_age_days * 86400
+                cursor = self._db.execute(
+                    'DELETE FROM tasks WHERE sequence IS NOT NULL AND ended < ?', (oldest,)
+                )
+                deleted += cursor.rowcount
+        return deleted
+
+    def close(self) -> None:
+        self._db.close()
+
+
+class _Transaction:
+    """BEGIN ... COMMIT, or ROLLBACK on an exception (the connection is in autocommit mode)."""
+
+    def __init__(self, db: sqlite3.Connection) -> None:
+        self._db = db
+
+    def __enter__(self) -> None:
+        self._db.execute('BEGIN IMMEDIATE')
+
+    def __exit__(self, kind: object, *_: object) -> None:
+        self._db.execute('COMMIT' if kind is None else 'ROLLBACK')

@@ -1,0 +1,193 @@
+"""TaskHistory: the SQLite store of every request, on real files in a temporary folder."""
+
+import json
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from task_manager.core.history import (
+    SCHEMA_VERSION,
+    HistoryError,
+    HistoryQuery,
+    TaskHistory,
+)
+from task_manager.core.status import ErrorCode, TaskStatus
+from task_manager.core.task import TaskRecord
+from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+
+FIB = TaskSpec('fib', '/fib', InterfaceName('test_msgs', TaskKind.ACTION, 'Fibonacci'))
+NAV = TaskSpec('nav', '/nav', InterfaceName('test_msgs', TaskKind.ACTION, 'Fibonacci'))
+
+# The first schema, exactly as version 1 wrote it: every later version must open it.
+SCHEMA_V1_FILE = """
+CREATE TABLE tasks (
+    entry INTEGER PRIMARY KEY, task_id TEXT NOT NULL, task_name TEXT NOT NULL,
+    source TEXT NOT NULL, mission_id TEXT NOT NULL, task_data TEXT NOT NULL,
+    status TEXT NOT NULL, error_code TEXT NOT NULL, result TEXT, received REAL NOT NULL,
+    started REAL, ended REAL, sequence INTEGER UNIQUE);
+CREATE INDEX tasks_unfinished ON tasks (entry) WHERE sequence IS NULL;
+CREATE INDEX tasks_by_name ON tasks (task_name, sequence);
+CREATE INDEX tasks_by_end ON tasks (ended);
+INSERT INTO tasks VALUES (1, 'old', 'fib', 'CLI', '', '{}', 'DONE', '', '{}', 1.0, 2.0, 3.0, 1);
+PRAGMA user_version = 1;
+"""
+
+
+def ended(task_id: str, spec: TaskSpec = FIB, at: float = 100.0, **result: object) -> TaskRecord:
+    record = TaskRecord(task_id, spec, 'CLI', task_data='{"order": 1}', received_at=at - 2)
+    record.mark_started(now=at - 1)
+    record.mark_ended(TaskStatus.DONE, dict(result), now=at)
+    return record
+
+
+def test_an_ended_task_is_stored_with_its_data_stamps_result_and_a_sequence(
+    tmp_path: Path,
+) -> None:
+    history = TaskHistory(str(tmp_path / 'h.sqlite'))
+    record = TaskRecord('t1', FIB, 'CLOUD', task_data='{"order": 1}', received_at=10.0)
+
+    assert history.write(record) is None  # received: no sequence yet
+    record.mark_started(now=11.0)
+    history.write(record)
+    record.mark_ended(TaskStatus.DONE, {'sequence': [1], 'nan': float('nan')}, now=12.5)
+    sequence = history.write(record)
+    history.flush()
+    history.close()
+
+    rows = TaskHistory(str(tmp_path / 'h.sqlite')).query(HistoryQuery())
+    assert sequence == 1
+    assert [(r.task_id, r.source, r.task_data, r.status, r.sequence) for r in rows] == [
+        ('t1', 'CLOUD', '{"order": 1}', 'DONE', 1)
+    ]
+    assert (rows[0].received, rows[0].started, rows[0].ended) == (10.0, 11.0, 12.5)
+    assert json.loads(rows[0].result or '') == {'sequence': [1], 'nan': None}
+
+
+def test_changes_wait_for_the_flush_and_one_flush_is_one_transaction(tmp_path: Path) -> None:
+    path = str(tmp_path / 'h.sqlite')
+    history = TaskHistory(path)
+    for index in range(500):
+        history.write(ended(f't{index}'))
+    reader = sqlite3.connect(path)
+
+    assert reader.execute('SELECT count(*) FROM tasks').fetchone()[0] == 0
+    history.flush()
+    assert reader.execute('SELECT count(*) FROM tasks').fetchone()[0] == 500
+    assert history.pending == 0
+
+
+def test_sequences_only_grow_across_restarts_and_an_id_may_come_again(tmp_path: Path) -> None:
+    path = str(tmp_path / 'h.sqlite')
+    first = TaskHistory(path)
+    first.write(ended('same'))
+    first.flush()
+    first.close()
+    second = TaskHistory(path)
+    second.write(ended('same'))
+    second.flush()
+
+    rows = second.query(HistoryQuery(oldest_first=True))
+    assert [(r.task_id, r.sequence) for r in rows] == [('same', 1), ('same', 2)]
+
+
+def test_tasks_left_unfinished_by_a_crash_are_closed_once_at_the_next_start(
+    tmp_path: Path,
+) -> None:
+    path = str(tmp_path / 'h.sqlite')
+    crashed = TaskHistory(path)
+    running = TaskRecord('running', NAV, 'CLOUD', received_at=5.0)
+    running.mark_started(now=6.0)
+    crashed.write(running)
+    crashed.write(ended('done'))
+    crashed.flush()  # then the process dies: no close
+
+    restarted = TaskHistory(path)
+    closed = restarted.close_unfinished('the Task Manager restarted while it ran', now=50.0)
+    again = TaskHistory(path).close_unfinished('twice?')
+
+    assert [(r.task_id, r.status, r.ended, r.sequence) for r in closed] == [
+        ('running', 'ERROR', 50.0, 2)
+    ]
+    assert json.loads(closed[0].result or '') == {
+        'error': 'the Task Manager restarted while it ran'
+    }
+    assert again == []
+    stored = TaskHistory(path).query(HistoryQuery(task_name='nav'))
+    assert [(r.task_id, r.status, r.started) for r in stored] == [('running', 'ERROR', 6.0)]
+
+
+def test_queries_filter_and_page_by_sequence(tmp_path: Path) -> None:
+    history = TaskHistory('')
+    for index in range(6):
+        record = ended(f'n{index}', NAV if index % 2 else FIB, at=100.0 + index)
+        if index == 5:
+            record = TaskRecord('n5', NAV, 'UI', received_at=104.0)
+            record.mark_ended(TaskStatus.ERROR, {'error': 'x'}, ErrorCode.UNKNOWN_TASK, now=105.0)
+        history.write(record)
+    history.flush()
+
+    def ids(**query: object) -> list[str]:
+        return [row.task_id for row in history.query(HistoryQuery(**query))]  # type: ignore[arg-type]
+
+    assert ids() == ['n5', 'n4', 'n3', 'n2', 'n1', 'n0']
+    assert ids(task_name='nav') == ['n5', 'n3', 'n1']
+    assert ids(status='ERROR') == ['n5']
+    assert ids(source='UI') == ['n5']
+    assert ids(ended_after=102.0, ended_before=104.0) == ['n3', 'n2']
+    assert ids(after_sequence=4, oldest_first=True) == ['n4', 'n5']
+    assert ids(limit=2) == ['n5', 'n4']
+
+
+def test_retention_keeps_the_newest_and_drops_the_old(tmp_path: Path) -> None:
+    history = TaskHistory('')
+    for index in range(10):
+        history.write(ended(f'r{index}', at=1000.0 + index * 86400))
+    running = TaskRecord('running', FIB, 'CLI', received_at=0.0)
+    history.write(running)
+    history.flush()
+
+    by_count = history.prune(max_results=6, max_age_days=0)
+    by_age = history.prune(max_results=0, max_age_days=2.5, now=1000.0 + 9 * 86400)
+
+    assert (by_count, by_age) == (4, 3)
+    assert [r.task_id for r in history.query(HistoryQuery())] == ['r9', 'r8', 'r7']
+    assert [r.task_id for r in history.unfinished()] == ['running']
+
+
+def test_a_file_that_is_not_a_database_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / 'h.sqlite'
+    path.write_bytes(b'this is no SQLite file' * 100)
+
+    with pytest.raises(HistoryError, match='is not a task history database'):
+        TaskHistory(str(path))
+
+
+def test_a_database_of_another_kind_or_a_newer_schema_is_refused(tmp_path: Path) -> None:
+    other = tmp_path / 'other.sqlite'
+    sqlite3.connect(other).execute('CREATE TABLE t (x)')
+    newer = tmp_path / 'newer.sqlite'
+    sqlite3.connect(newer).execute(f'PRAGMA user_version = {SCHEMA_VERSION + 1}')
+
+    with pytest.raises(HistoryError, match='not a task history'):
+        TaskHistory(str(other))
+    with pytest.raises(HistoryError, match=f'schema version {SCHEMA_VERSION + 1}'):
+        TaskHistory(str(newer))
+
+
+def test_a_first_version_file_is_opened_and_upgraded(tmp_path: Path) -> None:
+    path = tmp_path / 'v1.sqlite'
+    database = sqlite3.connect(path)
+    database.executescript(SCHEMA_V1_FILE)
+    database.close()
+
+    history = TaskHistory(str(path))
+    history.write(ended('new'))
+    history.flush()
+
+    assert [(r.task_id, r.sequence) for r in history.query(HistoryQuery())] == [
+        ('new', 2),
+        ('old', 1),
+    ]
+    version = sqlite3.connect(path).execute('PRAGMA user_version').fetchone()[0]
+    assert version == SCHEMA_VERSION
