@@ -71,8 +71,10 @@ lint: install
 
 # The simulated robot and the Task Manager with the demo's tasks; Ctrl-C stops both.
 # `make run PARAMS=file.yaml` gives the Task Manager another parameters file.
+# ROS_HOME inside the repository (git-ignored): the task history and the ROS logs stay here.
 run: install
-	$(VENV)/bin/task-manager-demo $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
+	@echo "task history: $(CURDIR)/.ros/task_manager/history.sqlite (ROS_HOME=$(CURDIR)/.ros)"
+	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-demo $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
 
 bench: install
 	$(PIP) install --quiet -r requirements/bench.txt

@@ -5,6 +5,11 @@ import os
 # Keep this run's DDS traffic apart from other runs on the machine, and on it.
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+# ROS logs and the Task Manager's default history go inside the repository (git-ignored),
+# never into the user's ~/.ros.
+os.environ.setdefault(
+    'ROS_HOME', os.path.join(os.path.dirname(__file__), 'build', 'test-ros-home', str(os.getpid()))
+)
 
 from collections.abc import Iterator
 

@@ -80,6 +80,7 @@ _UPSERT = (
 class HistoryQuery:
     """Which ended tasks to return; empty fields do not filter."""
 
+    task_id: str = ''
     task_name: str = ''
     status: str = ''
     source: str = ''
@@ -93,7 +94,7 @@ class HistoryQuery:
 
     def where(self) -> tuple[str, list[object]]:
         clauses, values = ['sequence IS NOT NULL'], []
-        for column in ('task_name', 'status', 'source', 'mission_id'):
+        for column in ('task_id', 'task_name', 'status', 'source', 'mission_id'):
             if value := getattr(self, column):
                 clauses.append(f'{column} = ?')
                 values.append(value)

@@ -60,6 +60,8 @@ class TaskRecord:
     """The mission this task runs in, if any."""
     task_data: str = ''
     """The request's task_data, as the client sent it."""
+    sequence: int | None = None
+    """Once ended: its number in the task history (it only grows)."""
     feedback_listeners: list[Callable[['TaskRecord'], None]] = field(
         default_factory=list, repr=False
     )

@@ -13,6 +13,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from task_manager.core.errors import TaskRequestError
+from task_manager.core.history import TaskHistory
 from task_manager.core.registry import TaskRegistry
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
@@ -26,6 +27,7 @@ from task_manager.ros.futures import (
     result_of,
     wait_for,
 )
+from task_manager.ros.history_writer import HistoryWriter
 from task_manager.ros.message_json import TaskDataError
 from task_manager.ros.task_events import TaskEventStream
 
@@ -55,9 +57,11 @@ class TaskDispatcher:
         reporter: TaskReporter,
         spawn: Callable[[Coroutine[Any, Any, Any]], Any],
         events: TaskEventStream,
+        history: TaskHistory,
     ) -> None:
         self.registry = TaskRegistry()
         self.events = events
+        self.history = HistoryWriter(node, history, spawn, self.announce_end)
         self.runners_by_name = runners
         self.node = node
         self._reporter = reporter
@@ -92,7 +96,7 @@ class TaskDispatcher:
         """
         record, message = self._admit(request)
         if record.is_final:
-            self._publish_end(record)
+            await resolved(self.node, self._publish_end(record))
             return record
         if on_admitted is not None:
             on_admitted(record)
@@ -110,7 +114,7 @@ class TaskDispatcher:
             )
         # Settled here too, so that whoever waits on this task (a cancel) sees it end.
         self._settle(record.task_id, end)
-        self._finish(record, result_of(self._finished[record.task_id]))
+        await resolved(self.node, self._finish(record, result_of(self._finished[record.task_id])))
         return record
 
     def refuse(self, request: TaskRequest, code: ErrorCode, reason: str) -> TaskRecord:
@@ -132,6 +136,7 @@ class TaskDispatcher:
             task_id, spec, request.source, parent_id=request.parent_id, task_data=request.task_data
         )
         self.events.received(record)
+        self.history.changed(record)
         return record
 
     def _admit(self, request: TaskRequest) -> tuple[TaskRecord, Any]:
@@ -191,6 +196,7 @@ class TaskDispatcher:
         self._executions[task_id] = execution
         record.mark_started()
         self.events.started(record)
+        self.history.changed(record)
         self._log.debug(f'task {task_id} ({record.task_name}) from {record.source!r} started')
         self._publish_active_soon()
         execution.outcome.add_done_callback(lambda done: self._settle(task_id, result_of(done)))
@@ -306,7 +312,8 @@ class TaskDispatcher:
 
     # ---- ending ----------------------------------------------------------------------------
 
-    def _finish(self, record: TaskRecord, end: TaskEnd) -> None:
+    def _finish(self, record: TaskRecord, end: TaskEnd) -> Future[None]:
+        """End the task; the future completes once its end is stored and announced."""
         was_active = record.status is TaskStatus.IN_PROGRESS
         record.mark_ended(end.status, end.result, end.error_code)
         self.registry.remove(record.task_id)
@@ -315,7 +322,7 @@ class TaskDispatcher:
         if was_active:
             self._ended_unpublished.append(record)
             self._publish_active_soon()
-        self._publish_end(record)
+        announced = self._publish_end(record)
         if not len(self.registry) and not self._idle.done():
             self._idle.set_result(None)
         ran_sec = (
@@ -327,8 +334,14 @@ class TaskDispatcher:
             f'task {record.task_id} ({record.task_name}) from {record.source!r} ended '
             f'{record.status}{ran_sec}' + (f' ({record.error_code})' if record.error_code else '')
         )
+        return announced
 
-    def _publish_end(self, record: TaskRecord) -> None:
+    def _publish_end(self, record: TaskRecord) -> Future[None]:
+        """Store the task's end; it is announced once committed (see history_writer.py)."""
+        return self.history.ended(record)
+
+    def announce_end(self, record: TaskRecord) -> None:
+        """ENDED on the event stream and the result on /task_manager/results."""
         self.events.ended(record)
         self._reporter.publish_result(record)
 

@@ -1,6 +1,6 @@
 """The `task_manager` node: declared tasks, ExecuteTask, active tasks and results."""
 
-from collections import deque
+import sqlite3
 from typing import Any
 
 from rclpy.action import ActionServer, GoalResponse
@@ -8,9 +8,10 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask
-from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult, TaskState
+from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
 from task_manager_msgs.srv import GetTaskResults, GetTaskStates
 
+from task_manager.core.history import HistoryQuery, HistoryRow
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.ros import qos
@@ -18,7 +19,9 @@ from task_manager.ros.action_runner import ActionTaskRunner
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.execution import RunnerTimeouts, TaskRunner
+from task_manager.ros.futures import wait_until_ready
 from task_manager.ros.goal_binding import GoalTaskBinding
+from task_manager.ros.history_messages import done_result_msg, open_history, task_state_from_row
 from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
@@ -35,6 +38,12 @@ GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
 SHUTDOWN_MARGIN_SEC = 1.0
+# How long the ends of tasks closed at start wait for a results subscriber to match.
+CLOSED_PUBLISH_WAIT_SEC = 5.0
+RESTARTED_WHILE_RUNNING = (
+    'the Task Manager stopped while this task ran (it was restarted); the task may or may not '
+    'have finished on its server'
+)
 
 
 def active_task_msg(record: TaskRecord) -> ActiveTask:
@@ -69,14 +78,11 @@ class TaskManagerNode(Node):
         user_runners = [self._create_runner(spec, self.settings.timeouts) for spec in self._specs]
         # key: task id, value: its entry in active_tasks, built once and kept while it runs
         self._active_task_msgs: dict[str, ActiveTask] = {}
-        # the ended tasks kept for get_task_results and get_task_states, oldest first
-        self._results_history: deque[tuple[TaskDoneResult, TaskState]] = deque(
-            maxlen=self.settings.results_history_size
-        )
+        self.history = open_history(self.settings.history_path, self.get_logger())
         self._events = TaskEventStream(
             self, self.settings.publish_task_events, self.settings.feedback_rate_hz
         )
-        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn, self._events)
+        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn, self._events, self.history)
         self._runners = [*user_runners, *create_system_runners(self, self.dispatcher)]
         self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in self._runners})
         self._goals = GoalTaskBinding(self.dispatcher)
@@ -113,10 +119,34 @@ class TaskManagerNode(Node):
             else []
         )
         self.publish_active([])
+        self._close_unfinished()
         self.get_logger().info(
             f'Task Manager ready with {len(self._specs)} task(s): '
             + ', '.join(spec.task_name for spec in self._specs)
         )
+
+    def _close_unfinished(self) -> None:
+        """Tasks that were running when the node died end now, ERROR, stored and published once."""
+        closed = self.history.close_unfinished(RESTARTED_WHILE_RUNNING)
+        if closed:
+            self._spawn(self._publish_closed(closed))
+            self.get_logger().warning(
+                f'{len(closed)} task(s) were running when the Task Manager stopped; ended ERROR: '
+                + ', '.join(f'{r.task_id} ({r.task_name})' for r in closed)
+            )
+        where = self.history.path
+        self.get_logger().info(f'task history: {where}')
+
+    async def _publish_closed(self, rows: list[HistoryRow]) -> None:
+        """Publish the ends of tasks closed at start once a subscriber has matched (bounded):
+        published at once, they would reach nobody, as discovery takes a moment."""
+        await wait_until_ready(
+            self,
+            lambda: self._result_publisher.get_subscription_count() > 0,
+            CLOSED_PUBLISH_WAIT_SEC,
+        )
+        for row in rows:
+            self._result_publisher.publish(done_result_msg(row))
 
     async def shut_down(self, stopped: Future) -> None:
         """Cancel every active task on its server, publish the results, then complete `stopped`.
@@ -136,8 +166,15 @@ class TaskManagerNode(Node):
             stopped.set_result(clean)
 
     def destroy_node(self) -> None:
-        """Destroy action servers and clients first (see destroy_waitables)."""
+        """Destroy action servers and clients first (see destroy_waitables); close the history."""
         destroy_waitables(self)
+        history = getattr(self, 'history', None)  # None when the constructor failed before it
+        if history is not None:
+            try:
+                history.flush()
+            except sqlite3.Error as error:
+                self.get_logger().error(f'cannot write the task history at shutdown: {error}')
+            history.close()
         super().destroy_node()
 
     def _create_runner(self, spec: TaskSpec, timeouts: RunnerTimeouts) -> TaskRunner:
@@ -175,13 +212,15 @@ class TaskManagerNode(Node):
             task_result=result_json(record),
         )
         self._result_publisher.publish(message)
-        self._results_history.append((message, task_state_msg(record)))
 
     def _get_task_results(
         self, request: GetTaskResults.Request, response: GetTaskResults.Response
     ) -> GetTaskResults.Response:
-        kept = [result for result, _ in self._results_history]
-        response.results = kept[-request.max_results :] if request.max_results else kept
+        """The newest results from the history (at most results_history_size), oldest first."""
+        size = self.settings.results_history_size
+        limit = min(request.max_results, size) if request.max_results else size
+        rows = self.history.query(HistoryQuery(limit=limit))
+        response.results = [done_result_msg(row) for row in reversed(rows)]
         return response
 
     def _get_task_states(
@@ -191,10 +230,12 @@ class TaskManagerNode(Node):
         if not request.task_ids:
             response.tasks = active
             return response
-        # key: task id, value: its state (an active task over an ended one of the same id)
-        known = {state.task_id: state for _, state in self._results_history}
-        known.update((state.task_id, state) for state in active)
-        response.tasks = [known[task_id] for task_id in request.task_ids if task_id in known]
+        by_id = {state.task_id: state for state in active}
+        for task_id in request.task_ids:
+            if task_id in by_id:
+                response.tasks.append(by_id[task_id])
+            elif stored := self.history.query(HistoryQuery(task_id=task_id, limit=1)):
+                response.tasks.append(task_state_from_row(stored[0]))
         return response
 
     # ---- /task_manager/execute_task ----------------------------------------------------------

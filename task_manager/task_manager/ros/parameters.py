@@ -1,5 +1,6 @@
 """Reading the node's parameters into task declarations and settings."""
 
+import os
 from dataclasses import dataclass
 from typing import Any
 
@@ -21,6 +22,8 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'instance_check_timeout': ((int, float), 0.3),
     'publish_task_events': ((bool,), True),
     'feedback_rate_hz': ((int, float), 10.0),
+    # None: the default file under ROS_HOME (see default_history_path)
+    'history_path': ((str,), None),
 }
 
 
@@ -44,6 +47,14 @@ class NodeSettings:
     instance_check_timeout_sec: float
     publish_task_events: bool
     feedback_rate_hz: float
+    history_path: str
+    """The SQLite file of the task history; '' keeps it in memory only."""
+
+
+def default_history_path() -> str:
+    """`$ROS_HOME/task_manager/history.sqlite`; ROS_HOME defaults to ~/.ros, as for ROS logs."""
+    ros_home = os.environ.get('ROS_HOME') or os.path.join(os.path.expanduser('~'), '.ros')
+    return os.path.join(ros_home, 'task_manager', 'history.sqlite')
 
 
 def read_settings(node: Node) -> NodeSettings:
@@ -54,6 +65,7 @@ def read_settings(node: Node) -> NodeSettings:
             types,
         )
         for name, (types, default) in NODE_PARAMETERS.items()
+        if default is not None or node.has_parameter(name)
     }
     if values['results_history_size'] < 0:
         raise ConfigurationError("parameter 'results_history_size' must be >= 0")
@@ -68,6 +80,7 @@ def read_settings(node: Node) -> NodeSettings:
         instance_check_timeout_sec=float(values['instance_check_timeout']),
         publish_task_events=values['publish_task_events'],
         feedback_rate_hz=float(values['feedback_rate_hz']),
+        history_path=values.get('history_path', default_history_path()),
         timeouts=RunnerTimeouts(
             server_wait_sec=float(values['server_wait_timeout']),
             goal_response_sec=float(values['goal_response_timeout']),

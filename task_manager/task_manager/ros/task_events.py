@@ -50,6 +50,7 @@ def task_state_msg(record: TaskRecord) -> TaskState:
         ended=stamp(record.ended_at),
         feedback=to_json(record.latest_feedback),
         task_result=to_json(record.result) if record.is_final else '',
+        sequence=record.sequence or 0,
     )
 
 

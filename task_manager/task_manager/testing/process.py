@@ -58,6 +58,7 @@ class NodeProcess:
         if ros_args:
             command += ['--ros-args', *ros_args]
         self.log_lines: list[str] = []
+        self.killed = False
         self._output_ended = False
         self._changed = threading.Condition()
         env = dict(os.environ, RCUTILS_LOGGING_BUFFERED_STREAM='0', PYTHONUNBUFFERED='1')
@@ -104,6 +105,12 @@ class NodeProcess:
         code = self.process.wait(timeout_sec)
         self._reader.join(timeout_sec)
         return code
+
+    def kill(self, timeout_sec: float = STOP_TIMEOUT_SEC) -> int:
+        """SIGKILL, as a power loss would end it: no clean shutdown."""
+        self.killed = True
+        self.process.kill()
+        return self.wait_exit(timeout_sec)
 
     def stop(self, timeout_sec: float = STOP_TIMEOUT_SEC) -> int:
         """SIGINT, then wait; kill only as a last resort (a kill leaves DDS files in /dev/shm)."""

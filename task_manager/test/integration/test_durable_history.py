@@ -1,0 +1,107 @@
+"""The durable history over real processes: nothing forgotten across a SIGKILL and a restart."""
+
+import json
+import sqlite3
+from collections import Counter
+from pathlib import Path
+
+from rclpy.client import Client
+from task_manager_msgs.srv import GetTaskResults, GetTaskStates
+from test_msgs.action import Fibonacci
+
+from task_manager.testing.harness import RosHarness, wait_for_future
+from task_manager.testing.probe import TaskManagerProbe
+from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
+
+TIMEOUT_SEC = 20.0
+HOLD = 50  # Fibonacci orders at or above it are held by the server: the task keeps running
+ENDED_COUNT, RUNNING_COUNT = 40, 6
+
+
+def _decide(goal: ScriptedGoal) -> None:
+    if goal.request.order < HOLD:
+        goal.succeed(Fibonacci.Result(sequence=[goal.request.order]))
+
+
+def _launch(launch: LaunchTaskManager, prefix: str, history: Path) -> TaskManagerProbe:
+    return launch(
+        {'fib': action_task('fib', f'{prefix}/fib', reentrant=True)},
+        history_path=str(history),
+        results_history_size=10_000,
+    )
+
+
+def test_a_killed_node_forgets_nothing_and_closes_its_running_tasks_once(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, tmp_path: Path
+) -> None:
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=_decide)
+    history = tmp_path / 'history.sqlite'
+    first = _launch(launch_task_manager, topic_prefix, history)
+    running = [f'run-{n}' for n in range(RUNNING_COUNT)]
+    for task_id in running:
+        first.send('fib', {'order': HOLD}, task_id=task_id)
+    handles = [first.send('fib', {'order': n}, task_id=f'end-{n}') for n in range(ENDED_COUNT)]
+    for handle in handles[: ENDED_COUNT // 2]:  # half of the burst has surely ended
+        first.result_of(handle)
+    first.wait_active(lambda tasks: all((t, 'IN_PROGRESS') in tasks for t in running))
+
+    first.process.kill()  # type: ignore[attr-defined]  # mid-burst, as a power loss would
+    second = _launch(launch_task_manager, topic_prefix, history)
+
+    # published once a results subscriber has matched: the first probe's still listens
+    closed = [first.wait_result_message(task_id) for task_id in running]
+    assert {(m.task_status, m.error_code) for m in closed} == {('ERROR', '')}
+    assert all('stopped while this task ran' in json.loads(m.task_result)['error'] for m in closed)
+    rows = (
+        sqlite3.connect(history)
+        .execute('SELECT task_id, status, result, sequence FROM tasks')
+        .fetchall()
+    )
+    ours = set(running) | {f'end-{n}' for n in range(ENDED_COUNT)}
+    by_id = Counter(task_id for task_id, *_ in rows if task_id in ours)
+    assert max(by_id.values()) == 1  # no request stored twice
+    sequences = [sequence for *_, sequence in rows]
+    assert None not in sequences and len(set(sequences)) == len(sequences)
+    stored = {task_id: (status, result) for task_id, status, result, _ in rows}
+    for n in range(ENDED_COUNT // 2):  # every task that had ended, with its result
+        assert stored[f'end-{n}'] == ('DONE', json.dumps({'sequence': [n]}, separators=(',', ':')))
+    for task_id in running:
+        assert stored[task_id][0] == 'ERROR'
+    # each running task is closed once: a third start finds nothing left to close
+    assert first.results_for(running[0]) == [closed[0]]
+    assert second.run('fib', {'order': 1}).task_status == 'DONE'
+
+
+def test_results_and_states_are_served_from_the_history_after_a_restart(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, tmp_path: Path
+) -> None:
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=_decide)
+    history = tmp_path / 'history.sqlite'
+    first = _launch(launch_task_manager, topic_prefix, history)
+    first.run('fib', {'order': 3}, task_id='before', source='CLOUD')
+    first.process.stop()  # type: ignore[attr-defined]
+    _launch(launch_task_manager, topic_prefix, history)
+    results: Client[GetTaskResults.Request, GetTaskResults.Response] = ros.node.create_client(
+        GetTaskResults, '/task_manager/get_task_results'
+    )
+    states: Client[GetTaskStates.Request, GetTaskStates.Response] = ros.node.create_client(
+        GetTaskStates, '/task_manager/get_task_states'
+    )
+    assert results.wait_for_service(timeout_sec=TIMEOUT_SEC)
+    assert states.wait_for_service(timeout_sec=TIMEOUT_SEC)
+
+    kept = wait_for_future(
+        results.call_async(GetTaskResults.Request(max_results=0)), TIMEOUT_SEC, 'results'
+    ).results
+    state = wait_for_future(
+        states.call_async(GetTaskStates.Request(task_ids=['before'])), TIMEOUT_SEC, 'states'
+    ).tasks
+
+    assert [(r.task_id, r.task_status, r.source) for r in kept if r.task_id == 'before'] == [
+        ('before', 'DONE', 'CLOUD')
+    ]
+    assert [(s.task_id, s.task_status, json.loads(s.task_result)) for s in state] == [
+        ('before', 'DONE', {'sequence': [3]})
+    ]
+    assert state[0].sequence > 0 and state[0].ended.sec > 0
