@@ -51,6 +51,10 @@ CONFIGURATION_ERRORS: dict[str, tuple[dict[str, Any], str]] = {
         {'tasks': ['a'], 'a': action_task('nav', '/a'), 'server_wait_timeout': 'soon'},
         r"parameter 'server_wait_timeout' must be int or float",
     ),
+    'history path that cannot be written': (
+        {'tasks': ['a'], 'a': action_task('nav', '/a'), 'history_path': '/proc/no/h.sqlite'},
+        r'cannot open the task history /proc/no/h\.sqlite',
+    ),
     'wrong type': (
         {'tasks': ['a'], 'a': action_task('nav', '/a', blocking='yes')},
         r"task 'nav': a\.blocking must be bool",

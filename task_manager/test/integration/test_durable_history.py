@@ -105,3 +105,20 @@ def test_results_and_states_are_served_from_the_history_after_a_restart(
         ('before', 'DONE', {'sequence': [3]})
     ]
     assert state[0].sequence > 0 and state[0].ended.sec > 0
+
+
+def test_a_corrupt_history_is_moved_aside_and_the_node_starts(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, tmp_path: Path
+) -> None:
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=_decide)
+    history = tmp_path / 'history.sqlite'
+    history.write_bytes(b'not a database, a robot must start anyway' * 100)
+
+    tm = _launch(launch_task_manager, topic_prefix, history)
+
+    warning = tm.process.wait_for_log(r'moved it to', 1.0)  # type: ignore[attr-defined]
+    aside = Path(warning.split('moved it to ')[1].split(' and started')[0])
+    assert aside.read_bytes().startswith(b'not a database')
+    assert tm.run('fib', {'order': 2}, task_id='fresh').task_status == 'DONE'
+    stored = sqlite3.connect(history).execute('SELECT task_id FROM tasks').fetchall()
+    assert ('fresh',) in stored
