@@ -251,26 +251,38 @@ class TaskHistory:
         sql = f'SELECT {", ".join(COLUMNS)} FROM tasks WHERE {where} ORDER BY {order} LIMIT ?'
         return [HistoryRow(*row) for row in self._db.execute(sql, [*values, limit])]
 
-    def prune(self, max_results: int, max_age_days: float, now: float | None = None) -> int:
-        """Delete ended tasks beyond the newest `max_results` or older than the age (0: no
-        limit); returns how many were deleted."""
-        deleted = 0
+    def prune(
+        self, max_results: int, max_age_days: float, now: float | None = None, batch: int = 0
+    ) -> int:
+        """Delete the oldest ended tasks beyond the newest `max_results` or older than the age
+        (0: no such limit), at most `batch` of them (0: all); returns how many were deleted.
+
+        Small batches keep each transaction short, so pruning never holds up dispatch.
+        """
+        conditions, values = [], []
+        if max_results > 0:
+            row = self._db.execute(
+                'SELECT sequence FROM tasks WHERE sequence IS NOT NULL '
+                'ORDER BY sequence DESC LIMIT 1 OFFSET ?',
+                (max_results,),
+            ).fetchone()
+            if row is not None:
+                conditions.append('sequence <= ?')
+                values.append(row[0])
+        if max_age_days > 0:
+            conditions.append('ended < ?')
+            values.append((time.time() if now is None else now) - max_age_days * 86400)
+        if not conditions:
+            return 0
+        selected = (
+            f'SELECT entry FROM tasks WHERE sequence IS NOT NULL AND ({" OR ".join(conditions)}) '
+            'ORDER BY sequence LIMIT ?'
+        )
         with self.transaction():
-            if max_results > 0:
-                cursor = self._db.execute(
-                    'DELETE FROM tasks WHERE sequence <= ('
-                    '  SELECT sequence FROM tasks WHERE sequence IS NOT NULL'
-                    '  ORDER BY sequence DESC LIMIT 1 OFFSET ?)',
-                    (max_results,),
-                )
-                deleted += cursor.rowcount
-            if max_age_days > 0:
-                oldest = (time.time() if now is None else now) - max_age_days * 86400
-                cursor = self._db.execute(
-                    'DELETE FROM tasks WHERE sequence IS NOT NULL AND ended < ?', (oldest,)
-                )
-                deleted += cursor.rowcount
-        return deleted
+            cursor = self._db.execute(
+                f'DELETE FROM tasks WHERE entry IN ({selected})', [*values, batch or -1]
+            )
+        return cursor.rowcount
 
     def close(self) -> None:
         self._db.close()

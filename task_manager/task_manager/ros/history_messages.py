@@ -4,11 +4,13 @@ import os
 import sqlite3
 import time
 
+from builtin_interfaces.msg import Time
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from task_manager_msgs.msg import TaskDoneResult, TaskState
+from task_manager_msgs.srv import QueryTaskHistory
 
 from task_manager.core.errors import ConfigurationError
-from task_manager.core.history import HistoryError, HistoryRow, TaskHistory
+from task_manager.core.history import HistoryError, HistoryQuery, HistoryRow, TaskHistory
 from task_manager.ros.task_events import stamp
 
 
@@ -36,6 +38,30 @@ def task_state_from_row(row: HistoryRow) -> TaskState:
         ended=stamp(row.ended),
         task_result=row.result or '',
         sequence=row.sequence or 0,
+    )
+
+
+# The most tasks one query returns, however many it asks for (a response must stay small).
+MAX_QUERY_LIMIT = 10_000
+DEFAULT_QUERY_LIMIT = 100
+
+
+def _seconds(time_msg: Time) -> float | None:
+    """A stamp in seconds; None for zero (no filter)."""
+    return time_msg.sec + time_msg.nanosec * 1e-9 if time_msg.sec or time_msg.nanosec else None
+
+
+def history_query(request: QueryTaskHistory.Request) -> HistoryQuery:
+    return HistoryQuery(
+        task_name=request.task_name,
+        status=request.status,
+        source=request.source,
+        mission_id=request.mission_id,
+        ended_after=_seconds(request.ended_after),
+        ended_before=_seconds(request.ended_before),
+        after_sequence=request.after_sequence,
+        limit=min(request.limit or DEFAULT_QUERY_LIMIT, MAX_QUERY_LIMIT),
+        oldest_first=request.oldest_first,
     )
 
 

@@ -9,7 +9,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
-from task_manager_msgs.srv import GetTaskResults, GetTaskStates
+from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.core.history import HistoryQuery, HistoryRow
 from task_manager.core.task import TaskRecord, TaskRequest
@@ -21,7 +21,12 @@ from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.futures import wait_until_ready
 from task_manager.ros.goal_binding import GoalTaskBinding
-from task_manager.ros.history_messages import done_result_msg, open_history, task_state_from_row
+from task_manager.ros.history_messages import (
+    done_result_msg,
+    history_query,
+    open_history,
+    task_state_from_row,
+)
 from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
@@ -36,8 +41,12 @@ ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
+QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
 SHUTDOWN_MARGIN_SEC = 1.0
+# Retention runs once a minute and deletes at most a batch, so that it never holds up dispatch.
+PRUNE_PERIOD_SEC = 60.0
+PRUNE_BATCH = 5000
 # How long the ends of tasks closed at start wait for a results subscriber to match.
 CLOSED_PUBLISH_WAIT_SEC = 5.0
 RESTARTED_WHILE_RUNNING = (
@@ -100,6 +109,9 @@ class TaskManagerNode(Node):
         self._states_service = self.create_service(
             GetTaskStates, GET_TASK_STATES_SERVICE, self._get_task_states
         )
+        self._history_service = self.create_service(
+            QueryTaskHistory, QUERY_TASK_HISTORY_SERVICE, self._query_task_history
+        )
         self._events.open()
         self._execute_server = ActionServer(
             self,
@@ -120,6 +132,8 @@ class TaskManagerNode(Node):
         )
         self.publish_active([])
         self._close_unfinished()
+        self._prune_history()
+        self._prune_timer = self.create_timer(PRUNE_PERIOD_SEC, self._prune_history)
         self.get_logger().info(
             f'Task Manager ready with {len(self._specs)} task(s): '
             + ', '.join(spec.task_name for spec in self._specs)
@@ -136,6 +150,17 @@ class TaskManagerNode(Node):
             )
         where = self.history.path
         self.get_logger().info(f'task history: {where}')
+
+    def _prune_history(self) -> None:
+        """One batch of retention (history_max_results, history_max_age_days)."""
+        try:
+            self.history.prune(
+                self.settings.history_max_results,
+                self.settings.history_max_age_days,
+                batch=PRUNE_BATCH,
+            )
+        except sqlite3.Error as error:
+            self.get_logger().warning(f'cannot prune the task history: {error}')
 
     async def _publish_closed(self, rows: list[HistoryRow]) -> None:
         """Publish the ends of tasks closed at start once a subscriber has matched (bounded):
@@ -236,6 +261,13 @@ class TaskManagerNode(Node):
                 response.tasks.append(by_id[task_id])
             elif stored := self.history.query(HistoryQuery(task_id=task_id, limit=1)):
                 response.tasks.append(task_state_from_row(stored[0]))
+        return response
+
+    def _query_task_history(
+        self, request: QueryTaskHistory.Request, response: QueryTaskHistory.Response
+    ) -> QueryTaskHistory.Response:
+        rows = self.history.query(history_query(request))
+        response.tasks = [task_state_from_row(row) for row in rows]
         return response
 
     # ---- /task_manager/execute_task ----------------------------------------------------------

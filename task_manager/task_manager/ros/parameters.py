@@ -24,6 +24,8 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'feedback_rate_hz': ((int, float), 10.0),
     # None: the default file under ROS_HOME (see default_history_path)
     'history_path': ((str,), None),
+    'history_max_results': ((int,), 1_000_000),
+    'history_max_age_days': ((int, float), 90.0),
 }
 
 
@@ -49,6 +51,8 @@ class NodeSettings:
     feedback_rate_hz: float
     history_path: str
     """The SQLite file of the task history; '' keeps it in memory only."""
+    history_max_results: int
+    history_max_age_days: float
 
 
 def default_history_path() -> str:
@@ -69,6 +73,9 @@ def read_settings(node: Node) -> NodeSettings:
     }
     if values['results_history_size'] < 0:
         raise ConfigurationError("parameter 'results_history_size' must be >= 0")
+    for name in ('history_max_results', 'history_max_age_days'):
+        if values[name] < 0:
+            raise ConfigurationError(f'parameter {name!r} must be >= 0 (0: no limit)')
     if values['instance_check_timeout'] < 0:
         raise ConfigurationError("parameter 'instance_check_timeout' must be >= 0")
     for name in POSITIVE_PARAMETERS:
@@ -81,6 +88,8 @@ def read_settings(node: Node) -> NodeSettings:
         publish_task_events=values['publish_task_events'],
         feedback_rate_hz=float(values['feedback_rate_hz']),
         history_path=values.get('history_path', default_history_path()),
+        history_max_results=values['history_max_results'],
+        history_max_age_days=float(values['history_max_age_days']),
         timeouts=RunnerTimeouts(
             server_wait_sec=float(values['server_wait_timeout']),
             goal_response_sec=float(values['goal_response_timeout']),

@@ -6,7 +6,7 @@ from collections import Counter
 from pathlib import Path
 
 from rclpy.client import Client
-from task_manager_msgs.srv import GetTaskResults, GetTaskStates
+from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 from test_msgs.action import Fibonacci
 
 from task_manager.testing.harness import RosHarness, wait_for_future
@@ -24,11 +24,14 @@ def _decide(goal: ScriptedGoal) -> None:
         goal.succeed(Fibonacci.Result(sequence=[goal.request.order]))
 
 
-def _launch(launch: LaunchTaskManager, prefix: str, history: Path) -> TaskManagerProbe:
+def _launch(
+    launch: LaunchTaskManager, prefix: str, history: Path, **parameters: object
+) -> TaskManagerProbe:
     return launch(
         {'fib': action_task('fib', f'{prefix}/fib', reentrant=True)},
         history_path=str(history),
         results_history_size=10_000,
+        **parameters,
     )
 
 
@@ -122,3 +125,50 @@ def test_a_corrupt_history_is_moved_aside_and_the_node_starts(
     assert tm.run('fib', {'order': 2}, task_id='fresh').task_status == 'DONE'
     stored = sqlite3.connect(history).execute('SELECT task_id FROM tasks').fetchall()
     assert ('fresh',) in stored
+
+
+def test_the_history_is_queried_by_filters_and_kept_within_its_limits(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, tmp_path: Path
+) -> None:
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=_decide)
+    history = tmp_path / 'history.sqlite'
+    first = _launch(launch_task_manager, topic_prefix, history)
+    for n in range(5):
+        first.run('fib', {'order': n}, task_id=f'q{n}', source='CLOUD' if n % 2 else 'CLI')
+    first.run('nope', {}, task_id='q-unknown', source='CLI')
+    first.process.stop()  # type: ignore[attr-defined]
+    # a restart with a lower limit prunes at once
+    _launch(launch_task_manager, topic_prefix, history, history_max_results=4)
+    client: Client[QueryTaskHistory.Request, QueryTaskHistory.Response] = ros.node.create_client(
+        QueryTaskHistory, '/task_manager/query_task_history'
+    )
+    assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+
+    def ids(**filters: object) -> list[str]:
+        request = QueryTaskHistory.Request(**filters)
+        tasks = wait_for_future(client.call_async(request), TIMEOUT_SEC, 'history').tasks
+        return [t.task_id for t in tasks if t.task_id.startswith('q')]
+
+    newest = ids()
+    by_source = ids(source='CLOUD')
+    failed = ids(status='ERROR')
+    oldest_first = ids(oldest_first=True, limit=2)
+    all_rows = wait_for_future(
+        client.call_async(QueryTaskHistory.Request(oldest_first=True)), TIMEOUT_SEC, 'history'
+    ).tasks
+    after = ids(after_sequence=all_rows[1].sequence, oldest_first=True)
+
+    # (the probes' warm-up requests are stored too; only ours are compared)
+    assert newest == ['q-unknown', 'q4', 'q3', 'q2']
+    assert set(by_source) <= {'q1', 'q3'} and 'q3' in by_source
+    assert failed == ['q-unknown']
+    assert [t.sequence for t in all_rows] == sorted(t.sequence for t in all_rows)
+    # pruned at start to the 4 newest of the first run (the second probe's warm-up came after)
+    assert [t.task_id for t in all_rows if t.task_id.startswith('q')] == [
+        'q2',
+        'q3',
+        'q4',
+        'q-unknown',
+    ]
+    assert oldest_first == [t.task_id for t in all_rows[:2] if t.task_id.startswith('q')]
+    assert after == [t.task_id for t in all_rows[2:] if t.task_id.startswith('q')]

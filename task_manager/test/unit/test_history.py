@@ -155,6 +155,18 @@ def test_retention_keeps_the_newest_and_drops_the_old(tmp_path: Path) -> None:
     assert [r.task_id for r in history.unfinished()] == ['running']
 
 
+def test_pruning_goes_in_batches_oldest_first() -> None:
+    history = TaskHistory('')
+    for index in range(10):
+        history.write(ended(f'b{index}'))
+    history.flush()
+
+    deleted = [history.prune(max_results=3, max_age_days=0, batch=3) for _ in range(4)]
+
+    assert deleted == [3, 3, 1, 0]
+    assert [r.task_id for r in history.query(HistoryQuery())] == ['b9', 'b8', 'b7']
+
+
 def test_a_file_that_is_not_a_database_is_refused(tmp_path: Path) -> None:
     path = tmp_path / 'h.sqlite'
     path.write_bytes(b'this is no SQLite file' * 100)
