@@ -1,4 +1,4 @@
-"""Start one task and print its result: navigate the demo robot (run `make run` first).
+"""Start one task, print its feedback and result: navigate the demo robot (`make run` first).
 
 .venv/bin/python examples/send_task.py [x] [y]
 """
@@ -16,8 +16,10 @@ def main() -> int:
             'navigation/navigate_to_pose', {'x': x, 'y': y}, source='example'
         )
         print(f'started {handle.task_id}')
+        for feedback in handle.feedback(timeout_sec=120.0):  # until the task ends
+            print(f'  {feedback["distance_remaining"]:.2f} m to go')
         result = handle.result(timeout_sec=120.0)
-        print(f'{result.status}: {result.result}')
+        print(f'{result.status} after {result.duration}: {result.result}')
         return 0 if result.ok else 1
 
 

@@ -3,16 +3,24 @@
 The client generates every task id itself and takes a task's outcome from whichever comes
 first, the ExecuteTask result or the task's message on /task_manager/results, so a lost
 reply on the network never leaves a script waiting: every wait is bounded.
+
+Stamps and feedback come from /task_manager/task_events, which a client subscribes to once,
+on first use (starting a task, asking for feedback or events); each event goes to the
+handle of its task by id. A client that joins late asks /task_manager/get_task_states.
 """
 
 import contextlib
 import json
 import queue
 import threading
+import time
+import traceback
 import uuid
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from enum import Enum
+import weakref
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field, replace
+from datetime import UTC, datetime, timedelta
+from enum import Enum, StrEnum
 from typing import Any, Protocol, TypeAlias, TypeVar
 
 import rclpy
@@ -26,9 +34,11 @@ from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
+from rclpy.timer import Timer
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
-from task_manager_msgs.srv import GetTaskResults
+from task_manager_msgs.msg import TaskEvent as TaskEventMessage
+from task_manager_msgs.srv import GetTaskResults, GetTaskStates
 
 from task_manager.core.errors import TaskManagerUnavailable, TaskTimeout
 from task_manager.core.status import ErrorCode, TaskStatus
@@ -36,13 +46,22 @@ from task_manager.ros import qos
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import result_of
 from task_manager.ros.system.specs import SYSTEM_SPECS
+from task_manager.ros.task_events import TASK_EVENTS_TOPIC
 
 EXECUTE_TASK_ACTION = '/task_manager/execute_task'
 ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
+GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
 TASK_MANAGER_NODE = '/task_manager'
+MISSION_SOURCE = 'Mission'
 DEFAULT_TIMEOUT_SEC = 5.0
+# How long a result that arrived before its task's ENDED event waits for it (for the stamps).
+# The event is published first, so it is normally there already; this bounds a lost one.
+ENDED_EVENT_GRACE_SEC = 2.0
+# A service request is sent again after this long without a reply, then after twice as
+# long, ...: a reply sent before DDS matched this client's reply reader is lost.
+SERVICE_RETRY_SEC = 0.5
 
 T = TypeVar('T')
 T_contra = TypeVar('T_contra', contravariant=True)
@@ -69,9 +88,30 @@ class _Listener(Protocol[T_contra]):
     def put(self, item: T_contra, /) -> None: ...
 
 
+def _datetime(stamp: Any) -> datetime | None:
+    """A builtin_interfaces/Time as a timezone-aware (UTC) datetime; None for zero (not yet)."""
+    if stamp.sec == 0 and stamp.nanosec == 0:
+        return None
+    return datetime.fromtimestamp(stamp.sec, UTC) + timedelta(microseconds=stamp.nanosec // 1000)
+
+
+def _json_object(text: str) -> dict[str, Any]:
+    """A JSON object from a message field; anything else is kept as `{"raw": text}`."""
+    try:
+        value = json.loads(text or '{}')
+    except json.JSONDecodeError:
+        return {'raw': text}
+    return value if isinstance(value, dict) else {'raw': text}
+
+
 @dataclass(frozen=True)
 class TaskResult:
-    """How a task ended."""
+    """How a task ended.
+
+    The stamps are None when unknown: /task_manager/results and the ExecuteTask result carry
+    none, so results from `results()` have none; a TaskHandle's result, `recent_results()`
+    and the ENDED events of `task_events()` have them.
+    """
 
     task_id: str
     task_name: str
@@ -79,10 +119,22 @@ class TaskResult:
     error_code: ErrorCode
     result: dict[str, Any]
     source: str = ''
+    received_at: datetime | None = None
+    """When the Task Manager received the task."""
+    started_at: datetime | None = None
+    """When it started on its server; None also when it never started."""
+    ended_at: datetime | None = None
 
     @property
     def ok(self) -> bool:
         return self.status is TaskStatus.DONE
+
+    @property
+    def duration(self) -> timedelta | None:
+        """How long it ran, from its start to its end; None if it never started or unknown."""
+        if self.started_at is None or self.ended_at is None:
+            return None
+        return max(self.ended_at - self.started_at, timedelta(0))
 
     @property
     def error_message(self) -> str:
@@ -93,30 +145,132 @@ class TaskResult:
     @classmethod
     def from_message(cls, message: Any, task_name: str = '', source: str = '') -> 'TaskResult':
         """From a TaskDoneResult, or an ExecuteTask result with the goal's name and source."""
-        try:
-            result = json.loads(message.task_result or '{}')
-        except json.JSONDecodeError:
-            result = {'raw': message.task_result}
-        if not isinstance(result, dict):
-            result = {'raw': message.task_result}
         return cls(
             task_id=message.task_id,
             task_name=getattr(message, 'task_name', '') or task_name,
             status=TaskStatus(message.task_status),
             error_code=ErrorCode(message.error_code),
-            result=result,
+            result=_json_object(message.task_result),
             source=getattr(message, 'source', '') or source,
+        )
+
+    def with_stamps_of(self, state: 'TaskState') -> 'TaskResult':
+        """This result with the stamps of `state` (the same task's)."""
+        return replace(
+            self,
+            received_at=state.received_at,
+            started_at=state.started_at,
+            ended_at=state.ended_at,
         )
 
 
 @dataclass(frozen=True)
 class ActiveTaskInfo:
-    """One entry of /task_manager/active_tasks."""
+    """One entry of /task_manager/active_tasks (which carries no stamps: see TaskState)."""
 
     task_id: str
     task_name: str
     status: TaskStatus
     source: str
+
+
+@dataclass(frozen=True)
+class TaskState:
+    """Everything known of one task at one moment: a TaskState message, with datetimes.
+
+    Its first fields are those of ActiveTaskInfo, so it can stand in for one.
+    """
+
+    task_id: str
+    task_name: str
+    status: TaskStatus
+    source: str
+    error_code: ErrorCode = ErrorCode.NONE
+    mission_id: str = ''
+    """The id of the mission this task is a subtask of; '' when it is none's."""
+    received_at: datetime | None = None
+    started_at: datetime | None = None
+    """When it started on its server; None while it has not (or never did)."""
+    ended_at: datetime | None = None
+    feedback: dict[str, Any] | None = None
+    """The latest feedback; None before the first."""
+    result: dict[str, Any] | None = None
+    """The result once the task has ended; None before."""
+
+    @property
+    def is_final(self) -> bool:
+        return self.status.is_final
+
+    def elapsed(self, now: datetime | None = None) -> timedelta | None:
+        """How long it has run: from its start to its end, or to `now` (default: the present).
+
+        None if it has not started. The stamps are the Task Manager's wall clock.
+        """
+        if self.started_at is None:
+            return None
+        end = self.ended_at or now or datetime.now(UTC)
+        return max(end - self.started_at, timedelta(0))
+
+    def to_result(self) -> TaskResult:
+        """The TaskResult of an ended task (of one still active: its result so far, `{}`)."""
+        return TaskResult(
+            task_id=self.task_id,
+            task_name=self.task_name,
+            status=self.status,
+            error_code=self.error_code,
+            result=self.result or {},
+            source=self.source,
+            received_at=self.received_at,
+            started_at=self.started_at,
+            ended_at=self.ended_at,
+        )
+
+    @classmethod
+    def from_message(cls, message: Any) -> 'TaskState':
+        """From a task_manager_msgs/msg/TaskState."""
+        return cls(
+            task_id=message.task_id,
+            task_name=message.task_name,
+            status=TaskStatus(message.task_status),
+            source=message.source,
+            error_code=ErrorCode(message.error_code),
+            mission_id=message.mission_id,
+            received_at=_datetime(message.received),
+            started_at=_datetime(message.started),
+            ended_at=_datetime(message.ended),
+            feedback=_json_object(message.feedback) if message.feedback else None,
+            result=_json_object(message.task_result) if message.task_result else None,
+        )
+
+
+class TaskEventKind(StrEnum):
+    """Which change of a task a TaskEvent reports."""
+
+    RECEIVED = 'RECEIVED'
+    """The Task Manager received the request (every request has one)."""
+    STARTED = 'STARTED'
+    """The task started on its server (not for a request refused before starting)."""
+    FEEDBACK = 'FEEDBACK'
+    """New feedback (at most `feedback_rate_hz` a second; the latest wins)."""
+    ENDED = 'ENDED'
+    """The task ended (the last event of a task)."""
+
+
+@dataclass(frozen=True)
+class TaskEvent:
+    """One message of /task_manager/task_events."""
+
+    kind: TaskEventKind
+    stamp: datetime
+    """When the change happened (the Task Manager's wall clock)."""
+    task: TaskState
+    """The task's state just after the change."""
+
+    @classmethod
+    def from_message(cls, message: Any) -> 'TaskEvent':
+        """From a task_manager_msgs/msg/TaskEvent."""
+        stamp = _datetime(message.stamp) or datetime.fromtimestamp(0, UTC)
+        return cls(TaskEventKind(message.event), stamp, TaskState.from_message(message.task))
 
 
 @dataclass(frozen=True)
@@ -133,8 +287,27 @@ def _json(data: dict[str, Any] | str | None) -> str:
     return data if isinstance(data, str) else json.dumps(data or {})
 
 
+FeedbackCallback: TypeAlias = Callable[[dict[str, Any]], None]
+
+
+class _FeedbackCallback:
+    """Hands feedback to a user's callback; what the callback raises is logged, not spread."""
+
+    def __init__(self, callback: FeedbackCallback, client: 'TaskManagerClient') -> None:
+        self._callback = callback
+        self._client = client
+
+    def put(self, feedback: dict[str, Any], /) -> None:
+        try:
+            self._callback(feedback)
+        except Exception:  # the callback boundary: the executor must go on
+            self._client.node.get_logger().error(
+                f'feedback callback {self._callback!r} failed:\n{traceback.format_exc()}'
+            )
+
+
 class TaskHandle:
-    """A task started by this client."""
+    """A task started by this client (or a subtask of a mission it started)."""
 
     def __init__(
         self, client: 'TaskManagerClient', task_id: str, task_name: str, source: str = ''
@@ -145,7 +318,43 @@ class TaskHandle:
         self.result_future: Future[TaskResult] = Future()
         """Completes with the TaskResult; awaitable from rclpy coroutines."""
         self.goal_handle: _ExecuteTaskGoalHandle | None = None
+        self.subtasks: list[TaskHandle] = []
+        """Of a mission from `start_mission`: a handle per subtask, in order (else empty)."""
         self._client = client
+        # The rest is guarded by the client's lock.
+        self._state: TaskState | None = None
+        self._feedback_listeners: list[_Listener[dict[str, Any]]] = []
+        # A result that came before the task's ENDED event, and the timer that bounds the
+        # wait for that event (see TaskManagerClient._complete)
+        self._early_result: TaskResult | None = None
+        self._early_result_timer: Timer | None = None
+
+    @property
+    def state(self) -> TaskState | None:
+        """The task's latest state from /task_manager/task_events; None before its first event."""
+        return self._state
+
+    @property
+    def latest_feedback(self) -> dict[str, Any] | None:
+        """The task's latest feedback received; None before the first."""
+        state = self._state
+        return None if state is None else state.feedback
+
+    def feedback(self, timeout_sec: float | None = None) -> Iterator[dict[str, Any]]:
+        """The task's feedback: the latest already received, then each update, until it ends.
+
+        Stops once the task has ended (after its last feedback), or after `timeout_sec`
+        without feedback (None: no limit); `done()` tells which.
+        """
+        return self._client._feedback_of(self, timeout_sec)
+
+    def on_feedback(self, callback: FeedbackCallback) -> None:
+        """Call `callback(feedback)` with each feedback update of the task from now on.
+
+        It runs on the client's executor thread, so it must return quickly and never wait on
+        the client; an exception it raises is logged.
+        """
+        self._client._add_feedback_listener(self, _FeedbackCallback(callback, self._client))
 
     def done(self) -> bool:
         return self.result_future.done()
@@ -182,6 +391,10 @@ class TaskManagerClient:
         self._active: list[ActiveTaskInfo] | None = None
         self._active_listeners: list[_Listener[list[ActiveTaskInfo]]] = []
         self._result_listeners: list[_Listener[TaskResult]] = []
+        self._event_listeners: list[_Listener[TaskEvent]] = []
+        self._follows_events = False
+        # key: service name, value: this client's client of it, made on first use
+        self._service_clients: dict[str, Client[Any, Any]] = {}
         self._matched: set[str] = set()
         self._action_client: ActionClient[
             ExecuteTask.Goal, ExecuteTask.Result, ExecuteTask.Feedback
@@ -241,10 +454,18 @@ class TaskManagerClient:
             event_callbacks=SubscriptionEventCallbacks(matched=matched),
         )
 
-    def wait_until_available(self, timeout_sec: float | None = None) -> None:
-        """Wait for the Task Manager's action server and topics; TaskManagerUnavailable if not."""
+    def wait_until_available(
+        self, timeout_sec: float | None = None, *, events: bool = False
+    ) -> None:
+        """Wait for the Task Manager's action server and topics; TaskManagerUnavailable if not.
+
+        With `events`, also subscribe to /task_manager/task_events now and wait until it is
+        connected, if the Task Manager publishes it (see `events_connected`).
+        """
         timeout_sec = self.timeout_sec if timeout_sec is None else timeout_sec
         topics = {ACTIVE_TASKS_TOPIC, RESULTS_TOPIC}
+        if events:  # first: DDS matches both ends of it while we wait for the rest
+            self._subscribe_to_events()
         if not self._action_client.wait_for_server(timeout_sec=timeout_sec):
             raise TaskManagerUnavailable(
                 f'no Task Manager answered at {EXECUTE_TASK_ACTION} within {timeout_sec} s'
@@ -254,6 +475,36 @@ class TaskManagerClient:
                 raise TaskManagerUnavailable(
                     f'the Task Manager topics did not connect within {timeout_sec} s'
                 )
+        if events:
+            self._follow_events(timeout_sec)
+
+    @property
+    def events_connected(self) -> bool:
+        """Whether /task_manager/task_events reaches this client (it can be switched off)."""
+        with self._lock:
+            return TASK_EVENTS_TOPIC in self._matched
+
+    def _follow_events(self, timeout_sec: float | None = None) -> None:
+        """Subscribe to /task_manager/task_events (once); wait until connected, if published.
+
+        The wait is skipped when no publisher of the events is known: the stream may be off.
+        Our end connects first; the Task Manager's may take a moment more, so an event
+        published just then can be missed (the stream is volatile): the handles cope.
+        """
+        self._subscribe_to_events()
+        if self.node.count_publishers(TASK_EVENTS_TOPIC) == 0:
+            return
+        timeout_sec = self.timeout_sec if timeout_sec is None else timeout_sec
+        with self._lock:
+            self._lock.wait_for(lambda: TASK_EVENTS_TOPIC in self._matched, timeout_sec)
+
+    def _subscribe_to_events(self) -> None:
+        """Subscribe to /task_manager/task_events, once."""
+        with self._lock:
+            subscribe = not self._follows_events
+            self._follows_events = True
+        if subscribe:
+            self._subscribe(TaskEventMessage, TASK_EVENTS_TOPIC, qos.TASK_EVENTS, self._on_event)
 
     # ---- starting tasks ---------------------------------------------------------------------
 
@@ -266,11 +517,21 @@ class TaskManagerClient:
         source: str = 'python',
     ) -> TaskHandle:
         """Start a task; returns once the Task Manager has it (accepted, running or ended)."""
-        handle = TaskHandle(self, task_id or str(uuid.uuid4()), task_name, source)
+        return self._start(
+            TaskHandle(self, task_id or str(uuid.uuid4()), task_name, source), task_data
+        )
+
+    def _start(self, handle: TaskHandle, task_data: dict[str, Any] | str | None) -> TaskHandle:
+        """Send the goal of `handle` (and follow its events, and those of its subtasks)."""
+        self._follow_events()
         with self._lock:
-            self._handles_by_id[handle.task_id] = handle
+            for each in (handle, *handle.subtasks):
+                self._handles_by_id[each.task_id] = each
         goal = ExecuteTask.Goal(
-            task_id=handle.task_id, task_name=task_name, source=source, task_data=_json(task_data)
+            task_id=handle.task_id,
+            task_name=handle.task_name,
+            source=handle.source,
+            task_data=_json(task_data),
         )
         goal_future = self._action_client.send_goal_async(goal)
         goal_future.add_done_callback(lambda f: self._on_goal_response(handle, f))
@@ -279,9 +540,10 @@ class TaskManagerClient:
                 lambda: handle.goal_handle is not None or handle.done() or self._is_active(handle),
                 self.timeout_sec,
             ):
-                self._handles_by_id.pop(handle.task_id, None)
+                for each in (handle, *handle.subtasks):
+                    self._handles_by_id.pop(each.task_id, None)
                 raise TaskManagerUnavailable(
-                    f'the Task Manager did not answer the goal of {task_name} within '
+                    f'the Task Manager did not answer the goal of {handle.task_name} within '
                     f'{self.timeout_sec} s'
                 )
         return handle
@@ -300,7 +562,11 @@ class TaskManagerClient:
     def start_mission(
         self, subtasks: list[Subtask], *, task_id: str = '', source: str = 'python'
     ) -> tuple[TaskHandle, list[str]]:
-        """Start system/mission; returns its handle and the subtask ids (generated if empty)."""
+        """Start system/mission; returns its handle and the subtask ids (generated if empty).
+
+        The handle's `subtasks` are handles of the subtasks (feedback, state, result); one
+        the mission never reached never ends.
+        """
         subtask_ids = [s.task_id or str(uuid.uuid4()) for s in subtasks]
         data = {
             'subtasks': [
@@ -313,7 +579,12 @@ class TaskManagerClient:
                 for s, subtask_id in zip(subtasks, subtask_ids, strict=True)
             ]
         }
-        return self.start_task('system/mission', data, task_id=task_id, source=source), subtask_ids
+        handle = TaskHandle(self, task_id or str(uuid.uuid4()), 'system/mission', source)
+        handle.subtasks = [
+            TaskHandle(self, subtask_id, s.task_name, MISSION_SOURCE)
+            for s, subtask_id in zip(subtasks, subtask_ids, strict=True)
+        ]
+        return self._start(handle, data), subtask_ids
 
     def cancel_tasks(self, task_ids: list[str], *, source: str = 'python') -> TaskResult:
         """Cancel tasks by id through system/cancel_task (whoever started them)."""
@@ -374,21 +645,69 @@ class TaskManagerClient:
             )
             yield from arrivals
 
-    def recent_results(self, max_results: int = 0) -> list[TaskResult]:
-        """Results the Task Manager has kept (oldest first), including from before we started."""
-        client: Client[GetTaskResults.Request, GetTaskResults.Response] = self.node.create_client(
-            GetTaskResults, GET_TASK_RESULTS_SERVICE
-        )
+    def task_events(
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
+    ) -> Iterator[TaskEvent]:
+        """Every event of every task from this call on; stops as active_task_updates does.
+
+        Events are kept from the call, not from the first `next()`: start the iterator, then
+        the tasks whose events it must not miss.
+        """
+        self._follow_events()
+        inbox: _Inbox[TaskEvent] = queue.SimpleQueue()
+        with self._lock:
+            self._event_listeners.append(inbox)
+        events = self._drain_then_stop(self._event_listeners, inbox, timeout_sec, until)
+        # an iterator dropped before its first next() never runs its `finally`
+        weakref.finalize(events, self._stop_listening, self._event_listeners, inbox)
+        return events
+
+    def _drain_then_stop(
+        self,
+        listeners: list[_Listener[T]],
+        inbox: _Inbox[T],
+        timeout_sec: float | None,
+        until: Future[Any] | None,
+    ) -> Iterator[T]:
         try:
-            if not client.wait_for_service(timeout_sec=self.timeout_sec):
-                raise TaskManagerUnavailable(f'{GET_TASK_RESULTS_SERVICE} is not available')
-            request = GetTaskResults.Request(max_results=max_results)
-            response = _wait(client.call_async(request), self.timeout_sec)
-            if response is None:
-                raise TaskManagerUnavailable(f'{GET_TASK_RESULTS_SERVICE} did not answer')
-            return [TaskResult.from_message(m) for m in response.results]
+            yield from _drain(inbox, timeout_sec, until)
         finally:
-            self.node.destroy_client(client)
+            self._stop_listening(listeners, inbox)
+
+    def _stop_listening(self, listeners: list[_Listener[T]], inbox: _Listener[T]) -> None:
+        with self._lock:
+            if inbox in listeners:
+                listeners.remove(inbox)
+
+    def task_states(
+        self, task_ids: Sequence[str] = (), timeout_sec: float | None = None
+    ) -> list[TaskState]:
+        """The current state of these tasks (active or ended and kept), or of every active one.
+
+        Ids the Task Manager does not know are left out.
+        """
+        request = GetTaskStates.Request(task_ids=list(task_ids))
+        response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
+        return [TaskState.from_message(m) for m in response.tasks]
+
+    def recent_results(self, max_results: int = 0) -> list[TaskResult]:
+        """Results the Task Manager has kept (oldest first), including from before we started.
+
+        With their stamps, from /task_manager/get_task_states.
+        """
+        request = GetTaskResults.Request(max_results=max_results)
+        response = self._call(GetTaskResults, GET_TASK_RESULTS_SERVICE, request)
+        results = [TaskResult.from_message(m) for m in response.results]
+        if not results:
+            return results
+        # key: task id, value: its kept state (the latest task of that id)
+        states = {s.task_id: s for s in self.task_states(sorted({r.task_id for r in results}))}
+        return [
+            result.with_stamps_of(state)
+            if (state := states.get(result.task_id)) is not None and state.is_final
+            else result
+            for result in results
+        ]
 
     def declared_tasks(self) -> list[dict[str, Any]]:
         """The declared tasks and their properties, read from the node's parameters."""
@@ -404,6 +723,33 @@ class TaskManagerClient:
             raise TaskManagerUnavailable('the Task Manager did not send its parameters')
         values = {n: parameter_value_to_python(v) for n, v in zip(names, got.values, strict=True)}
         return [*self._declared_in(values), *_system_tasks()]
+
+    def _call(
+        self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
+    ) -> Any:
+        """Call a Task Manager service that only reads; a lost reply is asked for again."""
+        timeout_sec = self.timeout_sec if timeout_sec is None else timeout_sec
+        deadline = time.monotonic() + timeout_sec
+        with self._lock:
+            client = self._service_clients.get(name)
+            if client is None:
+                client = self._service_clients[name] = self.node.create_client(service_type, name)
+        if not client.wait_for_service(timeout_sec=timeout_sec):
+            raise TaskManagerUnavailable(f'{name} is not available')
+        answered = threading.Event()
+        calls: list[Future[Any]] = []
+        retry_sec = SERVICE_RETRY_SEC
+        while not answered.is_set() and (remaining_sec := deadline - time.monotonic()) > 0:
+            calls.append(client.call_async(request))
+            calls[-1].add_done_callback(lambda _: answered.set())
+            answered.wait(min(retry_sec, remaining_sec))
+            retry_sec *= 2
+        response = next((c.result() for c in calls if c.done() and c.result() is not None), None)
+        for call in calls:
+            client.remove_pending_request(call)
+        if response is None:
+            raise TaskManagerUnavailable(f'{name} did not answer within {timeout_sec} s')
+        return response
 
     @staticmethod
     def _declared_in(values: dict[str, Any]) -> list[dict[str, Any]]:
@@ -449,12 +795,95 @@ class TaskManagerClient:
         if handle is not None and result.error_code is not ErrorCode.DUPLICATE_TASK_ID:
             self._complete(handle, result)
 
-    def _complete(self, handle: TaskHandle, result: TaskResult) -> None:
+    def _on_event(self, message: TaskEventMessage) -> None:
+        event = TaskEvent.from_message(message)
+        task = event.task
         with self._lock:
+            for listener in self._event_listeners:
+                listener.put(event)
+            handle = self._handles_by_id.get(task.task_id)
+            if (
+                handle is None
+                or task.error_code is ErrorCode.DUPLICATE_TASK_ID
+                or (event.kind is TaskEventKind.RECEIVED and handle._state is not None)
+            ):  # not ours, or another request refused for using our task's id
+                return
+            handle._state = task
+            feedback_listeners = (
+                list(handle._feedback_listeners) if event.kind is TaskEventKind.FEEDBACK else []
+            )
+        if task.feedback is not None:
+            for feedback_listener in feedback_listeners:  # unlocked: callbacks may use the client
+                feedback_listener.put(task.feedback)
+        if event.kind is TaskEventKind.ENDED:
+            self._complete(handle, handle._early_result or task.to_result(), final=True)
+
+    def _complete(self, handle: TaskHandle, result: TaskResult, final: bool = False) -> None:
+        """End `handle` with `result`, and with the stamps of its task's events.
+
+        A result that comes before the task's ENDED event (not `final`) waits for that event
+        while the events reach us, at most ENDED_EVENT_GRACE_SEC: so the handle's result
+        carries its end stamp, and its last feedback comes before its end.
+        """
+        with self._lock:
+            if handle.done():
+                return
+            state = handle._state
+            # the events reach us if one of this task's did, or the stream is connected (a
+            # result can overtake the events of a short task: they queue behind others')
+            events_reach_us = state is not None or TASK_EVENTS_TOPIC in self._matched
+            if (
+                not final
+                and events_reach_us
+                and result.error_code is not ErrorCode.DUPLICATE_TASK_ID
+            ):
+                if handle._early_result is None:
+                    handle._early_result = result
+                    handle._early_result_timer = self.node.create_timer(
+                        ENDED_EVENT_GRACE_SEC, lambda: self._end_waiting_for_event(handle)
+                    )
+                return
+            if state is not None:
+                result = result.with_stamps_of(state)
+            timer, handle._early_result_timer = handle._early_result_timer, None
             self._handles_by_id.pop(handle.task_id, None)
-            if not handle.result_future.done():
-                handle.result_future.set_result(result)
+            if state is not None:  # subtasks the mission never reached will have no events
+                for subtask in handle.subtasks:
+                    if subtask._state is None:
+                        self._handles_by_id.pop(subtask.task_id, None)
+            handle.result_future.set_result(result)
             self._lock.notify_all()
+        if timer is not None:
+            self.node.destroy_timer(timer)
+
+    def _end_waiting_for_event(self, handle: TaskHandle) -> None:
+        """The ENDED event of `handle` did not come in time: end it with what it has."""
+        if handle._early_result is not None:
+            self._complete(handle, handle._early_result, final=True)
+
+    def _feedback_of(
+        self, handle: TaskHandle, timeout_sec: float | None
+    ) -> Iterator[dict[str, Any]]:
+        """See TaskHandle.feedback."""
+        self._follow_events()
+        inbox: _Inbox[dict[str, Any]] = queue.SimpleQueue()
+        with self._lock:  # the latest first: no update can come between
+            handle._feedback_listeners.append(inbox)
+            if handle.latest_feedback is not None:
+                inbox.put(handle.latest_feedback)
+        try:
+            yield from _drain(inbox, timeout_sec, handle.result_future)
+        finally:
+            with self._lock:
+                handle._feedback_listeners.remove(inbox)
+
+    def _add_feedback_listener(
+        self, handle: TaskHandle, listener: _Listener[dict[str, Any]]
+    ) -> None:
+        """Have `listener` get the feedback updates of `handle` from now on."""
+        self._follow_events()
+        with self._lock:
+            handle._feedback_listeners.append(listener)
 
     def _is_active(self, handle: TaskHandle) -> bool:
         return any(t.task_id == handle.task_id for t in self._active or [])

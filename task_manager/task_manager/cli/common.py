@@ -1,22 +1,25 @@
 """What the taskctl verbs share: the client, exit codes, output."""
 
 import json
+import os
 import sys
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict
+from datetime import datetime, timedelta
 from typing import Any
 
 import typer
 from rich.console import Console
 
-from task_manager import TaskManagerClient, TaskResult, TaskStatus
+from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, TaskStatus
 
 EXIT_DONE = 0
 EXIT_ERROR = 1
 EXIT_CANCELED = 3
 EXIT_UNAVAILABLE = 4
 EXIT_INTERRUPTED = 130
+CLOSE_TIMEOUT_SEC = 5.0
 # key: a task's end status, value: taskctl's exit code for it
 EXIT_CODES = {
     TaskStatus.DONE: EXIT_DONE,
@@ -32,11 +35,82 @@ progress = Console(stderr=True)
 
 
 @contextmanager
-def connected(ctx: typer.Context) -> Iterator[TaskManagerClient]:
-    """A client connected to the Task Manager, or TaskManagerUnavailable within the timeout."""
-    with TaskManagerClient('taskctl', timeout_sec=ctx.obj['timeout_sec']) as client:
-        client.wait_until_available()
+def connected(ctx: typer.Context, events: bool = False) -> Iterator[TaskManagerClient]:
+    """A client connected to the Task Manager, or TaskManagerUnavailable within the timeout.
+
+    With `events`, also to /task_manager/task_events (when the Task Manager publishes it).
+    """
+    client = TaskManagerClient('taskctl', timeout_sec=ctx.obj['timeout_sec'])
+    code = EXIT_ERROR
+    try:
+        client.wait_until_available(events=events)
         yield client
+        code = EXIT_DONE
+    except typer.Exit as done:
+        code = done.exit_code
+        raise
+    except TaskManagerUnavailable:
+        code = EXIT_UNAVAILABLE
+        raise
+    except KeyboardInterrupt:
+        code = EXIT_INTERRUPTED
+        raise
+    finally:
+        close_within_bound(client, code)
+
+
+def close_within_bound(client: TaskManagerClient, code: int) -> None:
+    """Close the client; if the middleware hangs while shutting down, exit with `code` anyway.
+
+    Fast DDS can deadlock while destroying a participant when another process leaves the
+    domain at the same moment; taskctl must never hang on it.
+    """
+    closer = threading.Thread(target=client.close, name='taskctl-close', daemon=True)
+    closer.start()
+    closer.join(CLOSE_TIMEOUT_SEC)
+    if closer.is_alive():
+        progress.print(
+            f'the ROS middleware did not shut down within {CLOSE_TIMEOUT_SEC:g} s; exiting anyway',
+            markup=False,
+        )
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+
+
+def duration_text(duration: timedelta) -> str:
+    """`4.2 s`, `3 min 05 s`, `2 h 07 min`."""
+    seconds = duration.total_seconds()
+    if seconds < 60:
+        return f'{seconds:.1f} s'
+    minutes, whole_seconds = divmod(int(seconds), 60)
+    if minutes < 60:
+        return f'{minutes} min {whole_seconds:02d} s'
+    hours, minutes = divmod(minutes, 60)
+    return f'{hours} h {minutes:02d} min'
+
+
+def time_text(moment: datetime) -> str:
+    """Local time of day, with the date when it is not today."""
+    local = moment.astimezone()
+    today = datetime.now().astimezone().date()
+    return local.strftime('%H:%M:%S' if local.date() == today else '%Y-%m-%d %H:%M:%S')
+
+
+def _rounded(value: Any) -> Any:
+    """`value` with its floats rounded to 3 decimals, for reading at a glance."""
+    if isinstance(value, float):
+        return round(value, 3)
+    if isinstance(value, dict):
+        return {key: _rounded(item) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_rounded(item) for item in value]
+    return value
+
+
+def feedback_text(feedback: dict[str, Any] | None) -> str:
+    """A feedback as one line of JSON (floats rounded); '' for none."""
+    return '' if feedback is None else json.dumps(_rounded(feedback), ensure_ascii=False)
 
 
 def parse_json_object(text: str, what: str) -> dict[str, Any]:
@@ -50,8 +124,15 @@ def parse_json_object(text: str, what: str) -> dict[str, Any]:
 
 
 def result_json(result: TaskResult) -> str:
-    data = asdict(result)
-    data['status'], data['error_code'] = str(result.status), str(result.error_code)
+    """The result as taskctl prints it (the same fields since the first release)."""
+    data = {
+        'task_id': result.task_id,
+        'task_name': result.task_name,
+        'status': str(result.status),
+        'error_code': str(result.error_code),
+        'result': result.result,
+        'source': result.source,
+    }
     return json.dumps(data, indent=2, ensure_ascii=False)
 
 

@@ -6,6 +6,7 @@ the test's thread reach the executor through a guard condition, so nothing polls
 """
 
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from enum import Enum
@@ -92,6 +93,26 @@ class ScriptedGoal:
 
     def publish_feedback(self, feedback: Any) -> None:
         self._hop.call(lambda: self.goal_handle.publish_feedback(feedback))
+
+
+def publish_feedback_until(
+    goal: ScriptedGoal,
+    feedback: Any,
+    seen: Callable[[float], bool],
+    timeout_sec: float,
+    repeat_sec: float = 0.2,
+) -> None:
+    """Publish `feedback` again every `repeat_sec` until `seen(wait_sec)` is True.
+
+    Feedback is volatile, as in ROS: one published before DDS matched its reader is lost.
+    `seen` waits up to `wait_sec` for the feedback to show where the test looks.
+    """
+    deadline = time.monotonic() + timeout_sec
+    while time.monotonic() < deadline:
+        goal.publish_feedback(feedback)
+        if seen(repeat_sec):
+            return
+    raise WaitTimeoutError(f'feedback {feedback} not seen within {timeout_sec} s')
 
 
 class ScriptedActionServer:

@@ -1,6 +1,7 @@
 """taskctl mission FILE: run a mission from a YAML or JSON list of subtasks, live."""
 
 import json
+from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
@@ -8,9 +9,19 @@ import typer
 import yaml
 from rich.live import Live
 from rich.table import Table
+from rich.text import Text
 
-from task_manager import ActiveTaskInfo, Subtask, TaskResult
-from task_manager.cli.common import connected, finish, output, progress
+from task_manager import Subtask, TaskHandle, TaskStatus
+from task_manager.cli.common import (
+    connected,
+    duration_text,
+    feedback_text,
+    finish,
+    output,
+    progress,
+)
+
+FEEDBACK_WIDTH = 48
 
 
 def load_subtasks(path: Path) -> list[Subtask]:
@@ -37,13 +48,62 @@ def _subtask(index: int, item: Any) -> Subtask:
     )
 
 
-def _table(subtasks: list[Subtask], ids: list[str], statuses: dict[str, str]) -> Table:
-    table = Table(title='mission')
-    for column in ('#', 'task', 'id', 'status'):
-        table.add_column(column)
-    for index, (subtask, task_id) in enumerate(zip(subtasks, ids, strict=True)):
-        table.add_row(str(index + 1), subtask.task_name, task_id, statuses.get(task_id, 'waiting'))
-    return table
+class MissionTable:
+    """The live table of a mission: each subtask's status, time and latest feedback.
+
+    A subtask's own events (through its handle) give its status, stamps and feedback; the
+    mission's feedback says which were skipped, and the status of any whose events were lost.
+    """
+
+    def __init__(self, mission: TaskHandle) -> None:
+        self._mission = mission
+
+    def __call__(self) -> Table:
+        progress_rows = (self._mission.latest_feedback or {}).get('subtasks') or []
+        # key: subtask id, value: its row in the mission's latest feedback
+        rows_by_id = {row.get('task_id'): row for row in progress_rows if isinstance(row, dict)}
+        table = Table(title=self._title())
+        for column in ('#', 'task', 'id', 'status', 'time', 'feedback'):
+            table.add_column(column)
+        table.columns[-1].max_width = FEEDBACK_WIDTH
+        for index, subtask in enumerate(self._mission.subtasks):
+            row = rows_by_id.get(subtask.task_id, {})
+            status, elapsed, feedback = _progress(subtask, row, self._mission.done())
+            table.add_row(
+                str(index + 1),
+                subtask.task_name,
+                subtask.task_id,
+                status + (' (skipped)' if row.get('skipped') else ''),
+                duration_text(elapsed) if elapsed is not None else '',
+                Text(feedback, no_wrap=True, overflow='ellipsis'),
+            )
+        return table
+
+    def _title(self) -> str:
+        state = self._mission.state
+        if state is None:
+            return f'mission {self._mission.task_id}'
+        elapsed = state.elapsed()
+        time = f'  {duration_text(elapsed)}' if elapsed is not None else ''
+        return f'mission {self._mission.task_id}  {state.status}{time}'
+
+
+def _progress(
+    subtask: TaskHandle, row: dict[str, Any], mission_over: bool
+) -> tuple[str, timedelta | None, str]:
+    """A subtask's status, how long it ran (or has been running), and its latest feedback."""
+    if subtask.done():
+        result = subtask.result(0)
+        return str(result.status), result.duration, ''
+    state = subtask.state
+    if state is not None:
+        running = state.status is TaskStatus.IN_PROGRESS
+        return str(state.status), state.elapsed(), feedback_text(state.feedback) if running else ''
+    # not received yet (the mission lists those as RECEIVED), or its events did not reach us
+    reported = str(row.get('task_status', ''))
+    if reported and reported != 'RECEIVED':
+        return reported, None, ''
+    return ('not run' if mission_over else 'waiting'), None, ''
 
 
 def mission(
@@ -55,27 +115,14 @@ def mission(
 ) -> None:
     """Run system/mission; show each subtask's progress. Exit 0 only when it ends DONE."""
     subtasks = load_subtasks(path)
-    with connected(ctx) as client:
-        handle, ids = client.start_mission(subtasks, task_id=task_id, source=source)
+    with connected(ctx, events=not no_wait) as client:
+        handle, _ = client.start_mission(subtasks, task_id=task_id, source=source)
         if no_wait:
             output.print(handle.task_id)
             return
-        statuses: dict[str, str] = {}
-        with Live(_table(subtasks, ids, statuses), console=progress) as live:
-            for update in client.updates(until=handle.result_future):
-                _note(update, statuses, ids)
-                live.update(_table(subtasks, ids, statuses))
+        # redrawn as time passes, and at once on each change of the mission's progress (not
+        # a terminal: drawn once, at the end)
+        with Live(get_renderable=MissionTable(handle), console=progress) as live:
+            for _ in handle.feedback():
+                live.refresh()
         finish(handle.result())
-
-
-def _note(
-    update: TaskResult | list[ActiveTaskInfo], statuses: dict[str, str], ids: list[str]
-) -> None:
-    """Subtasks in progress come from active task lists; their ends from results."""
-    if isinstance(update, TaskResult):
-        if update.task_id in ids:
-            statuses[update.task_id] = str(update.status)
-        return
-    for task in update:
-        if task.task_id in ids and statuses.get(task.task_id) in (None, 'RECEIVED'):
-            statuses[task.task_id] = str(task.status)

@@ -1,18 +1,27 @@
 """taskctl start NAME [JSON]: start a task and show it until it ends."""
 
 import time
+from datetime import timedelta
 
 import typer
+from rich.console import RenderableType
+from rich.live import Live
+from rich.spinner import Spinner
+from rich.text import Text
 
-from task_manager import TaskHandle, TaskManagerClient
+from task_manager import TaskHandle, TaskManagerClient, TaskResult
 from task_manager.cli.common import (
     EXIT_INTERRUPTED,
     connected,
+    duration_text,
+    feedback_text,
     finish,
     output,
     parse_json_object,
     progress,
 )
+
+LIVE_REFRESH_PER_SEC = 10
 
 
 def start(
@@ -23,9 +32,12 @@ def start(
     source: str = typer.Option('CLI', '--source', help='Who asks: CLI, CLOUD, ...'),
     no_wait: bool = typer.Option(False, '--no-wait', help='Print the id once started, and exit'),
 ) -> None:
-    """Start a task; print its result JSON. Exit 0 only when it ends DONE."""
+    """Start a task; print its result JSON. Exit 0 only when it ends DONE.
+
+    While it runs, a terminal's stderr shows its status, elapsed time and latest feedback.
+    """
     data = parse_json_object(task_data, 'task data')
-    with connected(ctx) as client:
+    with connected(ctx, events=not no_wait) as client:
         handle = client.start_task(task_name, data, task_id=task_id, source=source)
         if no_wait:
             output.print(handle.task_id)
@@ -33,16 +45,40 @@ def start(
         finish(follow(client, handle))
 
 
-def follow(client: TaskManagerClient, handle: TaskHandle) -> object:
-    """Show the task's status until it ends; Ctrl-C cancels it."""
-    started = time.monotonic()
+class LiveLine:
+    """The line `taskctl start` keeps up to date: task, status, elapsed time, latest feedback."""
+
+    def __init__(self, handle: TaskHandle) -> None:
+        self._handle = handle
+        self._started = time.monotonic()
+        self._spinner = Spinner('dots')
+
+    def __call__(self) -> RenderableType:
+        state = self._handle.state
+        elapsed = duration_text(timedelta(seconds=time.monotonic() - self._started))
+        parts = [
+            f'{self._handle.task_name} {self._handle.task_id}',
+            str(state.status) if state is not None else '',
+            elapsed,
+            feedback_text(self._handle.latest_feedback),
+        ]
+        line = Text('  '.join(p for p in parts if p), no_wrap=True, overflow='ellipsis')
+        self._spinner.update(text=line)
+        return self._spinner
+
+
+def follow(client: TaskManagerClient, handle: TaskHandle) -> TaskResult:
+    """Wait for the task to end, live on stderr when it is a terminal; Ctrl-C cancels it."""
     try:
-        with progress.status(f'{handle.task_name} {handle.task_id}: starting') as status:
-            for tasks in client.active_task_updates(until=handle.result_future):
-                state = next((t.status for t in tasks if t.task_id == handle.task_id), None)
-                if state is not None:
-                    elapsed = time.monotonic() - started
-                    status.update(f'{handle.task_name} {handle.task_id}: {state} ({elapsed:.1f} s)')
+        if progress.is_terminal:
+            with Live(
+                get_renderable=LiveLine(handle),
+                console=progress,
+                transient=True,
+                refresh_per_second=LIVE_REFRESH_PER_SEC,
+            ) as live:
+                for _ in handle.feedback():  # shown at once, not at the next refresh
+                    live.refresh()
         return handle.result()
     except KeyboardInterrupt:
         progress.print(f'cancelling {handle.task_id} ...')

@@ -1,0 +1,197 @@
+"""The Python client's feedback, stamps and task states, over real DDS against a real node."""
+
+import threading
+from collections.abc import Iterator
+from datetime import UTC, datetime, timedelta
+from typing import Any
+
+import pytest
+from test_msgs.action import Fibonacci
+
+from task_manager.client import (
+    Subtask,
+    TaskEventKind,
+    TaskManagerClient,
+    TaskResult,
+    TaskState,
+)
+from task_manager.core.status import TaskStatus
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.servers import (
+    ScriptedActionServer,
+    ScriptedGoal,
+    publish_feedback_until,
+)
+
+TIMEOUT_SEC = 15.0
+
+
+class FeedbackLog:
+    """A feedback callback; the test waits on what it got."""
+
+    def __init__(self) -> None:
+        self.received: list[dict[str, Any]] = []
+        self._changed = threading.Condition()
+
+    def __call__(self, feedback: dict[str, Any]) -> None:
+        with self._changed:
+            self.received.append(feedback)
+            self._changed.notify_all()
+
+    def has(self, feedback: dict[str, Any], timeout_sec: float) -> bool:
+        with self._changed:
+            return self._changed.wait_for(lambda: feedback in self.received, timeout_sec)
+
+
+def _launch(
+    ros: RosHarness, launch: LaunchTaskManager, prefix: str, **parameters: Any
+) -> ScriptedActionServer:
+    server = ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib')
+    launch({'fib': action_task('fib', f'{prefix}/fib', reentrant=True)}, **parameters)
+    return server
+
+
+@pytest.fixture
+def client() -> Iterator[TaskManagerClient]:
+    with TaskManagerClient('test_client', timeout_sec=TIMEOUT_SEC) as client:
+        yield client
+
+
+def _stamps(record: TaskResult | TaskState) -> tuple[datetime, datetime, datetime]:
+    """(received, started, ended): in that order, timezone-aware, of the last minutes."""
+    received, started, ended = record.received_at, record.started_at, record.ended_at
+    assert received is not None and started is not None and ended is not None
+    assert received <= started <= ended
+    assert ended.tzinfo is not None
+    assert abs(datetime.now(UTC) - ended) < timedelta(minutes=5)
+    return received, started, ended
+
+
+def test_a_handle_gets_its_feedback_by_callback_and_iterator_and_a_stamped_result(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    server = _launch(ros, launch_task_manager, topic_prefix)
+    client.wait_until_available()
+    handle = client.start_task('fib', {'order': 3}, task_id='fed')
+    log = FeedbackLog()
+
+    def broken(_: dict[str, Any]) -> None:
+        raise RuntimeError('a callback bug')
+
+    handle.on_feedback(broken)  # logged; the others still get every update
+    handle.on_feedback(log)
+    goal: ScriptedGoal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
+    first = {'sequence': [0, 1]}
+    publish_feedback_until(
+        goal, Fibonacci.Feedback(sequence=[0, 1]), lambda t: log.has(first, t), TIMEOUT_SEC
+    )
+    updates = handle.feedback(timeout_sec=TIMEOUT_SEC)
+    latest = next(updates)  # the latest already received comes first
+    goal.publish_feedback(Fibonacci.Feedback(sequence=[0, 1, 1]))  # discovery is done: once
+    second = next(f for f in updates if f != first)  # the first may have been sent twice
+    goal.succeed(Fibonacci.Result(sequence=[0, 1, 1, 2]))
+    rest = list(updates)  # ends with the task
+    result = handle.result(TIMEOUT_SEC)
+
+    assert (latest, second, rest) == (first, {'sequence': [0, 1, 1]}, [])
+    assert log.has({'sequence': [0, 1, 1]}, TIMEOUT_SEC)
+    assert (result.status, result.result) == (TaskStatus.DONE, {'sequence': [0, 1, 1, 2]})
+    _, started, ended = _stamps(result)
+    assert result.duration == ended - started
+    assert handle.state is not None and handle.state.status is TaskStatus.DONE
+    assert handle.latest_feedback == {'sequence': [0, 1, 1]}
+
+
+def test_task_states_events_and_kept_results_carry_datetimes(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    server = _launch(ros, launch_task_manager, topic_prefix)
+    client.wait_until_available(events=True)
+    assert client.events_connected
+    handle = client.start_task('fib', {'order': 4}, task_id='stamped', source='UI')
+    log = FeedbackLog()
+    handle.on_feedback(log)
+    goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
+    feedback = Fibonacci.Feedback(sequence=[5])
+    publish_feedback_until(goal, feedback, lambda t: log.has({'sequence': [5]}, t), TIMEOUT_SEC)
+    active = client.task_states()
+    unknown = client.task_states(['no-such-id'])
+    events = client.task_events(timeout_sec=TIMEOUT_SEC, until=handle.result_future)
+    goal.succeed(Fibonacci.Result(sequence=[3]))
+    ended = [e for e in events if e.kind is TaskEventKind.ENDED]
+    handle.result(TIMEOUT_SEC)
+    kept = next(r for r in client.recent_results() if r.task_id == 'stamped')
+    (state,) = client.task_states(['stamped'])
+
+    (running,) = [s for s in active if s.task_id == 'stamped']
+    assert (running.status, running.source, running.feedback) == (
+        TaskStatus.IN_PROGRESS,
+        'UI',
+        {'sequence': [5]},
+    )
+    assert running.started_at is not None and running.ended_at is None
+    elapsed = running.elapsed()
+    assert elapsed is not None and timedelta(0) <= elapsed < timedelta(minutes=5)
+    assert unknown == []
+    assert [e.task.to_result().result for e in ended] == [{'sequence': [3]}]
+    for stamped in (ended[0].task, kept, state):
+        _stamps(stamped)
+    assert kept.ended_at == state.ended_at == ended[0].task.ended_at
+    assert ended[0].stamp >= _stamps(ended[0].task)[2]
+
+
+def test_a_missions_subtasks_have_handles_and_its_progress_is_its_feedback(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    server = _launch(ros, launch_task_manager, topic_prefix)
+    client.wait_until_available()
+    mission, ids = client.start_mission(
+        [Subtask('fib', {'order': 1}, task_id='one'), Subtask('fib', {'order': 2}, task_id='two')]
+    )
+    progress = mission.feedback(timeout_sec=TIMEOUT_SEC)
+    server.wait_for_goals(1, TIMEOUT_SEC)[0].succeed(Fibonacci.Result(sequence=[1]))
+    server.wait_for_goals(2, TIMEOUT_SEC)[1].succeed(Fibonacci.Result(sequence=[1, 1]))
+    rows = list(progress)
+    result = mission.result(TIMEOUT_SEC)
+    first, second = (s.result(TIMEOUT_SEC) for s in mission.subtasks)
+
+    assert ids == ['one', 'two'] == [s.task_id for s in mission.subtasks]
+    assert result.ok
+    assert rows and rows[-1]['current_index'] == -1
+    assert [(r['task_id'], r['task_status']) for r in rows[-1]['subtasks']] == [
+        ('one', 'DONE'),
+        ('two', 'DONE'),
+    ]
+    assert (first.result, second.result) == ({'sequence': [1]}, {'sequence': [1, 1]})
+    assert _stamps(first)[2] <= _stamps(second)[1]
+    assert mission.subtasks[0].state is not None
+    assert mission.subtasks[0].state.mission_id == mission.task_id
+
+
+def test_without_the_event_stream_results_have_no_stamps_and_feedback_ends_with_the_task(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    server = _launch(ros, launch_task_manager, topic_prefix, publish_task_events=False)
+    client.wait_until_available(events=True)
+    handle = client.start_task('fib', {'order': 1})
+    server.wait_for_goals(1, TIMEOUT_SEC)[0].succeed(Fibonacci.Result(sequence=[1]))
+
+    feedback = list(handle.feedback(timeout_sec=TIMEOUT_SEC))
+    result = handle.result(TIMEOUT_SEC)
+
+    assert not client.events_connected
+    assert feedback == [] and handle.state is None
+    assert result.ok and (result.started_at, result.ended_at, result.duration) == (None, None, None)
