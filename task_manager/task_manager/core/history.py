@@ -8,6 +8,7 @@ task gets a `sequence` number that only grows, so a consumer can ask for "everyt
 The file uses WAL journaling: readers never block the writer. Nothing here knows ROS.
 """
 
+import contextlib
 import dataclasses
 import sqlite3
 import time
@@ -298,4 +299,8 @@ class _Transaction:
         self._db.execute('BEGIN IMMEDIATE')
 
     def __exit__(self, kind: object, *_: object) -> None:
-        self._db.execute('COMMIT' if kind is None else 'ROLLBACK')
+        if kind is None:
+            self._db.execute('COMMIT')  # if it fails, the caller's error handling rolls back
+        if self._db.in_transaction:  # an error, or a COMMIT that failed (disk full)
+            with contextlib.suppress(sqlite3.Error):
+                self._db.execute('ROLLBACK')

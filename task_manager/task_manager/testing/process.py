@@ -50,8 +50,14 @@ def write_params_file(path: Path, parameters: dict[str, Any]) -> Path:
 class NodeProcess:
     """A running `task-manager` process whose log lines tests can wait for."""
 
-    def __init__(self, params_file: Path | None, extra_args: list[str] | None = None) -> None:
-        command = [task_manager_executable()]
+    def __init__(
+        self,
+        params_file: Path | None,
+        extra_args: list[str] | None = None,
+        wrapper: list[str] | None = None,
+    ) -> None:
+        """`wrapper`: a command that runs the node, e.g. `prlimit --fsize=N --`."""
+        command = [*(wrapper or []), task_manager_executable()]
         ros_args = list(extra_args or [])
         if params_file is not None:
             ros_args += ['--params-file', str(params_file)]

@@ -11,12 +11,19 @@ from test_msgs.action import Fibonacci
 
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
-from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.process import (
+    LaunchTaskManager,
+    NodeProcess,
+    action_task,
+    write_params_file,
+)
 from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
 
 TIMEOUT_SEC = 20.0
 HOLD = 50  # Fibonacci orders at or above it are held by the server: the task keeps running
 ENDED_COUNT, RUNNING_COUNT = 40, 6
+FULL_DISK_BYTES = 256 * 1024
+FULL_DISK_TASKS = 120
 
 
 def _decide(goal: ScriptedGoal) -> None:
@@ -172,3 +179,37 @@ def test_the_history_is_queried_by_filters_and_kept_within_its_limits(
     ]
     assert oldest_first == [t.task_id for t in all_rows[:2] if t.task_id.startswith('q')]
     assert after == [t.task_id for t in all_rows[2:] if t.task_id.startswith('q')]
+
+
+def test_a_full_disk_stops_nothing_and_is_logged_once(
+    ros: RosHarness, tmp_path: Path, topic_prefix: str
+) -> None:
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=_decide)
+    parameters = {
+        'tasks': ['fib'],
+        'fib': action_task('fib', f'{topic_prefix}/fib', reentrant=True),
+        'history_path': str(tmp_path / 'history.sqlite'),
+    }
+    # files of the node may not grow beyond 256 KiB: the history's log fills up after a few
+    # dozen commits, as a full disk would
+    node = NodeProcess(
+        write_params_file(tmp_path / 'params.yaml', parameters),
+        wrapper=['prlimit', f'--fsize={FULL_DISK_BYTES}', '--'],
+    )
+    probe = TaskManagerProbe(ros)
+    try:
+        node.wait_for_log('Task Manager ready', TIMEOUT_SEC)
+        probe.wait_until_connected()
+        outcomes = [probe.run('fib', {'order': 1}, task_id=f'f{n}') for n in range(FULL_DISK_TASKS)]
+        probe.wait_result_message(f'f{FULL_DISK_TASKS - 1}')
+    finally:
+        probe.destroy()
+        code = node.stop()
+
+    assert {r.task_status for r in outcomes} == {'DONE'}
+    assert len({m.task_id for m in probe.results.snapshot() if m.task_id.startswith('f')}) == (
+        FULL_DISK_TASKS
+    )
+    errors = [line for line in node.log_lines if 'cannot write the task history /' in line]
+    assert len(errors) == 1, errors  # once a minute, not once per task
+    assert code == 0
