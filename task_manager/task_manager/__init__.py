@@ -19,6 +19,7 @@ __all__ = [
     'TaskManagerUnavailable',
     'TaskResult',
     'TaskState',
+    'TaskStats',
     'TaskStatus',
     'TaskTimeout',
 ]
@@ -33,6 +34,7 @@ _DEFINED_IN = {
     'TaskState': 'task_manager.client',
     'TaskEvent': 'task_manager.client',
     'TaskEventKind': 'task_manager.client',
+    'TaskStats': 'task_manager.core.task_stats',
     'ErrorCode': 'task_manager.core.status',
     'TaskStatus': 'task_manager.core.status',
     'TaskManagerError': 'task_manager.core.errors',

@@ -24,6 +24,7 @@ from enum import Enum, StrEnum
 from typing import Any, Protocol, TypeAlias, TypeVar
 
 import rclpy
+from builtin_interfaces.msg import Time
 from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from rclpy.client import Client
@@ -38,10 +39,11 @@ from rclpy.timer import Timer
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
-from task_manager_msgs.srv import GetTaskResults, GetTaskStates
+from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.core.errors import TaskManagerUnavailable, TaskTimeout
 from task_manager.core.status import ErrorCode, TaskStatus
+from task_manager.core.task_stats import TaskStats, task_stats
 from task_manager.ros import qos
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import result_of
@@ -53,6 +55,9 @@ ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
+QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
+HISTORY_LIMIT_MAX = 10_000  # the most rows /task_manager/query_task_history returns at once
+FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)
 TASK_MANAGER_NODE = '/task_manager'
 MISSION_SOURCE = 'Mission'
 DEFAULT_TIMEOUT_SEC = 5.0
@@ -93,6 +98,12 @@ def _datetime(stamp: Any) -> datetime | None:
     if stamp.sec == 0 and stamp.nanosec == 0:
         return None
     return datetime.fromtimestamp(stamp.sec, UTC) + timedelta(microseconds=stamp.nanosec // 1000)
+
+
+def _stamp(moment: datetime) -> Time:
+    """A datetime as a builtin_interfaces/Time (a naive one is taken as local time)."""
+    nanoseconds = round(moment.timestamp() * 1e9)
+    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
 def _json_object(text: str) -> dict[str, Any]:
@@ -196,6 +207,8 @@ class TaskState:
     """The latest feedback; None before the first."""
     result: dict[str, Any] | None = None
     """The result once the task has ended; None before."""
+    sequence: int = 0
+    """Once ended: its number in the task history (only grows, never repeats); 0 before."""
 
     @property
     def is_final(self) -> bool:
@@ -240,6 +253,7 @@ class TaskState:
             ended_at=_datetime(message.ended),
             feedback=_json_object(message.feedback) if message.feedback else None,
             result=_json_object(message.task_result) if message.task_result else None,
+            sequence=message.sequence,
         )
 
 
@@ -708,6 +722,83 @@ class TaskManagerClient:
             else result
             for result in results
         ]
+
+    def history(
+        self,
+        task_name: str = '',
+        *,
+        status: TaskStatus | str = '',
+        source: str = '',
+        mission_id: str = '',
+        since: datetime | timedelta | None = None,
+        until: datetime | None = None,
+        after_sequence: int = 0,
+        limit: int = 100,
+        oldest_first: bool = False,
+        timeout_sec: float | None = None,
+    ) -> list[TaskState]:
+        """Ended tasks from the Task Manager's durable history, newest first.
+
+        Empty filters do not filter. `since`: ended at or after this moment, or within this
+        long before now; `until`: ended at or before it. `after_sequence`: only tasks whose
+        `sequence` is greater; with `oldest_first` the tasks come by sequence, so that a
+        consumer can resume after the last one it saw. At most `limit` (1 to 10,000).
+        """
+        if not 1 <= limit <= HISTORY_LIMIT_MAX:
+            raise ValueError(f'limit must be from 1 to {HISTORY_LIMIT_MAX}, got {limit}')
+        if status and status not in FINAL_STATUSES:
+            allowed = ', '.join(FINAL_STATUSES)
+            raise ValueError(f'status must be one of {allowed} (or empty), got {status!r}')
+        if isinstance(since, timedelta):
+            since = datetime.now(UTC) - since
+        request = QueryTaskHistory.Request(
+            task_name=task_name,
+            status=str(status),
+            source=source,
+            mission_id=mission_id,
+            ended_after=Time() if since is None else _stamp(since),
+            ended_before=Time() if until is None else _stamp(until),
+            after_sequence=after_sequence,
+            limit=limit,
+            oldest_first=oldest_first,
+        )
+        response = self._call(QueryTaskHistory, QUERY_TASK_HISTORY_SERVICE, request, timeout_sec)
+        return [TaskState.from_message(m) for m in response.tasks]
+
+    def stats(
+        self,
+        task_name: str = '',
+        *,
+        source: str = '',
+        mission_id: str = '',
+        since: datetime | timedelta = timedelta(days=1),
+        until: datetime | None = None,
+        timeout_sec: float | None = None,
+    ) -> list[TaskStats]:
+        """Per task name: count, success rate, median and p95 duration of the tasks that ended
+        in the range (default: the last 24 h), computed here from the whole history range.
+
+        The history is read by sequence, 10,000 tasks per call (each call bounded by the
+        timeout).
+        """
+        if isinstance(since, timedelta):
+            since = datetime.now(UTC) - since  # one range for every page
+        ended: list[TaskState] = []
+        while True:
+            page = self.history(
+                task_name,
+                source=source,
+                mission_id=mission_id,
+                since=since,
+                until=until,
+                after_sequence=ended[-1].sequence if ended else 0,
+                limit=HISTORY_LIMIT_MAX,
+                oldest_first=True,
+                timeout_sec=timeout_sec,
+            )
+            ended.extend(page)
+            if len(page) < HISTORY_LIMIT_MAX:
+                return task_stats(ended)
 
     def declared_tasks(self) -> list[dict[str, Any]]:
         """The declared tasks and their properties, read from the node's parameters."""

@@ -7,6 +7,7 @@ import typer
 from task_manager import TaskManagerError, TaskManagerUnavailable
 from task_manager.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_UNAVAILABLE, progress
 from task_manager.cli.verbs.cancel import cancel, stop
+from task_manager.cli.verbs.history import history, stats
 from task_manager.cli.verbs.mission import mission
 from task_manager.cli.verbs.start import start
 from task_manager.cli.verbs.tasks import tasks
@@ -31,7 +32,7 @@ def options(
     ctx.obj = {'timeout_sec': timeout}
 
 
-for verb in (start, mission, cancel, stop, active, results, tasks):
+for verb in (start, mission, cancel, stop, active, results, history, stats, tasks):
     app.command()(verb)
 
 

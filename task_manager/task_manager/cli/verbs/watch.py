@@ -99,22 +99,27 @@ def _iso(moment: datetime | None) -> str | None:
     return None if moment is None else moment.isoformat()
 
 
+def result_data(result: TaskResult) -> dict[str, Any]:
+    """A result's fields as `--json` prints them: stamps in ISO 8601, `duration_sec`."""
+    duration = result.duration
+    return {
+        'task_id': result.task_id,
+        'task_name': result.task_name,
+        'status': str(result.status),
+        'error_code': str(result.error_code),
+        'source': result.source,
+        'result': result.result,
+        'received_at': _iso(result.received_at),
+        'started_at': _iso(result.started_at),
+        'ended_at': _iso(result.ended_at),
+        'duration_sec': None if duration is None else duration.total_seconds(),
+    }
+
+
 def result_line(result: TaskResult, as_json: bool) -> str:
     duration = result.duration
     if as_json:
-        data: dict[str, Any] = {
-            'task_id': result.task_id,
-            'task_name': result.task_name,
-            'status': str(result.status),
-            'error_code': str(result.error_code),
-            'source': result.source,
-            'result': result.result,
-            'received_at': _iso(result.received_at),
-            'started_at': _iso(result.started_at),
-            'ended_at': _iso(result.ended_at),
-            'duration_sec': None if duration is None else duration.total_seconds(),
-        }
-        return json.dumps(data, ensure_ascii=False)
+        return json.dumps(result_data(result), ensure_ascii=False)
     error = f' ({result.error_code})' if result.error_code else ''
     when = ''
     if result.ended_at is not None:
