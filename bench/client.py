@@ -20,9 +20,10 @@ from bench.lean_action import LeanActionClient
 from bench.replies import BenchError, Reply, stamped, wait_reply
 from task_manager.ros import qos
 from task_manager.ros.node import ACTIVE_TASKS_TOPIC, EXECUTE_TASK_ACTION
+from task_manager.ros.task_events import TASK_EVENTS_TOPIC
 from task_manager.testing.harness import RosHarness
 from task_manager_msgs.action import ExecuteTask
-from task_manager_msgs.msg import ActiveTaskArray
+from task_manager_msgs.msg import ActiveTaskArray, TaskEvent
 
 BENCH_NODE_NAME = 'task_manager_bench'
 BENCH_SOURCE = 'bench'
@@ -118,6 +119,87 @@ class ActiveTasksWatcher:
         self._node.destroy_subscription(self.subscription)
 
 
+# CDR: a 4-byte encapsulation header, then the fields, each aligned from the header's end
+CDR_HEADER_BYTES = 4
+CDR_LITTLE_ENDIAN = b'\x00\x01'
+TIME_BYTES = 8  # builtin_interfaces/Time: int32 sec, uint32 nanosec
+
+
+def _cdr_string(data: bytes, offset: int) -> tuple[str, int]:
+    """The CDR string at `offset` (before alignment) and the offset just after it."""
+    offset += -(offset - CDR_HEADER_BYTES) % 4
+    length = int.from_bytes(data[offset : offset + 4], 'little')  # with its terminating NUL
+    start = offset + 4
+    return data[start : start + length - 1].decode(), start + length
+
+
+def event_and_task_id(data: bytes) -> tuple[str, str]:
+    """The kind (RECEIVED, ...) and task id of a serialized TaskEvent: its first fields.
+
+    Read from the bytes: deserializing every event in Python would cost the bench's executor
+    more than the node's publication costs the node.
+    """
+    if data[:2] != CDR_LITTLE_ENDIAN:
+        message = deserialize_message(data, TaskEvent)
+        return message.event, message.task.task_id
+    event, offset = _cdr_string(data, CDR_HEADER_BYTES)
+    offset += -(offset - CDR_HEADER_BYTES) % 4 + TIME_BYTES  # the event's stamp
+    task_id, _ = _cdr_string(data, offset)
+    return event, task_id
+
+
+class SeenEvent(NamedTuple):
+    """One /task_manager/task_events message as the bench took it."""
+
+    event: str
+    task_id: str
+    at: float
+    """When the bench took it (perf_counter)."""
+
+
+class TaskEventsWatcher:
+    """Follows /task_manager/task_events, reading each event's kind and task id only."""
+
+    def __init__(self, harness: RosHarness) -> None:
+        self._changed = threading.Condition()
+        self._events: list[SeenEvent] = []
+        self._node = harness.node
+        self.subscription = harness.node.create_subscription(
+            TaskEvent, TASK_EVENTS_TOPIC, self._on_message, qos.TASK_EVENTS, raw=True
+        )
+
+    def _on_message(self, data: bytes) -> None:
+        event, task_id = event_and_task_id(data)
+        with self._changed:
+            self._events.append(SeenEvent(event, task_id, time.perf_counter()))
+            self._changed.notify_all()
+
+    def wait_until(
+        self, predicate: Callable[[list[SeenEvent]], bool], timeout_sec: float, what: str
+    ) -> None:
+        """Wait until `predicate` holds for the events taken since the last `take`."""
+        with self._changed:
+            if not self._changed.wait_for(lambda: predicate(self._events), timeout_sec):
+                raise BenchError(f'{what}: not seen on {TASK_EVENTS_TOPIC} within {timeout_sec} s')
+
+    def wait_event(self, event: str, task_id: str, timeout_sec: float) -> None:
+        self.wait_until(
+            lambda events: any(e.event == event and e.task_id == task_id for e in events),
+            timeout_sec,
+            f'{event} of {task_id}',
+        )
+
+    def take(self) -> list[SeenEvent]:
+        """The events taken since the last call."""
+        with self._changed:
+            events = self._events
+            self._events = []
+            return events
+
+    def destroy(self) -> None:
+        self._node.destroy_subscription(self.subscription)
+
+
 class BenchClient:
     """Clients of the Task Manager and, for the baselines, of the same servers directly."""
 
@@ -130,13 +212,14 @@ class BenchClient:
         self.trigger = self._service(config.TRIGGER_TOPIC)
         self.release_goals = self._service(config.RELEASE_GOALS_TOPIC)
         self.release_calls = self._service(config.RELEASE_CALLS_TOPIC)
+        self.release_feedback = self._service(config.RELEASE_FEEDBACK_TOPIC)
 
     def _service(self, topic: str) -> Any:
         return self.harness.node.create_client(Trigger, topic, qos_profile=qos.DEEP_RELIABLE)
 
     def wait_for_servers(self, timeout_sec: float) -> None:
         actions = (self.execute_task, self.fibonacci, self.hold)
-        services = (self.trigger, self.release_goals, self.release_calls)
+        services = (self.trigger, self.release_goals, self.release_calls, self.release_feedback)
         for action in actions:
             if not action.wait_for_server(timeout_sec):
                 raise BenchError(f'{action.action_name} not available within {timeout_sec} s')
@@ -156,10 +239,14 @@ class BenchClient:
     def send_fibonacci(self) -> Future:
         return self.fibonacci.send_goal(Fibonacci.Goal(order=0))
 
-    def call_trigger(self, client: Any = None) -> Future:
+    def call(self, client: Any, request: Any) -> Future:
+        """Call a service; the future's Reply is stamped when the response came."""
         replied: Future = Future()
-        (client or self.trigger).call_async(Trigger.Request()).add_done_callback(stamped(replied))
+        client.call_async(request).add_done_callback(stamped(replied))
         return replied
+
+    def call_trigger(self, client: Any = None) -> Future:
+        return self.call(client or self.trigger, Trigger.Request())
 
     def release(self, client: Any, what: str) -> None:
         wait_reply(self.call_trigger(client), what)

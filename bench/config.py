@@ -15,12 +15,15 @@ SLOW_SERVICE_TOPIC = '/bench/slow_service'
 MISSING_TOPIC = '/bench/missing_server'
 RELEASE_GOALS_TOPIC = '/bench/release_goals'
 RELEASE_CALLS_TOPIC = '/bench/release_calls'
+FEEDBACK_TOPIC = '/bench/feedback'
+RELEASE_FEEDBACK_TOPIC = '/bench/release_feedback'
 
 FIBONACCI_TASK = 'bench/fibonacci'
 TRIGGER_TASK = 'bench/trigger'
 HOLD_TASK = 'bench/hold'
 SLOW_SERVICE_TASK = 'bench/slow_service'
 MISSING_TASK = 'bench/missing_server'
+FEEDBACK_TASK = 'bench/feedback'
 MISSION_TASK = 'system/mission'
 
 FIBONACCI_DATA = '{"order": 0}'
@@ -40,6 +43,20 @@ ISOLATION_SAMPLES = 40
 MISSION_SUBTASKS = 200
 MISSION_ROUNDS = 3
 
+# The cost of a node setting (the event stream, the history file): the node restarted
+# without (False) or with (True) it, in this order (ABBA, so that a drift in the machine's
+# load hits both alike); in each phase, the dispatch samples (per kind) and the bursts of
+# the throughput benchmark.
+SETTING_PHASES = (False, True, True, False)
+SETTING_DISPATCH_SAMPLES = 150
+SETTING_BURSTS = 2
+
+# A server publishing feedback at FEEDBACK_RATE_HZ (an rclpy timer) for one task, while
+# instant tasks run; quiet and busy blocks alternate (ABBA) over FEEDBACK_ROUNDS rounds.
+FEEDBACK_RATE_HZ = 100.0
+FEEDBACK_ROUNDS = 4
+FEEDBACK_BLOCK_SAMPLES = 50
+
 # rclpy's ActionServer keeps each finished goal for result_timeout (10 s by default) and
 # every event of the server walks all the goals it keeps: the node's ExecuteTask server
 # does so. Benchmarks (and throughput bursts) start once the previous one's goals are gone.
@@ -51,10 +68,15 @@ BURST_TIMEOUT_SEC = 120.0
 CONNECT_TIMEOUT_SEC = 20.0
 
 
-def node_parameters() -> dict[str, Any]:
-    """The node's parameters: instant, held, slow and missing servers, all tasks reentrant."""
+def node_parameters(**overrides: Any) -> dict[str, Any]:
+    """The node's parameters: instant, held, slow, feedback and missing servers.
+
+    All tasks are reentrant but the slow service's; `overrides` sets node-level parameters
+    (e.g. publish_task_events).
+    """
     entries = {
         'fibonacci': action_task(FIBONACCI_TASK, FIBONACCI_TOPIC, reentrant=True),
+        'feedback': action_task(FEEDBACK_TASK, FEEDBACK_TOPIC, reentrant=True),
         'trigger': service_task(
             TRIGGER_TASK, TRIGGER_TOPIC, 'std_srvs/srv/Trigger', reentrant=True
         ),
@@ -70,9 +92,13 @@ def node_parameters() -> dict[str, Any]:
     return {
         'tasks': list(entries),
         'server_wait_timeout': SERVER_WAIT_TIMEOUT_SEC,
+        **overrides,
         **entries,
     }
 
 
-def write_node_params(directory: Path) -> Path:
-    return write_params_file(directory / 'bench_params.yaml', node_parameters())
+def write_node_params(directory: Path, name: str = 'bench_params', **overrides: Any) -> Path:
+    """The parameters file `name`.yaml; the node's task history (a file, as by default) is new
+    and in `directory`, so that every node starts with an empty one."""
+    overrides.setdefault('history_path', str(directory / f'{name}_history.sqlite'))
+    return write_params_file(directory / f'{name}.yaml', node_parameters(**overrides))

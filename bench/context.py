@@ -1,20 +1,28 @@
 """What every benchmark gets: the client, the running node, the report and the profiler."""
 
 import contextlib
+import threading
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from action_msgs.msg import GoalStatus
+from rclpy.task import Future
 
 from bench import config
 from bench.client import BenchClient, error_code, task_status
-from bench.processes import ChildProcess
+from bench.processes import ChildProcess, start_node
 from bench.profiler import Profile, PySpyRecorder
-from bench.replies import BenchError, Reply
+from bench.replies import BenchError, Reply, wait_reply
 from bench.report import Report
 from bench.stats import latency_ms
+from task_manager.ros.instances import INSTANCES_QOS, INSTANCES_TOPIC
+from task_manager_msgs.msg import TaskManagerInstance
+
+WARM_UP_ATTEMPTS = 5
+WARM_UP_TIMEOUT_SEC = 2.0
 
 
 def expect_done(reply: Reply) -> None:
@@ -39,17 +47,80 @@ def expect_success(reply: Reply) -> None:
         raise BenchError('direct call did not succeed')
 
 
+def wait_announced(client: BenchClient, pid: int, timeout_sec: float) -> None:
+    """Wait until the Task Manager of process `pid` has announced itself on its instances topic.
+
+    After a restart, the graph may still list the stopped node's servers for a moment: this
+    tells the new node apart.
+    """
+    announced = threading.Event()
+
+    def on_instance(instance: Any) -> None:
+        if instance.pid == pid:
+            announced.set()
+
+    node = client.harness.node
+    subscription = node.create_subscription(
+        TaskManagerInstance, INSTANCES_TOPIC, on_instance, INSTANCES_QOS
+    )
+    try:
+        if not announced.wait(timeout_sec):
+            raise BenchError(f'Task Manager pid {pid}: no announcement within {timeout_sec} s')
+    finally:
+        node.destroy_subscription(subscription)
+
+
+def warm_up(client: BenchClient) -> None:
+    """Retry a goal for an unknown task (answered at once) until a round trip works.
+
+    Seeing the server is not enough: DDS may match its reply path to a new client a moment
+    later, and a reply sent before that is lost.
+    """
+    for attempt in range(WARM_UP_ATTEMPTS):
+        try:
+            wait_reply(client.send_task('__bench_warm_up__', '{}'), 'warm-up', WARM_UP_TIMEOUT_SEC)
+            return
+        except BenchError:
+            print(f'[bench] warm-up round trip {attempt + 1} lost, retrying', flush=True)
+    raise BenchError(f'no ExecuteTask round trip in {WARM_UP_ATTEMPTS} attempts')
+
+
 @dataclass
 class BenchContext:
     client: BenchClient
     node: ChildProcess
+    servers: ChildProcess
     log_dir: Path
-    pids: list[int]
-    """The node's and the servers' process ids."""
     profiling: bool = False
     report: Report = field(default_factory=Report)
     # key: what the node was doing, value: py-spy samples of it meanwhile
     profiles: dict[str, Profile] = field(default_factory=dict)
+
+    def connect(self) -> None:
+        """Wait for the node and the servers, then for one ExecuteTask round trip to work."""
+        try:
+            wait_announced(self.client, self.node.pid, config.CONNECT_TIMEOUT_SEC)
+            self.client.wait_for_servers(config.CONNECT_TIMEOUT_SEC)
+            warm_up(self.client)
+        except BenchError as error:
+            raise BenchError(
+                f'{error}\n--- node log ---\n{self.node.log_tail()}\n--- servers log ---\n'
+                f'{self.servers.log_tail()}'
+            ) from error
+
+    def restart_node(self, name: str = 'task_manager', **parameters: Any) -> None:
+        """Stop the node; start it again with these node-level parameters, logging to `name`."""
+        self.node.stop()
+        params_file = config.write_node_params(self.log_dir, f'{name}_params', **parameters)
+        self.node = start_node(params_file, self.log_dir, name)
+        self.connect()
+
+    def accepted_task(self, task_name: str, task_data: str, task_id: str) -> Future:
+        """Send a task; return its reply future once the manager has accepted its goal."""
+        accepted: Future = Future()
+        replied = self.client.send_task(task_name, task_data, task_id, accepted)
+        wait_reply(accepted, f'{task_id} accepted')
+        return replied
 
     @contextlib.contextmanager
     def profiled(self, title: str) -> Iterator[None]:

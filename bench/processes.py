@@ -7,10 +7,15 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import psutil
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
 
+from task_manager.ros.cleanup import destroy_waitables
 from task_manager.testing.process import task_manager_executable
 
 STOP_TIMEOUT_SEC = 10.0
@@ -43,13 +48,35 @@ class ChildProcess:
             self.process.wait(STOP_TIMEOUT_SEC)
 
 
-def start_node(params_file: Path, log_dir: Path) -> ChildProcess:
+def start_node(params_file: Path, log_dir: Path, name: str = 'task_manager') -> ChildProcess:
     command = [task_manager_executable(), '--ros-args', '--params-file', str(params_file)]
-    return ChildProcess('task_manager', command, log_dir)
+    return ChildProcess(name, command, log_dir)
 
 
 def start_servers(log_dir: Path) -> ChildProcess:
     return ChildProcess('servers', [sys.executable, '-m', 'bench.servers'], log_dir)
+
+
+def start_event_listener(log_dir: Path) -> ChildProcess:
+    return ChildProcess('event_listener', [sys.executable, '-m', 'bench.event_listener'], log_dir)
+
+
+def spin_child(node_name: str, build: Callable[[Node], object]) -> None:
+    """The main of a child process: a node with what `build` puts on it, spun until SIGINT."""
+    rclpy.init()
+    node = rclpy.create_node(node_name)
+    executor = SingleThreadedExecutor()
+    build(node)
+    executor.add_node(node)
+    try:
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.shutdown()
+        destroy_waitables(node)
+        node.destroy_node()
+        rclpy.try_shutdown()
 
 
 class ResourceSampler:
@@ -87,12 +114,13 @@ class ResourceSampler:
 class OtherLoad:
     """CPU used by processes other than the bench's own, in cores, since it was created.
 
-    Our processes are the bench (and its ended children, e.g. py-spy), the node and the
-    servers; other developers' work on the machine shows up here.
+    Our processes are the bench and its children, running (the node, even a restarted one,
+    the servers, py-spy) or ended (counted in the bench's children times once waited for);
+    other developers' work on the machine shows up here.
     """
 
-    def __init__(self, pids: list[int]) -> None:
-        self._ours = [psutil.Process(os.getpid()), *(psutil.Process(pid) for pid in pids)]
+    def __init__(self) -> None:
+        self._bench = psutil.Process(os.getpid())
         self._started = (time.perf_counter(), self._machine_busy_sec(), self._our_sec())
 
     @staticmethod
@@ -105,7 +133,7 @@ class OtherLoad:
 
     def _our_sec(self) -> float:
         total = 0.0
-        for process in self._ours:
+        for process in [self._bench, *self._bench.children(recursive=True)]:
             with contextlib.suppress(psutil.Error):
                 times = process.cpu_times()
                 total += times.user + times.system + times.children_user + times.children_system

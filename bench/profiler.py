@@ -29,6 +29,7 @@ SPECIFIC_AREAS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("removing from an action waitable's futures", ('Waitable.remove_future',)),
     ('building + publishing active_tasks', ('publish_active',)),
     ('building + publishing results', ('publish_result',)),
+    ('task events: rate limit, build + publish', ('task_events.py', 'feedback_rate.py')),
     ('JSON <-> message conversion', ('message_json.py',)),
 )
 # otherwise: the area of the innermost frame that has one of these markers

@@ -14,17 +14,24 @@ from pathlib import Path
 
 import rclpy
 
-from bench import concurrency, config, dispatch, isolation, mission, throughput
+from bench import (
+    concurrency,
+    config,
+    dispatch,
+    events,
+    feedback,
+    history,
+    isolation,
+    mission,
+    throughput,
+)
 from bench.client import BenchClient
 from bench.context import BenchContext
-from bench.processes import ChildProcess, OtherLoad, start_node, start_servers
+from bench.processes import OtherLoad, start_node, start_servers
 from bench.profiler import Profile, py_spy_executable
-from bench.replies import BenchError, wait_reply
 from bench.report import Row, machine_lines, table
 
 TOP_FUNCTIONS = 15
-WARM_UP_ATTEMPTS = 5
-WARM_UP_TIMEOUT_SEC = 2.0
 
 # name: benchmark, in the order they run (the heaviest last)
 BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
@@ -32,7 +39,11 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'throughput': throughput.run,
     'mission': mission.run,
     'isolation': isolation.run,
+    'feedback': feedback.run,
     'concurrency': concurrency.run,
+    # last: they restart the node for each phase, then once more with the default parameters
+    'events': events.run,
+    'history': history.run,
 }
 
 
@@ -46,33 +57,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def connect(client: BenchClient, node: ChildProcess, servers: ChildProcess) -> None:
-    """Wait for the node and the servers, then for one ExecuteTask round trip to work."""
-    try:
-        client.wait_for_servers(config.CONNECT_TIMEOUT_SEC)
-        warm_up(client)
-    except BenchError as error:
-        raise BenchError(
-            f'{error}\n--- node log ---\n{node.log_tail()}\n--- servers log ---\n'
-            f'{servers.log_tail()}'
-        ) from error
-
-
-def warm_up(client: BenchClient) -> None:
-    """Retry a goal for an unknown task (answered at once) until a round trip works.
-
-    Seeing the server is not enough: DDS may match its reply path to a new client a moment
-    later, and a reply sent before that is lost.
-    """
-    for attempt in range(WARM_UP_ATTEMPTS):
-        try:
-            wait_reply(client.send_task('__bench_warm_up__', '{}'), 'warm-up', WARM_UP_TIMEOUT_SEC)
-            return
-        except BenchError:
-            print(f'[bench] warm-up round trip {attempt + 1} lost, retrying', flush=True)
-    raise BenchError(f'no ExecuteTask round trip in {WARM_UP_ATTEMPTS} attempts')
-
-
 @contextlib.contextmanager
 def running_bench(log_dir: Path, profiling: bool) -> Iterator[BenchContext]:
     """The servers, the node and the bench client, all stopped in reverse order afterwards."""
@@ -82,16 +66,18 @@ def running_bench(log_dir: Path, profiling: bool) -> Iterator[BenchContext]:
         servers = start_servers(log_dir)
         stack.callback(servers.stop)
         node = start_node(config.write_node_params(log_dir), log_dir)
-        stack.callback(node.stop)
+        stack.callback(node.stop)  # stopping twice is harmless
         client = BenchClient()
         stack.callback(client.close)
-        connect(client, node, servers)
-        yield BenchContext(client, node, log_dir, [node.pid, servers.pid], profiling)
+        ctx = BenchContext(client, node, servers, log_dir, profiling)
+        stack.callback(lambda: ctx.node.stop())  # the node running then (see restart_node)
+        ctx.connect()
+        yield ctx
 
 
 def run_benchmark(ctx: BenchContext, name: str) -> bool:
     started = time.perf_counter()
-    other_load = OtherLoad(ctx.pids)
+    other_load = OtherLoad()
     print(f'[bench] {name} ...', flush=True)
     try:
         BENCHMARKS[name](ctx)
@@ -127,6 +113,8 @@ def main(argv: list[str] | None = None) -> int:
     started = time.perf_counter()
     machine = machine_lines()
     log_dir = Path(tempfile.mkdtemp(prefix='task_manager_bench_'))
+    # the ROS log files of the bench's processes go there too, not to ~/.ros
+    os.environ['ROS_HOME'] = str(log_dir / 'ros_home')
     profiling = not args.no_profile and bool(py_spy_executable())
     if not args.no_profile and not profiling:
         print('[bench] py-spy not found: no profile (pip install -r requirements/bench.txt)')

@@ -4,26 +4,29 @@ Minimal and fast: instant goals and calls end in their first callback, and the i
 server keeps no finished goals (see lean_action.py). The hold server is a regular rclpy
 ActionServer whose goals are kept accepted but not executing, so a thousand of them cost no
 pending coroutine in this process's executor; `/bench/release_goals` executes them all. Held
-calls of the slow service wait on futures until `/bench/release_calls`.
+calls of the slow service wait on futures until `/bench/release_calls`. The feedback server's
+goals publish feedback at 100 Hz, from one rclpy timer, until `/bench/release_feedback`.
 """
 
+import json
+import time
 from typing import Any
 
-import rclpy
 from rclpy.action import ActionServer
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
+from rclpy.timer import Timer
 from std_srvs.srv import Trigger
 from test_msgs.action import Fibonacci
 
 from bench import config
 from bench.lean_action import InstantActionServer
-from task_manager.ros.cleanup import destroy_waitables
+from bench.processes import spin_child
 from task_manager.ros.qos import DEEP_RELIABLE
 
 SERVER_NODE_NAME = 'task_manager_bench_servers'
+FEEDBACK_SEQUENCE_LENGTH = 10
 
 
 def fibonacci_sequence(order: int) -> list[int]:
@@ -57,6 +60,7 @@ class BenchServers:
         # futures of slow-service calls still waiting for their response
         self._held_calls: list[Future] = []
         self._wake = node.create_guard_condition(lambda: None, group)
+        self._feedback = FeedbackServer(node, group, self._wake.trigger)
         self._instant = InstantActionServer(
             node, Fibonacci, config.FIBONACCI_TOPIC, fibonacci_result, group
         )
@@ -114,21 +118,84 @@ class BenchServers:
         return response
 
 
+class FeedbackServer:
+    """Goals that publish feedback at FEEDBACK_RATE_HZ until released, then succeed.
+
+    One rclpy timer publishes the feedback of every running goal; it exists only while a
+    goal runs, so it wakes this process's executor during the feedback benchmark alone.
+    """
+
+    def __init__(self, node: Node, group: ReentrantCallbackGroup, wake: Any) -> None:
+        self._node = node
+        self._group = group
+        self._wake = wake
+        # the running goals, each with the future that releases it
+        self._running: list[tuple[Any, Future]] = []
+        self._timer: Timer | None = None
+        self._published = 0
+        self._started_at = 0.0
+        self._server = ActionServer(
+            node,
+            Fibonacci,
+            config.FEEDBACK_TOPIC,
+            execute_callback=self._execute,
+            goal_service_qos_profile=DEEP_RELIABLE,
+            result_service_qos_profile=DEEP_RELIABLE,
+            cancel_service_qos_profile=DEEP_RELIABLE,
+            callback_group=group,
+        )
+        node.create_service(
+            Trigger,
+            config.RELEASE_FEEDBACK_TOPIC,
+            self._release,
+            qos_profile=DEEP_RELIABLE,
+            callback_group=group,
+        )
+
+    async def _execute(self, goal_handle: Any) -> Fibonacci.Result:
+        released: Future = Future()
+        self._running.append((goal_handle, released))
+        if self._timer is None:
+            self._published = 0
+            self._started_at = time.monotonic()
+            self._timer = self._node.create_timer(
+                1.0 / config.FEEDBACK_RATE_HZ, self._publish, self._group
+            )
+        await released
+        goal_handle.succeed()
+        return fibonacci_result(goal_handle.request)
+
+    def _publish(self) -> None:
+        # a sequence that changes with every message, as a robot's progress does
+        start = self._published
+        feedback = Fibonacci.Feedback(sequence=list(range(start, start + FEEDBACK_SEQUENCE_LENGTH)))
+        for goal_handle, _ in self._running:
+            goal_handle.publish_feedback(feedback)
+            self._published += 1
+
+    def _release(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """End every running goal; the message says how much feedback they published (JSON)."""
+        running = list(self._running)
+        self._running.clear()
+        if self._timer is not None:
+            self._node.destroy_timer(self._timer)
+            self._timer = None
+        for _, released in running:
+            released.set_result(None)
+        self._wake()  # resume the goals' coroutines at once
+        response.success = True
+        response.message = json.dumps(
+            {
+                'goals': len(running),
+                'feedback_messages': self._published,
+                'seconds': time.monotonic() - self._started_at,
+            }
+        )
+        return response
+
+
 def main() -> None:
-    rclpy.init()
-    node = rclpy.create_node(SERVER_NODE_NAME)
-    executor = SingleThreadedExecutor()
-    BenchServers(node)
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.shutdown()
-        destroy_waitables(node)
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin_child(SERVER_NODE_NAME, BenchServers)
 
 
 if __name__ == '__main__':

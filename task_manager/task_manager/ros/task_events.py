@@ -117,6 +117,8 @@ class TaskEventStream:
 
     def _publish(self, event: str, record: TaskRecord) -> None:
         assert self._publisher is not None
+        if not self._publisher.get_subscription_count():
+            return  # nobody listens: building the message is the larger part of the cost
         self._publisher.publish(
             TaskEvent(event=event, stamp=stamp(time.time()), task=task_state_msg(record))
         )
