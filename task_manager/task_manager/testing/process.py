@@ -16,6 +16,8 @@ import yaml
 from task_manager.testing.harness import WaitTimeoutError
 
 STOP_TIMEOUT_SEC = 10.0
+TASKCTL = str(Path(sys.executable).with_name('taskctl'))
+TASKCTL_TIMEOUT_SEC = 30.0
 
 # launch(tasks: {key: entry}, **node_parameters) -> a probe connected to the running node
 LaunchTaskManager = Callable[..., Any]
@@ -128,3 +130,15 @@ class NodeProcess:
             self.process.kill()
             self.process.wait()
             raise
+
+
+def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
+    """Run taskctl of this environment to its end (bounded); `env` adds to the environment."""
+    return subprocess.run(
+        [TASKCTL, *args],
+        capture_output=True,
+        text=True,
+        timeout=TASKCTL_TIMEOUT_SEC,
+        check=False,
+        env=None if env is None else dict(os.environ, **env),
+    )

@@ -1,11 +1,9 @@
 """taskctl driven as a user would: a subprocess against a real node and real servers."""
 
 import json
-import os
 import re
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -13,23 +11,16 @@ from test_msgs.action import Fibonacci
 
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.probe import TaskManagerProbe
-from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.process import (
+    TASKCTL,
+    TASKCTL_TIMEOUT_SEC,
+    LaunchTaskManager,
+    action_task,
+    taskctl,
+)
 from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
 
-TASKCTL = str(Path(sys.executable).with_name('taskctl'))
-RUN_TIMEOUT_SEC = 30.0
 FAIL, HOLD = 99, 50  # Fibonacci orders the scripted server aborts / keeps running
-
-
-def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [TASKCTL, *args],
-        capture_output=True,
-        text=True,
-        timeout=RUN_TIMEOUT_SEC,
-        check=False,
-        env=None if env is None else dict(os.environ, **env),
-    )
 
 
 def _decide(goal: ScriptedGoal) -> None:
@@ -95,7 +86,7 @@ def test_start_without_waiting_cancel_and_the_canceled_exit_code(
     assert background.returncode == 0 and other_id
     assert cancelled.returncode == 0, cancelled.stderr
     assert json.loads(cancelled.stdout)['result']['successful_cancels'] == ['held', 'ghost']
-    assert waiting.wait(RUN_TIMEOUT_SEC) == 3  # CANCELED
+    assert waiting.wait(TASKCTL_TIMEOUT_SEC) == 3  # CANCELED
     assert waiting.stdout is not None
     assert json.loads(waiting.stdout.read())['status'] == 'CANCELED'
     assert stopped.returncode == 0
@@ -181,7 +172,7 @@ def test_active_and_results_show_how_long_tasks_run_and_when_they_ended(
     )
     assert 'never started' in _line_with('probe-warm-up', results.stdout)  # refused
     (row,) = [json.loads(line) for line in as_json.stdout.splitlines()]
-    assert row['task_id'] == 'finished' and 0 <= row['duration_sec'] < RUN_TIMEOUT_SEC
+    assert row['task_id'] == 'finished' and 0 <= row['duration_sec'] < TASKCTL_TIMEOUT_SEC
     assert row['received_at'] <= row['started_at'] <= row['ended_at']  # ISO 8601, one zone
 
 
@@ -265,7 +256,7 @@ def test_watch_and_follow_show_changes_until_ctrl_c(
         codes = []
         for process in (watching, following):
             process.send_signal(signal.SIGINT)
-            codes.append(process.wait(RUN_TIMEOUT_SEC))
+            codes.append(process.wait(TASKCTL_TIMEOUT_SEC))
     finally:
         for process in (watching, following):
             if process.poll() is None:

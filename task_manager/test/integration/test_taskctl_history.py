@@ -1,35 +1,22 @@
 """taskctl history and taskctl stats as a user runs them: subprocesses against a real node."""
 
 import json
-import os
 import re
-import subprocess
-import sys
-from pathlib import Path
 from typing import Any
 
 from test_msgs.action import Fibonacci
 
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.probe import TaskManagerProbe
-from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.process import (
+    LaunchTaskManager,
+    action_task,
+    taskctl,
+)
 from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
 
-TASKCTL = str(Path(sys.executable).with_name('taskctl'))
-RUN_TIMEOUT_SEC = 30.0
 FAIL = 99  # the Fibonacci order the scripted server aborts
 DURATION = r'\d+\.\d s'  # how taskctl shows a time under a minute
-
-
-def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [TASKCTL, *args],
-        capture_output=True,
-        text=True,
-        timeout=RUN_TIMEOUT_SEC,
-        check=False,
-        env=None if env is None else dict(os.environ, **env),
-    )
 
 
 def _decide(goal: ScriptedGoal) -> None:

@@ -4,9 +4,7 @@ import json
 import os
 import re
 import subprocess
-import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import pexpect
@@ -16,10 +14,9 @@ from test_msgs.action import Fibonacci
 from task_manager.ros import qos
 from task_manager.ros.task_events import TASK_EVENTS_TOPIC
 from task_manager.testing.harness import RosHarness, WaitTimeoutError
-from task_manager.testing.process import LaunchTaskManager, action_task
+from task_manager.testing.process import TASKCTL, LaunchTaskManager, action_task
 from task_manager.testing.servers import ScriptedActionServer, publish_feedback_until
 
-TASKCTL = str(Path(sys.executable).with_name('taskctl'))
 TIMEOUT_SEC = 30.0
 TERMINAL_ROWS, TERMINAL_COLUMNS = 24, 160
 # The live line: status, elapsed time (group 1), latest feedback
