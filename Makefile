@@ -19,7 +19,8 @@ help:
 	@echo "make lint     ruff and mypy"
 	@echo "make bench    benchmarks (not part of make test)"
 
-install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo
+install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo \
+  $(STAMPS)/task_manager_web $(STAMPS)/chromium
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -58,6 +59,20 @@ $(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels $(shell find task_manager
 $(STAMPS)/task_manager_demo: task_manager_demo/pyproject.toml task_manager_demo/setup.py task_manager_demo/setup.cfg | $(STAMPS)/task_manager
 	$(PIP) install --quiet -e task_manager_demo -c $(CONSTRAINTS)
 	@touch $@
+
+# The web gateway (a separate process and package: the node never loads a web stack).
+$(STAMPS)/task_manager_web: task_manager_web/pyproject.toml task_manager_web/setup.py task_manager_web/setup.cfg | $(STAMPS)/task_manager
+	$(PIP) install --quiet -e 'task_manager_web[dev]' -c $(CONSTRAINTS)
+	@touch $@
+
+# Debian's Chromium for the dashboard tests (Playwright drives it; it never downloads a browser).
+$(STAMPS)/chromium: | $(PY)
+	@mkdir -p $(BUILD)
+	@command -v chromium > /dev/null || { echo "installing Debian's chromium (dashboard tests)"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium > $(BUILD)/apt-chromium.log 2>&1 \
+	  || { apt-get update -q > /dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium > $(BUILD)/apt-chromium.log 2>&1; } \
+	  || { tail -20 $(BUILD)/apt-chromium.log; exit 1; }; }
+	@mkdir -p $(STAMPS) && touch $@
 
 test: install
 	$(VENV)/bin/ruff check .

@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field, replace
 from datetime import UTC, datetime, timedelta
 from enum import Enum, StrEnum
-from typing import Any, Protocol, TypeAlias, TypeVar
+from typing import Any, Generic, Protocol, TypeAlias, TypeVar
 
 import rclpy
 from builtin_interfaces.msg import Time
@@ -304,19 +304,19 @@ def _json(data: dict[str, Any] | str | None) -> str:
 FeedbackCallback: TypeAlias = Callable[[dict[str, Any]], None]
 
 
-class _FeedbackCallback:
-    """Hands feedback to a user's callback; what the callback raises is logged, not spread."""
+class _Callback(Generic[T]):
+    """Hands items to a user's callback; what the callback raises is logged, not spread."""
 
-    def __init__(self, callback: FeedbackCallback, client: 'TaskManagerClient') -> None:
+    def __init__(self, callback: Callable[[T], None], client: 'TaskManagerClient') -> None:
         self._callback = callback
         self._client = client
 
-    def put(self, feedback: dict[str, Any], /) -> None:
+    def put(self, item: T, /) -> None:
         try:
-            self._callback(feedback)
+            self._callback(item)
         except Exception:  # the callback boundary: the executor must go on
             self._client.node.get_logger().error(
-                f'feedback callback {self._callback!r} failed:\n{traceback.format_exc()}'
+                f'callback {self._callback!r} failed:\n{traceback.format_exc()}'
             )
 
 
@@ -368,7 +368,7 @@ class TaskHandle:
         It runs on the client's executor thread, so it must return quickly and never wait on
         the client; an exception it raises is logged.
         """
-        self._client._add_feedback_listener(self, _FeedbackCallback(callback, self._client))
+        self._client._add_feedback_listener(self, _Callback(callback, self._client))
 
     def done(self) -> bool:
         return self.result_future.done()
@@ -406,6 +406,7 @@ class TaskManagerClient:
         self._active_listeners: list[_Listener[list[ActiveTaskInfo]]] = []
         self._result_listeners: list[_Listener[TaskResult]] = []
         self._event_listeners: list[_Listener[TaskEvent]] = []
+        self._connection_listeners: list[_Listener[bool]] = []
         self._follows_events = False
         # key: service name, value: this client's client of it, made on first use
         self._service_clients: dict[str, Client[Any, Any]] = {}
@@ -456,9 +457,16 @@ class TaskManagerClient:
     ) -> None:
         def matched(info: Any) -> None:
             with self._lock:
+                was_connected = ACTIVE_TASKS_TOPIC in self._matched
                 if info.current_count > 0:
                     self._matched.add(topic)
+                else:
+                    self._matched.discard(topic)
+                connected = ACTIVE_TASKS_TOPIC in self._matched
+                listeners = list(self._connection_listeners) if connected != was_connected else []
                 self._lock.notify_all()
+            for listener in listeners:
+                listener.put(connected)
 
         self.node.create_subscription(
             msg_type,
@@ -491,6 +499,38 @@ class TaskManagerClient:
                 )
         if events:
             self._follow_events(timeout_sec)
+
+    @property
+    def connected(self) -> bool:
+        """Whether a Task Manager is there: its /task_manager/active_tasks reaches this client.
+
+        It turns False at once when the node stops, and after DDS's lease duration when the
+        node's process dies without stopping.
+        """
+        with self._lock:
+            return ACTIVE_TASKS_TOPIC in self._matched
+
+    def on_connection_change(self, callback: Callable[[bool], None]) -> Callable[[], None]:
+        """Call `callback(connected)` each time `connected` changes; returns the unsubscribe.
+
+        Like every callback of the client, it runs on the executor thread and must be quick.
+        """
+        return self._add_listener(self._connection_listeners, _Callback(callback, self))
+
+    def on_task_event(self, callback: Callable[[TaskEvent], None]) -> Callable[[], None]:
+        """Call `callback(event)` with every task event from now on; returns the unsubscribe.
+
+        It runs on the executor thread: it must return quickly and never wait on the client.
+        """
+        self._subscribe_to_events()
+        return self._add_listener(self._event_listeners, _Callback(callback, self))
+
+    def _add_listener(
+        self, listeners: list[_Listener[T]], listener: _Listener[T]
+    ) -> Callable[[], None]:
+        with self._lock:
+            listeners.append(listener)
+        return lambda: self._stop_listening(listeners, listener)
 
     @property
     def events_connected(self) -> bool:

@@ -35,7 +35,7 @@ T = TypeVar('T')
 Decoder = Callable[[Any, str], Any]
 Encoder = Callable[[Any], Any]
 
-_HIDDEN_MEMBER = 'structure_needs_at_least_one_member'
+HIDDEN_MEMBER = 'structure_needs_at_least_one_member'
 _FLOAT_BOUNDS = {'float32': 3.4028235e38, 'float64': sys.float_info.max}
 _ALIASES = {
     'short': 'int16',
@@ -105,7 +105,7 @@ def _snake(name: str) -> str:
     return re.sub(r'([a-z0-9])([A-Z])', r'\1_\2', name).lower()
 
 
-def _import_class(slot: idl.NamespacedType) -> type:
+def import_class(slot: idl.NamespacedType) -> type:
     """Import the message class of a nested type, e.g. builtin_interfaces.msg.Time."""
     package: ModuleType = importlib.import_module('.'.join(slot.namespaces))
     if hasattr(package, slot.name):
@@ -120,7 +120,7 @@ def _class_name(msg_class: type) -> str:
     return '/'.join([*parts[:2], msg_class.__name__]) if len(parts) > 2 else msg_class.__qualname__
 
 
-def _ros_name(slot: idl.AbstractType) -> str:
+def ros_name(slot: idl.AbstractType) -> str:
     """Return the ROS name of a field type, e.g. int32, string<=10, float64[3], pkg/msg/T[]."""
     if isinstance(slot, idl.BasicType):
         return _ALIASES.get(slot.typename, slot.typename)
@@ -132,20 +132,25 @@ def _ros_name(slot: idl.AbstractType) -> str:
             return f'{base}<={slot.maximum_size}'
         return base
     if isinstance(slot, idl.Array):
-        return f'{_ros_name(slot.value_type)}[{slot.size}]'
+        return f'{ros_name(slot.value_type)}[{slot.size}]'
     if isinstance(slot, idl.BoundedSequence):
-        return f'{_ros_name(slot.value_type)}[<={slot.maximum_size}]'
+        return f'{ros_name(slot.value_type)}[<={slot.maximum_size}]'
     if isinstance(slot, idl.UnboundedSequence):
-        return f'{_ros_name(slot.value_type)}[]'
+        return f'{ros_name(slot.value_type)}[]'
     raise TypeError(f'unsupported ROS field type {slot!r}')
+
+
+def int_range(name: str) -> tuple[int, int]:
+    """The lowest and highest value of the integer type ``name`` (e.g. int8: -128, 127)."""
+    bits = int(name.lstrip('uint'))
+    if name.startswith('u'):
+        return 0, 2**bits - 1
+    return -(2 ** (bits - 1)), 2 ** (bits - 1) - 1
 
 
 def _int_decoder(name: str) -> Decoder:
     """Decode a JSON integer (not bool, not float) within the range of ``name``."""
-    bits = int(name.lstrip('uint'))
-    signed = not name.startswith('u')
-    low = -(2 ** (bits - 1)) if signed else 0
-    high = 2 ** (bits - 1) - 1 if signed else 2**bits - 1
+    low, high = int_range(name)
 
     def decode(value: Any, path: str) -> int:
         if isinstance(value, bool) or not isinstance(value, int):
@@ -230,7 +235,7 @@ def _basic_decoder(name: str) -> Decoder:
 
 def _sequence_decoder(slot: idl.AbstractNestedType, element: Decoder) -> Decoder:
     """Decode a JSON array of the right length into the container rosidl uses."""
-    name = _ros_name(slot)
+    name = ros_name(slot)
     size = slot.size if isinstance(slot, idl.Array) else None
     limit = slot.maximum_size if isinstance(slot, idl.BoundedSequence) else None
     typename = getattr(slot.value_type, 'typename', None)
@@ -259,12 +264,12 @@ def _decoder(slot: idl.AbstractType) -> Decoder:
     if isinstance(slot, idl.AbstractNestedType):
         return _sequence_decoder(slot, _decoder(slot.value_type))
     if isinstance(slot, idl.NamespacedType):
-        return partial(_from_dict, _import_class(slot))
+        return partial(_from_dict, import_class(slot))
     if isinstance(slot, idl.BoundedString | idl.BoundedWString):
-        return _string_decoder(_ros_name(slot), int(slot.maximum_size))
+        return _string_decoder(ros_name(slot), int(slot.maximum_size))
     if isinstance(slot, idl.AbstractGenericString):
-        return _string_decoder(_ros_name(slot), None)
-    return _basic_decoder(_ros_name(slot))
+        return _string_decoder(ros_name(slot), None)
+    return _basic_decoder(ros_name(slot))
 
 
 def _encode_scalar(value: Any) -> Any:
@@ -310,9 +315,9 @@ def _fields(msg_class: type) -> tuple[_Field, ...]:
     except AttributeError as exc:
         raise TypeError(f'{msg_class!r} is not a ROS 2 message class') from exc
     return tuple(
-        _Field(name, _ros_name(slot), _decoder(slot), _encoder(slot))
+        _Field(name, ros_name(slot), _decoder(slot), _encoder(slot))
         for name, slot in zip(names, slots, strict=True)
-        if name != _HIDDEN_MEMBER
+        if name != HIDDEN_MEMBER
     )
 
 

@@ -50,21 +50,26 @@ def write_params_file(path: Path, parameters: dict[str, Any]) -> Path:
 
 
 class NodeProcess:
-    """A running `task-manager` process whose log lines tests can wait for."""
+    """A running `task-manager` process (or another) whose log lines tests can wait for."""
 
     def __init__(
         self,
         params_file: Path | None,
         extra_args: list[str] | None = None,
         wrapper: list[str] | None = None,
+        command: list[str] | None = None,
     ) -> None:
-        """`wrapper`: a command that runs the node, e.g. `prlimit --fsize=N --`."""
-        command = [*(wrapper or []), task_manager_executable()]
-        ros_args = list(extra_args or [])
-        if params_file is not None:
-            ros_args += ['--params-file', str(params_file)]
-        if ros_args:
-            command += ['--ros-args', *ros_args]
+        """`wrapper`: a command that runs the node, e.g. `prlimit --fsize=N --`.
+
+        `command`: another program to run and read the same way (then the rest is unused).
+        """
+        if command is None:
+            command = [*(wrapper or []), task_manager_executable()]
+            ros_args = list(extra_args or [])
+            if params_file is not None:
+                ros_args += ['--params-file', str(params_file)]
+            if ros_args:
+                command += ['--ros-args', *ros_args]
         self.log_lines: list[str] = []
         self.killed = False
         self._output_ended = False

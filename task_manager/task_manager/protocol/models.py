@@ -1,0 +1,153 @@
+"""The JSON documents non-ROS sources send and receive, as pydantic models.
+
+Requests forbid unknown keys, so that a misspelt field is an error naming it rather than a
+default silently taken. Stamps are ISO 8601 in UTC; statuses and error codes are the strings
+of the ROS interfaces.
+"""
+
+from datetime import datetime
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+NAME_MAX = 256
+"""The longest task name, task id or source accepted."""
+IDS_MAX = 1000
+"""The most task ids in one cancel, and subtasks in one mission."""
+HISTORY_LIMIT_MAX = 10_000
+
+TaskStatusName = Literal['RECEIVED', 'IN_PROGRESS', 'DONE', 'ERROR', 'CANCELED']
+ErrorCodeName = Literal[
+    '', 'duplicate_id', 'task_data_parsing_failed', 'task_start_failed', 'task_cancel_failed',
+    'unknown_task',
+]  # fmt: skip
+EventName = Literal['RECEIVED', 'STARTED', 'FEEDBACK', 'ENDED']
+
+
+class _Request(BaseModel):
+    model_config = ConfigDict(extra='forbid')
+
+
+class StartTask(_Request):
+    """Start one task."""
+
+    task_name: str = Field(min_length=1, max_length=NAME_MAX, examples=['navigation/navigate'])
+    task_data: dict[str, Any] = Field(
+        default_factory=dict, description="The goal's fields (see the task's goal_schema)."
+    )
+    task_id: str = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
+    source: str = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
+
+
+class Subtask(_Request):
+    """One step of a mission."""
+
+    task_name: str = Field(min_length=1, max_length=NAME_MAX)
+    task_data: dict[str, Any] = Field(default_factory=dict)
+    task_id: str = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
+    allow_skipping: bool = Field(False, description='Its failure does not end the mission.')
+
+
+class StartMission(_Request):
+    """Start system/mission: its subtasks one after another."""
+
+    subtasks: list[Subtask] = Field(min_length=1, max_length=IDS_MAX)
+    task_id: str = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
+    source: str = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
+
+
+class CancelTasks(_Request):
+    """Cancel tasks by id, whoever started them."""
+
+    task_ids: list[str] = Field(min_length=1, max_length=IDS_MAX)
+
+
+class HistoryQuery(_Request):
+    """Which ended tasks to read from the durable history; empty filters do not filter."""
+
+    task_name: str = ''
+    status: Literal['', 'DONE', 'ERROR', 'CANCELED'] = Field('', description='Empty: any.')
+    source: str = ''
+    mission_id: str = ''
+    since: datetime | None = Field(None, description='Ended at or after this moment.')
+    until: datetime | None = Field(None, description='Ended at or before this moment.')
+    after_sequence: int = Field(0, ge=0, description='Only tasks with a greater sequence.')
+    limit: int = Field(100, ge=1, le=HISTORY_LIMIT_MAX)
+    oldest_first: bool = Field(False, description='By sequence, to resume after the last seen.')
+
+
+class Task(BaseModel):
+    """Everything known of one task: while it runs, and once it ended (with its result)."""
+
+    task_id: str
+    task_name: str
+    source: str
+    status: TaskStatusName
+    error_code: ErrorCodeName = ''
+    error_message: str = Field('', description='Why the Task Manager refused or failed it.')
+    mission_id: str = Field('', description='The mission it is a subtask of; empty if none.')
+    received: datetime | None = None
+    started: datetime | None = Field(None, description='None while (or if never) started.')
+    ended: datetime | None = None
+    duration_sec: float | None = Field(None, description='From its start to its end.')
+    feedback: dict[str, Any] | None = Field(None, description='The latest feedback.')
+    result: dict[str, Any] | None = Field(None, description='Once ended.')
+    sequence: int = Field(0, description='Once ended: its number in the history; else 0.')
+
+
+class TaskEvent(BaseModel):
+    """One change of one task."""
+
+    event: EventName
+    stamp: datetime
+    task: Task
+
+
+class Started(BaseModel):
+    """The answer to a start: the task id at once, the task once it ended."""
+
+    task_id: str
+    subtask_ids: list[str] = Field(default_factory=list, description='Of a mission.')
+    ended: bool = Field(description='Whether `task` is the final state (with the result).')
+    task: Task | None = Field(None, description='The latest state known, if any.')
+
+
+class ErrorDetail(BaseModel):
+    code: str = Field(examples=['invalid_request', 'unauthorized', 'task_manager_unavailable'])
+    message: str
+    field: str = Field('', description='The field at fault, dotted, when one is.')
+
+
+class Error(BaseModel):
+    """Every error answer: a code to branch on and a message that says what is allowed."""
+
+    error: ErrorDetail
+
+
+class DeclaredTask(BaseModel):
+    """A task the Task Manager runs, with its properties and the schema of its task_data."""
+
+    task_name: str
+    msg_interface: str
+    topic: str = ''
+    blocking: bool = False
+    cancel_on_stop: bool = False
+    reentrant: bool = False
+    cancel_reported_as_success: bool = False
+    goal_schema: dict[str, Any] = Field(
+        default_factory=dict, description='JSON Schema of task_data, from its ROS interface.'
+    )
+
+
+# key: schema file stem, value: the model it documents
+DOCUMENTS: dict[str, type[BaseModel]] = {
+    'start_task': StartTask,
+    'start_mission': StartMission,
+    'cancel_tasks': CancelTasks,
+    'history_query': HistoryQuery,
+    'task': Task,
+    'task_event': TaskEvent,
+    'started': Started,
+    'error': Error,
+    'declared_task': DeclaredTask,
+}

@@ -1,0 +1,63 @@
+"""The client's records (TaskState, TaskResult, TaskEvent) as protocol JSON (models.Task...).
+
+Built as plain dicts, fast enough for every event of a busy robot; the tests check them
+against the JSON Schema files.
+"""
+
+from datetime import UTC, datetime
+from typing import Any
+
+from task_manager.client import TaskEvent, TaskResult, TaskState
+
+
+def _iso(moment: datetime | None) -> str | None:
+    """ISO 8601 in UTC, with a Z (as pydantic writes it too)."""
+    return None if moment is None else moment.astimezone(UTC).isoformat().replace('+00:00', 'Z')
+
+
+def task_json(state: TaskState) -> dict[str, Any]:
+    """A Task document."""
+    error = state.result.get('error') if state.result else None
+    duration = state.elapsed() if state.ended_at else None
+    return {
+        'task_id': state.task_id,
+        'task_name': state.task_name,
+        'source': state.source,
+        'status': str(state.status),
+        'error_code': str(state.error_code),
+        'error_message': error if isinstance(error, str) else '',
+        'mission_id': state.mission_id,
+        'received': _iso(state.received_at),
+        'started': _iso(state.started_at),
+        'ended': _iso(state.ended_at),
+        'duration_sec': None if duration is None else duration.total_seconds(),
+        'feedback': state.feedback,
+        'result': state.result if state.is_final else None,
+        'sequence': state.sequence,
+    }
+
+
+def result_json(result: TaskResult) -> dict[str, Any]:
+    """A Task document of a result (which has no feedback, mission or sequence)."""
+    return task_json(
+        TaskState(
+            task_id=result.task_id,
+            task_name=result.task_name,
+            status=result.status,
+            source=result.source,
+            error_code=result.error_code,
+            received_at=result.received_at,
+            started_at=result.started_at,
+            ended_at=result.ended_at,
+            result=result.result,
+        )
+    )
+
+
+def event_json(event: TaskEvent) -> dict[str, Any]:
+    """A TaskEvent document."""
+    return {
+        'event': str(event.kind),
+        'stamp': _iso(event.stamp),
+        'task': task_json(event.task),
+    }

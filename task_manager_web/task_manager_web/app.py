@@ -1,0 +1,310 @@
+"""The gateway's HTTP API, event stream and dashboard (a FastAPI application).
+
+Requests and answers are the documents of `task_manager.protocol` (its JSON Schema files);
+the OpenAPI description is at /openapi.json and browsable at /docs.
+"""
+
+import asyncio
+import contextlib
+import json
+from collections.abc import AsyncIterator, Callable
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from fastapi import Depends, FastAPI, Query, Request, Response
+from fastapi.responses import FileResponse, StreamingResponse
+from fastapi.staticfiles import StaticFiles
+from fastapi_swagger import patch_fastapi
+
+from task_manager.client import Subtask as ClientSubtask
+from task_manager.client import TaskHandle, TaskManagerClient
+from task_manager.core.errors import ConfigurationError
+from task_manager.core.task_spec import parse_interface_name
+from task_manager.protocol import models
+from task_manager.protocol.records import result_json, task_json
+from task_manager.ros.goal_schema import task_data_schema
+from task_manager_web.access import Access
+from task_manager_web.body_limit import BodyLimit
+from task_manager_web.errors import LOG, ApiError, add_error_handlers
+from task_manager_web.history_csv import history_csv
+from task_manager_web.node_link import EventStream, NodeLink
+
+KEEPALIVE_SEC = 15.0
+"""An event stream idle this long gets a comment line, which also finds clients gone."""
+WAIT_DEFAULT_SEC = 30.0
+WAIT_MAX_SEC = 600.0
+STATIC = Path(__file__).with_name('static')
+
+
+@dataclass(frozen=True)
+class Settings:
+    token: str
+    read_without_token: bool = False
+    source: str = 'WEB'
+    """The source of the tasks started here that name none."""
+    max_body_bytes: int = 1_048_576
+
+
+def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient]) -> FastAPI:
+    """The gateway; `make_client` is called at start-up (its client is closed at shutdown)."""
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        client = await asyncio.to_thread(make_client)
+        app.state.link = NodeLink(client, asyncio.get_running_loop(), settings.source)
+        try:
+            yield
+        finally:
+            app.state.link.close()
+            await asyncio.to_thread(client.close)
+
+    app = FastAPI(
+        title='Task Manager web gateway',
+        summary='Start, watch and stop the tasks of a robot running the ROS 2 Task Manager.',
+        version='0.1.0',
+        lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
+        swagger_ui_oauth2_redirect_url=None,
+    )
+    patch_fastapi(app, docs_url='/docs', redirect_from_root_to_docs=False)
+    add_error_handlers(app)
+    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    _add_routes(app, Access(settings.token, settings.read_without_token))
+    app.mount('/static', StaticFiles(directory=str(STATIC)), name='static')
+    return app
+
+
+class HistoryParameters(models.HistoryQuery):
+    format: Literal['json', 'csv'] = 'json'
+
+
+def _link(request: Request) -> NodeLink:
+    link: NodeLink = request.app.state.link
+    return link
+
+
+Link = Annotated[NodeLink, Depends(_link)]
+Wait = Annotated[bool, Query(description='Answer once the task ended (bounded by timeout_sec).')]
+WaitSec = Annotated[
+    float, Query(gt=0, le=WAIT_MAX_SEC, description='The longest wait, with wait=true.')
+]
+
+
+def _add_routes(app: FastAPI, access: Access) -> None:
+    write = [Depends(access.writer)]
+    read = [Depends(access.reader)]
+
+    @app.get('/', include_in_schema=False)
+    async def dashboard() -> FileResponse:
+        return FileResponse(str(STATIC / 'index.html'))
+
+    @app.get('/api/health', tags=['state'])
+    async def health(link: Link) -> dict[str, Any]:
+        """Whether the gateway reaches a Task Manager (no token needed)."""
+        return {'connected': link.connected, 'event_streams': link.stream_count}
+
+    @app.get('/api/tasks', dependencies=read, tags=['tasks'])
+    async def declared_tasks(link: Link) -> list[models.DeclaredTask]:
+        """The tasks the Task Manager runs, each with a JSON Schema of its task_data."""
+        declared = await link.call(link.client.declared_tasks)
+        return [_declared(entry) for entry in declared]
+
+    @app.post(
+        '/api/tasks/start',
+        dependencies=write,
+        tags=['tasks'],
+        status_code=202,
+        responses={200: {'model': models.Started, 'description': 'The task ended (wait=true).'}},
+    )
+    async def start_task(
+        body: models.StartTask,
+        link: Link,
+        response: Response,
+        wait: Wait = False,
+        timeout_sec: WaitSec = WAIT_DEFAULT_SEC,
+    ) -> models.Started:
+        """Start a task: 202 with its id at once, or 200 with its end (wait=true).
+
+        A task the Task Manager refuses (unknown, bad task_data, ...) is no HTTP error:
+        it ends ERROR with its error code and message.
+        """
+        handle = await link.call(
+            link.client.start_task,
+            body.task_name,
+            body.task_data,
+            task_id=body.task_id,
+            source=body.source or link.source,
+        )
+        return await _started(link, handle, response, wait, timeout_sec)
+
+    @app.post(
+        '/api/missions',
+        dependencies=write,
+        tags=['tasks'],
+        status_code=202,
+        responses={200: {'model': models.Started, 'description': 'The mission ended.'}},
+    )
+    async def start_mission(
+        body: models.StartMission,
+        link: Link,
+        response: Response,
+        wait: Wait = False,
+        timeout_sec: WaitSec = WAIT_DEFAULT_SEC,
+    ) -> models.Started:
+        """Start system/mission with these subtasks; its id and the subtasks' ids at once."""
+        subtasks = [
+            ClientSubtask(s.task_name, s.task_data, s.allow_skipping, s.task_id)
+            for s in body.subtasks
+        ]
+        handle, subtask_ids = await link.call(
+            link.client.start_mission,
+            subtasks,
+            task_id=body.task_id,
+            source=body.source or link.source,
+        )
+        return await _started(link, handle, response, wait, timeout_sec, subtask_ids)
+
+    @app.post('/api/tasks/cancel', dependencies=write, tags=['tasks'])
+    async def cancel_tasks(body: models.CancelTasks, link: Link) -> models.Task:
+        """system/cancel_task: cancel these tasks, whoever started them; its result."""
+        result = await link.call(link.client.cancel_tasks, body.task_ids, source=link.source)
+        return models.Task.model_validate(result_json(result))
+
+    @app.post('/api/stop', dependencies=write, tags=['tasks'])
+    async def stop(link: Link) -> models.Task:
+        """system/stop: cancel every task declared cancel_on_stop; its result."""
+        result = await link.call(link.client.stop, source=link.source)
+        return models.Task.model_validate(result_json(result))
+
+    @app.get('/api/active', dependencies=read, tags=['state'])
+    async def active(link: Link) -> list[models.Task]:
+        """Every active task, with its stamps and latest feedback."""
+        states = await link.call(link.client.task_states)
+        return [models.Task.model_validate(task_json(s)) for s in states]
+
+    @app.get('/api/tasks/{task_id:path}', dependencies=read, tags=['state'])
+    async def task(task_id: str, link: Link) -> models.Task:
+        """One task, active or ended: its state, stamps, latest feedback and result."""
+        states = await link.call(link.client.task_states, [task_id])
+        if not states:
+            raise ApiError(404, 'unknown_task_id', f'the Task Manager knows no task {task_id!r}')
+        return models.Task.model_validate(task_json(states[0]))
+
+    @app.get(
+        '/api/history',
+        dependencies=read,
+        tags=['state'],
+        responses={200: {'content': {'text/csv': {}}}},
+    )
+    async def history(link: Link, query: Annotated[HistoryParameters, Query()]) -> Any:
+        """Ended tasks from the durable history, newest first; format=csv for a spreadsheet."""
+        states = await link.call(
+            link.client.history,
+            query.task_name,
+            status=query.status,
+            source=query.source,
+            mission_id=query.mission_id,
+            since=query.since,
+            until=query.until,
+            after_sequence=query.after_sequence,
+            limit=query.limit,
+            oldest_first=query.oldest_first,
+        )
+        tasks = [task_json(s) for s in states]
+        if query.format == 'csv':
+            return Response(
+                history_csv(tasks),
+                media_type='text/csv',
+                headers={'Content-Disposition': 'attachment; filename="task_history.csv"'},
+            )
+        return [models.Task.model_validate(t) for t in tasks]
+
+    @app.get(
+        '/api/events',
+        dependencies=[Depends(access.stream_reader)],
+        tags=['state'],
+        response_class=StreamingResponse,
+        responses={200: {'content': {'text/event-stream': {}}}},
+    )
+    async def events(link: Link) -> StreamingResponse:
+        """Server-Sent Events: `hello` and `connection` ({"connected": bool}), then a `task`
+        event (a TaskEvent document) for every change of every task."""
+        stream = link.open_stream()
+        return StreamingResponse(
+            _event_lines(link, stream),
+            media_type='text/event-stream',
+            headers={'Cache-Control': 'no-store', 'X-Accel-Buffering': 'no'},
+        )
+
+
+async def _started(
+    link: NodeLink,
+    handle: TaskHandle,
+    response: Response,
+    wait: bool,
+    timeout_sec: float,
+    subtask_ids: list[str] | None = None,
+) -> models.Started:
+    result = await link.result(handle, timeout_sec) if wait else None
+    if result is None and handle.done():
+        result = handle.result_future.result()
+    state = handle.state  # the final one (with sequence and last feedback) once ENDED came
+    task: dict[str, Any] | None = None
+    if result is not None:
+        response.status_code = 200
+        task = task_json(state) if state is not None and state.is_final else result_json(result)
+    elif state is not None:
+        task = task_json(state)
+    return models.Started.model_validate(
+        {
+            'task_id': handle.task_id,
+            'subtask_ids': subtask_ids or [],
+            'ended': result is not None,
+            'task': task,
+        }
+    )
+
+
+async def _event_lines(link: NodeLink, stream: EventStream) -> AsyncIterator[str]:
+    try:
+        yield _sse('hello', json.dumps({'connected': link.connected}))
+        while True:
+            try:
+                kind, text = await asyncio.wait_for(stream.next(), KEEPALIVE_SEC)
+            except TimeoutError:
+                yield ': keepalive\n\n'
+                continue
+            yield _sse(kind, text)
+            if kind == EventStream.OVERFLOW:
+                return
+    finally:
+        link.close_stream(stream)
+
+
+def _sse(kind: str, data: str) -> str:
+    return f'event: {kind}\ndata: {data}\n\n'
+
+
+def _declared(entry: dict[str, Any]) -> models.DeclaredTask:
+    fields = models.DeclaredTask.model_fields
+    known = {name: value for name, value in entry.items() if name in fields}
+    interface = str(entry.get('msg_interface', ''))
+    with contextlib.suppress(ConfigurationError):  # then shown as the node has it
+        interface = str(parse_interface_name(interface))
+    return models.DeclaredTask.model_validate(
+        {**known, 'msg_interface': interface, 'goal_schema': _goal_schema(interface)}
+    )
+
+
+@cache
+def _goal_schema(msg_interface: str) -> dict[str, Any]:
+    """The task_data schema; `{}` (anything) when the interface is not installed here."""
+    try:
+        return task_data_schema(msg_interface)
+    except (ImportError, ConfigurationError, TypeError) as error:
+        LOG.warning('no task_data schema for %s: %s', msg_interface, error)
+        return {}

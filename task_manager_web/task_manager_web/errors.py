@@ -1,0 +1,99 @@
+"""Every error the gateway answers is JSON: `{"error": {"code", "message", "field"}}`.
+
+Never a traceback to the client: an unexpected exception is one log line and a 500.
+"""
+
+import logging
+from collections.abc import Mapping
+from typing import Any
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException
+
+from task_manager.core.errors import TaskManagerUnavailable
+
+LOG = logging.getLogger('task_manager_web')
+# key: HTTP status of Starlette's own errors, value: our code for it
+_HTTP_CODES = {
+    401: 'unauthorized',
+    404: 'not_found',
+    405: 'method_not_allowed',
+    413: 'body_too_large',
+}
+
+
+class ApiError(Exception):
+    """An answer other than success, with its HTTP status."""
+
+    def __init__(self, status: int, code: str, message: str, field: str = '') -> None:
+        super().__init__(message)
+        self.status = status
+        self.code = code
+        self.message = message
+        self.field = field
+
+
+def error_response(
+    status: int, code: str, message: str, field: str = '', headers: Mapping[str, str] | None = None
+) -> JSONResponse:
+    body = {'error': {'code': code, 'message': message, 'field': field}}
+    return JSONResponse(body, status_code=status, headers=headers)
+
+
+def _field_of(location: tuple[Any, ...]) -> str:
+    """A dotted field path from a pydantic error location, without 'body'/'query'."""
+    parts = [str(part) for part in location if part not in ('body', 'query', 'path')]
+    return '.'.join(parts)
+
+
+def _validation_message(error: dict[str, Any]) -> str:
+    field = _field_of(tuple(error.get('loc', ())))
+    message = str(error.get('msg', 'invalid'))
+    if error.get('type') == 'extra_forbidden':
+        message = 'unknown field (see the schema at /docs for the fields allowed)'
+    if error.get('type') == 'model_attributes_type' and not field:
+        return 'the body must be a JSON object, sent with Content-Type: application/json'
+    if error.get('type') == 'json_invalid':
+        context = error.get('ctx') or {}
+        return f'the body is not valid JSON: {context.get("error", message)}'
+    return f'{field}: {message}' if field else message
+
+
+async def _on_validation_error(_: Request, error: Exception) -> JSONResponse:
+    assert isinstance(error, RequestValidationError)
+    errors = list(error.errors())
+    first = errors[0] if errors else {}
+    message = '; '.join(_validation_message(each) for each in errors[:5]) or 'invalid request'
+    # the location of invalid JSON is a character offset, not a field
+    field = '' if first.get('type') == 'json_invalid' else _field_of(tuple(first.get('loc', ())))
+    return error_response(422, 'invalid_request', message, field)
+
+
+async def _on_api_error(_: Request, error: Exception) -> JSONResponse:
+    assert isinstance(error, ApiError)
+    return error_response(error.status, error.code, error.message, error.field)
+
+
+async def _on_unavailable(_: Request, error: Exception) -> JSONResponse:
+    return error_response(503, 'task_manager_unavailable', str(error))
+
+
+async def _on_http_error(_: Request, error: Exception) -> JSONResponse:
+    assert isinstance(error, HTTPException)
+    code = _HTTP_CODES.get(error.status_code, f'http_{error.status_code}')
+    return error_response(error.status_code, code, str(error.detail), headers=error.headers)
+
+
+async def _on_unexpected(request: Request, error: Exception) -> JSONResponse:
+    LOG.error('%s %s failed: %s: %s', request.method, request.url.path, type(error).__name__, error)
+    return error_response(500, 'internal_error', f'the gateway failed: {type(error).__name__}')
+
+
+def add_error_handlers(app: FastAPI) -> None:
+    app.add_exception_handler(RequestValidationError, _on_validation_error)
+    app.add_exception_handler(ApiError, _on_api_error)
+    app.add_exception_handler(TaskManagerUnavailable, _on_unavailable)
+    app.add_exception_handler(HTTPException, _on_http_error)
+    app.add_exception_handler(Exception, _on_unexpected)

@@ -1,0 +1,108 @@
+"""Console script `task-manager-web`: the web gateway of a running Task Manager.
+
+Prints `dashboard: http://HOST:PORT/?token=TOKEN` once it listens; Ctrl-C or SIGTERM stops it.
+"""
+
+import argparse
+import asyncio
+import contextlib
+import logging
+import secrets
+import socket
+import sys
+from pathlib import Path
+
+import uvicorn
+
+from task_manager.client import TaskManagerClient
+from task_manager_web.app import Settings, create_app
+
+EXIT_USAGE = 2
+DEFAULT_PORT = 8080
+CLIENT_TIMEOUT_SEC = 5.0
+SHUTDOWN_GRACE_SEC = 2
+"""How long open event streams may keep the gateway from stopping."""
+
+
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog='task-manager-web', description=__doc__)
+    parser.add_argument('--host', default='127.0.0.1', help='address to listen on (127.0.0.1)')
+    parser.add_argument(
+        '--port', type=int, default=DEFAULT_PORT, help=f'0: any free port ({DEFAULT_PORT})'
+    )
+    parser.add_argument(
+        '--token-file', type=Path, help='file holding the token (default: a new one, printed)'
+    )
+    parser.add_argument(
+        '--read-without-token', action='store_true', help='let anyone read; writing still needs it'
+    )
+    parser.add_argument('--source', default='WEB', help='source of the tasks started here (WEB)')
+    parser.add_argument(
+        '--max-body-bytes', type=int, default=1_048_576, help='largest request body (1 MiB)'
+    )
+    parser.add_argument('--access-log', action='store_true', help='log every request')
+    return parser.parse_args(argv)
+
+
+def _token(token_file: Path | None) -> str:
+    if token_file is None:
+        return secrets.token_urlsafe(24)
+    try:
+        token = token_file.read_text().strip()
+    except OSError as error:
+        raise SystemExit(f'task-manager-web: cannot read --token-file: {error}') from None
+    if not token:
+        raise SystemExit(f'task-manager-web: --token-file {token_file} is empty')
+    return token
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    family = socket.AF_INET6 if ':' in host else socket.AF_INET
+    listener = socket.socket(family, socket.SOCK_STREAM)
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        listener.bind((host, port))
+    except OSError as error:
+        listener.close()
+        raise SystemExit(f'task-manager-web: cannot listen on {host}:{port}: {error}') from None
+    listener.listen(128)
+    return listener
+
+
+def main(argv: list[str] | None = None) -> None:
+    arguments = _arguments(argv)
+    logging.basicConfig(
+        level=logging.INFO, format='[%(levelname)s] [task_manager_web]: %(message)s'
+    )
+    try:
+        token = _token(arguments.token_file)
+        listener = _listen(arguments.host, arguments.port)
+    except SystemExit as error:
+        print(error, file=sys.stderr)
+        sys.exit(EXIT_USAGE)
+    settings = Settings(
+        token=token,
+        read_without_token=arguments.read_without_token,
+        source=arguments.source,
+        max_body_bytes=arguments.max_body_bytes,
+    )
+    app = create_app(
+        settings, lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC)
+    )
+    config = uvicorn.Config(
+        app,
+        log_level='warning',
+        access_log=arguments.access_log,
+        timeout_graceful_shutdown=SHUTDOWN_GRACE_SEC,
+    )
+    server = uvicorn.Server(config)
+    host, port = listener.getsockname()[:2]
+    shown_host = f'[{host}]' if ':' in host else host
+    print(f'Task Manager web gateway on http://{shown_host}:{port}/ (API docs: /docs)', flush=True)
+    print(f'dashboard: http://{shown_host}:{port}/?token={token}', flush=True)
+    with contextlib.suppress(KeyboardInterrupt):
+        asyncio.run(server.serve(sockets=[listener]))
+
+
+if __name__ == '__main__':
+    main()

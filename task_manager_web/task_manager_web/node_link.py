@@ -1,0 +1,132 @@
+"""The gateway's link to the Task Manager: one TaskManagerClient, awaitable from asyncio.
+
+The client is thread-based (its executor spins in a thread of its own): its blocking calls
+run in worker threads, and what it reports on its executor thread (task events, the node
+coming and going) is handed to the event loop with `call_soon_threadsafe`. Each event is
+turned into JSON once, then offered to every open event stream.
+"""
+
+import asyncio
+import contextlib
+import json
+from collections.abc import Callable
+from functools import partial
+from typing import Any, TypeVar
+
+from task_manager.client import TaskEvent, TaskHandle, TaskManagerClient, TaskResult
+from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.core.json_text import compact_json
+from task_manager.protocol.records import event_json
+
+T = TypeVar('T')
+STREAM_QUEUE_MAX = 10_000
+"""Events a stream may have waiting; a client that falls this far behind is disconnected."""
+NOT_CONNECTED = (
+    'the Task Manager is not reachable: no /task_manager node answers in this ROS domain '
+    '(is it running, with the same ROS_DOMAIN_ID?)'
+)
+
+
+class EventStream:
+    """The events waiting for one client of /api/events: (kind, JSON text) pairs."""
+
+    OVERFLOW = 'overflow'
+
+    def __init__(self, max_queued: int = STREAM_QUEUE_MAX) -> None:
+        self._queue: asyncio.Queue[tuple[str, str]] = asyncio.Queue(max_queued)
+
+    def offer(self, kind: str, text: str) -> None:
+        """Queue an event; when full, drop what waits and queue the overflow notice instead."""
+        try:
+            self._queue.put_nowait((kind, text))
+        except asyncio.QueueFull:
+            while not self._queue.empty():
+                self._queue.get_nowait()
+            notice = {'message': f'more than {self._queue.maxsize} events waited: reconnect'}
+            self._queue.put_nowait((self.OVERFLOW, json.dumps(notice)))
+
+    async def next(self) -> tuple[str, str]:
+        return await self._queue.get()
+
+
+class NodeLink:
+    """The Task Manager as the gateway's handlers see it (use from the event loop)."""
+
+    def __init__(
+        self, client: TaskManagerClient, loop: asyncio.AbstractEventLoop, source: str
+    ) -> None:
+        self.client = client
+        self.source = source
+        """The source of requests that name none."""
+        self._loop = loop
+        self._streams: set[EventStream] = set()
+        self._unsubscribe = [
+            client.on_task_event(self._on_event),
+            client.on_connection_change(self._on_connection_change),
+        ]
+
+    def close(self) -> None:
+        for unsubscribe in self._unsubscribe:
+            unsubscribe()
+
+    @property
+    def connected(self) -> bool:
+        return self.client.connected
+
+    def require_connected(self) -> None:
+        """Fail at once (TaskManagerUnavailable) rather than wait for a node that is not there."""
+        if not self.client.connected:
+            raise TaskManagerUnavailable(NOT_CONNECTED)
+
+    async def call(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """A blocking client call, in a worker thread; only while a Task Manager is there."""
+        self.require_connected()
+        return await asyncio.to_thread(partial(function, *args, **kwargs))
+
+    async def result(self, handle: TaskHandle, timeout_sec: float) -> TaskResult | None:
+        """The task's result once it ends; None if it has not within `timeout_sec`."""
+        ended: asyncio.Future[None] = self._loop.create_future()
+
+        def on_done(_: object) -> None:
+            self._loop.call_soon_threadsafe(_set_done, ended)
+
+        handle.result_future.add_done_callback(on_done)
+        if not handle.done():
+            try:
+                await asyncio.wait_for(asyncio.shield(ended), timeout_sec)
+            except TimeoutError:
+                return None
+        return handle.result_future.result()
+
+    def open_stream(self) -> EventStream:
+        stream = EventStream()
+        self._streams.add(stream)
+        return stream
+
+    def close_stream(self, stream: EventStream) -> None:
+        self._streams.discard(stream)
+
+    @property
+    def stream_count(self) -> int:
+        return len(self._streams)
+
+    # ---- from the client's executor thread --------------------------------------------------
+
+    def _on_event(self, event: TaskEvent) -> None:
+        self._hand_over('task', compact_json(event_json(event)))
+
+    def _on_connection_change(self, connected: bool) -> None:
+        self._hand_over('connection', compact_json({'connected': connected}))
+
+    def _hand_over(self, kind: str, text: str) -> None:
+        with contextlib.suppress(RuntimeError):  # the loop has closed: the gateway is stopping
+            self._loop.call_soon_threadsafe(self._broadcast, kind, text)
+
+    def _broadcast(self, kind: str, text: str) -> None:
+        for stream in self._streams:
+            stream.offer(kind, text)
+
+
+def _set_done(future: asyncio.Future[None]) -> None:
+    if not future.done():
+        future.set_result(None)
