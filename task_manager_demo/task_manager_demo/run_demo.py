@@ -1,9 +1,10 @@
 """Console script `task-manager-demo`: the simulated robot and the Task Manager, ready to use.
 
-Starts both as child processes, waits (bounded) until each logs that it is ready, then prints
-what to try next and streams their logs. Ctrl-C, SIGTERM or SIGHUP (the terminal closed)
-stops both (SIGINT, a bounded wait, a kill only as a last resort) and exits 0. A child that
-dies first fails the demo. If the launcher itself is killed, its children get SIGTERM.
+Starts the robot, the Task Manager and its web gateway (dashboard) as child processes, waits
+(bounded) until each logs that it is ready, then prints what to try next and streams their
+logs. Ctrl-C, SIGTERM or SIGHUP (the terminal closed) stops them all (SIGINT, a bounded wait,
+a kill only as a last resort) and exits 0. A child that dies first fails the demo. If the
+launcher itself is killed, its children get SIGTERM.
 """
 
 import argparse
@@ -32,6 +33,9 @@ PACKAGE = 'task_manager_demo'
 PARAMS_NAME = 'demo_tasks.yaml'
 ROBOT_EXECUTABLE = ('task-manager-demo-robot', PACKAGE)
 TASK_MANAGER_EXECUTABLE = ('task-manager', 'task_manager')
+WEB_EXECUTABLE = ('task-manager-web', 'task_manager_web')
+WEB_READY = re.compile(r'dashboard: (?P<dashboard>http://\S+)')
+DEFAULT_WEB_PORT = 8080
 TASK_MANAGER_READY = re.compile(r'Task Manager ready with \d+ task\(s\): (?P<tasks>.*)$')
 ROBOT_READY = re.compile(re.escape(ROBOT_READY_LOG) + r' at (?P<pose>\([^)]*\))')
 READY_TIMEOUT_SEC = 30.0
@@ -73,7 +77,7 @@ def shown_path(path: Path) -> str:
     return absolute if relative.startswith('..') else relative
 
 
-def banner(tasks: str, robot_pose: str, params_file: Path) -> str:
+def banner(tasks: str, robot_pose: str, params_file: Path, dashboard: str = '') -> str:
     taskctl = shown_path(Path(sys.executable).with_name('taskctl'))
     return '\n'.join(
         [
@@ -87,6 +91,7 @@ def banner(tasks: str, robot_pose: str, params_file: Path) -> str:
                 break_on_hyphens=False,
             ),
             f'  params: {shown_path(params_file)}',
+            *([f'  dashboard: {dashboard}'] if dashboard else []),
             '  watch:  /task_manager/active_tasks  tasks in progress',
             '          /task_manager/results       one result per task',
             '',
@@ -95,7 +100,7 @@ def banner(tasks: str, robot_pose: str, params_file: Path) -> str:
             f'  {taskctl} active --watch',
             f'  {taskctl} mission examples/mission.yaml',
             '',
-            'Ctrl-C stops the robot and the Task Manager.',
+            'Ctrl-C stops the robot, the Task Manager and the dashboard.',
             RULE,
         ]
     )
@@ -110,9 +115,12 @@ def say(text: str) -> None:
 class Demo:
     """Supervises the two children through one event queue."""
 
-    def __init__(self, params_file: Path, events: Events) -> None:
+    def __init__(self, params_file: Path, events: Events, web_port: int | None) -> None:
+        """`web_port`: where the web gateway listens (0: any free port); None: no gateway."""
         self.params_file = params_file
         self.events = events
+        self.web_port = web_port
+        self.web: Child | None = None
         self.children: list[Child] = []
         self.streaming = False
 
@@ -121,6 +129,9 @@ class Demo:
         self.robot = self._start('sim_robot', robot)
         task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
         self.task_manager = self._start('task_manager', [*task_manager, str(self.params_file)])
+        if self.web_port is not None:
+            web = [find_executable(*WEB_EXECUTABLE), '--port', str(self.web_port)]
+            self.web = self._start('web', web)
 
     def _start(self, name: str, command: list[str]) -> Child:
         child = Child(name, command, self.events)
@@ -134,13 +145,15 @@ class Demo:
             return EXIT_FAILED
         if not ready:
             return 0
-        say(banner(ready['tasks'], ready['pose'], self.params_file))
+        say(banner(ready['tasks'], ready['pose'], self.params_file, ready.get('dashboard', '')))
         self.streaming = True
         return self._follow()
 
     def _wait_ready(self, deadline: float) -> dict[str, str] | None:
         """The ready lines' details; {} when stopped by a signal first; None on a failure."""
         waiting = {self.robot: ROBOT_READY, self.task_manager: TASK_MANAGER_READY}
+        if self.web is not None:
+            waiting[self.web] = WEB_READY
         details: dict[str, str] = {}
         while waiting:
             event = self._next(deadline)
@@ -220,8 +233,15 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
         '--ready-timeout',
         type=float,
         default=READY_TIMEOUT_SEC,
-        help='seconds both processes may take to be ready (default: %(default)s)',
+        help='seconds the processes may take to be ready (default: %(default)s)',
     )
+    parser.add_argument(
+        '--web-port',
+        type=int,
+        default=DEFAULT_WEB_PORT,
+        help='port of the dashboard and web API, 0: any free one (default: %(default)s)',
+    )
+    parser.add_argument('--no-web', action='store_true', help='no web gateway')
     return parser.parse_args(argv)
 
 
@@ -233,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
     events: Events = queue.SimpleQueue()
     forward_stop_signals(events)
-    demo = Demo(params_file, events)
+    demo = Demo(params_file, events, None if options.no_web else options.web_port)
     try:
         demo.start()
         code = demo.run(options.ready_timeout)

@@ -13,7 +13,8 @@ from task_manager_demo.testing import DemoProcess
 
 START_TIMEOUT_SEC = 30.0
 STOP_TIMEOUT_SEC = 30.0
-LAUNCHER = str(Path(sys.executable).with_name('task-manager-demo'))
+# any free port for the dashboard: the tests may run beside a `make run`
+LAUNCHER = [str(Path(sys.executable).with_name('task-manager-demo')), '--web-port', '0']
 
 pytestmark = pytest.mark.ros
 
@@ -26,12 +27,12 @@ def test_sigterm_stops_the_robot_and_the_task_manager_and_exits_0(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     monkeypatch.setenv('RCUTILS_COLORIZED_OUTPUT', '1')  # as on a terminal
-    demo = DemoProcess('task-manager-demo', [LAUNCHER])
+    demo = DemoProcess('task-manager-demo', LAUNCHER)
     try:
         demo.wait_for_line(r'^Ctrl-C stops', START_TIMEOUT_SEC)
         assert '  tasks:  navigation/navigate_to_pose, navigation/spin,' in demo.output
         children = psutil.Process(demo.pid).children()
-        assert len(children) == 2
+        assert len(children) == 3  # the robot, the Task Manager, the web gateway
 
         demo.child.process.send_signal(signal.SIGTERM)
 
@@ -43,7 +44,7 @@ def test_sigterm_stops_the_robot_and_the_task_manager_and_exits_0(
 
 
 def test_sighup_stops_everything_as_ctrl_c_does() -> None:
-    demo = DemoProcess('task-manager-demo', [LAUNCHER])
+    demo = DemoProcess('task-manager-demo', LAUNCHER)
     try:
         demo.wait_for_line(r'^Ctrl-C stops', START_TIMEOUT_SEC)
         children = psutil.Process(demo.pid).children()
@@ -59,11 +60,11 @@ def test_sighup_stops_everything_as_ctrl_c_does() -> None:
 
 
 def test_a_killed_launcher_leaves_no_child_behind() -> None:
-    demo = DemoProcess('task-manager-demo', [LAUNCHER])
+    demo = DemoProcess('task-manager-demo', LAUNCHER)
     try:
         demo.wait_for_line(r'^Ctrl-C stops', START_TIMEOUT_SEC)
         children = psutil.Process(demo.pid).children()
-        assert len(children) == 2
+        assert len(children) == 3  # the robot, the Task Manager, the web gateway
 
         demo.child.process.kill()  # SIGKILL: the launcher cannot stop its children itself
 
@@ -84,7 +85,7 @@ def test_a_child_that_dies_before_it_is_ready_fails_the_demo_with_its_output(
     params = write_params_file(
         tmp_path / 'bad.yaml', {'tasks': ['oops'], 'oops': unknown_interface}
     )
-    demo = DemoProcess('task-manager-demo', [LAUNCHER, '--params-file', str(params)])
+    demo = DemoProcess('task-manager-demo', [*LAUNCHER, '--params-file', str(params)])
 
     code = demo.wait_exit(STOP_TIMEOUT_SEC)
 

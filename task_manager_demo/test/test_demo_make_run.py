@@ -1,8 +1,10 @@
-"""`make run`: the robot and the Task Manager come up, run a task, and stop on Ctrl-C."""
+"""`make run`: the robot, the Task Manager and the dashboard come up, run a task, stop on Ctrl-C."""
 
+import re
 import signal
 from pathlib import Path
 
+import httpx
 import psutil
 import pytest
 
@@ -14,7 +16,7 @@ REPO = Path(__file__).resolve().parents[2]
 # Generous: `make run` installs first when an input of `make install` changed.
 READY_TIMEOUT_SEC = 180.0
 STOP_TIMEOUT_SEC = 30.0
-CHILD_SCRIPTS = ('task-manager-demo-robot', 'task-manager')
+CHILD_SCRIPTS = ('task-manager-demo-robot', 'task-manager', 'task-manager-web')
 
 
 def script_name(process: psutil.Process) -> str:
@@ -31,7 +33,8 @@ def still_running(processes: list[psutil.Process]) -> list[psutil.Process]:
 
 @pytest.mark.ros
 def test_make_run_serves_tasks_and_stops_cleanly_on_ctrl_c(ros: RosHarness) -> None:
-    make = DemoProcess('make run', ['make', '--no-print-directory', 'run'], cwd=REPO)
+    # any free port for the dashboard: the machine may run a `make run` of its own
+    make = DemoProcess('make run', ['make', '--no-print-directory', 'run', 'WEB_PORT=0'], cwd=REPO)
     try:
         make.wait_for_line(r'^Ctrl-C stops', READY_TIMEOUT_SEC)
         assert 'Task Manager ready' in make.output
@@ -40,7 +43,12 @@ def test_make_run_serves_tasks_and_stops_cleanly_on_ctrl_c(ros: RosHarness) -> N
         assert sorted(script_name(p) for p in descendants if script_name(p) in CHILD_SCRIPTS) == [
             'task-manager',
             'task-manager-demo-robot',
+            'task-manager-web',
         ]
+        dashboard = re.search(r'dashboard: (http://\S+)', make.output)
+        assert dashboard is not None, make.output
+        page = httpx.get(dashboard[1], timeout=STOP_TIMEOUT_SEC)
+        assert page.status_code == 200 and '<title>Task Manager</title>' in page.text
 
         probe = TaskManagerProbe(ros)
         probe.wait_until_connected()

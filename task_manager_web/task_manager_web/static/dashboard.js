@@ -214,7 +214,13 @@ function feedbackText(task) {
     const current = feedback.subtasks[index];
     return current ? `step ${index + 1} of ${feedback.subtasks.length}: ${current.task_name}` : '';
   }
-  return JSON.stringify(feedback, (_, value) => (typeof value === 'number' && !Number.isInteger(value) ? Number(value.toFixed(3)) : value));
+  return compactJson(feedback);
+}
+
+// JSON with numbers to 3 decimals, cut at `limit` characters (the whole text is the title).
+function compactJson(value, limit = 160) {
+  const text = JSON.stringify(value, (_, each) => (typeof each === 'number' && !Number.isInteger(each) ? Number(each.toFixed(3)) : each));
+  return text.length > limit ? `${text.slice(0, limit - 1)}…` : text;
 }
 
 function statusBadge(status) {
@@ -416,7 +422,7 @@ function historyRow(task) {
     element('td', {}, statusBadge(task.status)),
     element('td', { text: task.ended ? new Date(task.ended).toLocaleString() : '' }),
     element('td', { text: task.duration_sec == null ? '' : formatSeconds(task.duration_sec) }),
-    element('td', { class: 'result', text: task.error_message || JSON.stringify(task.result ?? {}) }));
+    element('td', { class: 'result', text: task.error_message || compactJson(task.result ?? {}), title: JSON.stringify(task.result ?? {}) }));
 }
 
 function matchesFilters(task) {
