@@ -56,6 +56,10 @@ SETTING_BURSTS = 2
 FEEDBACK_RATE_HZ = 100.0
 FEEDBACK_ROUNDS = 4
 FEEDBACK_BLOCK_SAMPLES = 50
+# the web gateway: round trips through it vs ExecuteTask; event streams open at once
+WEB_SAMPLES = 150
+WEB_STREAMS = 200
+WEB_STREAM_TASKS = 50
 
 # rclpy's ActionServer keeps each finished goal for result_timeout (10 s by default) and
 # every event of the server walks all the goals it keeps: the node's ExecuteTask server

@@ -24,6 +24,7 @@ from bench import (
     isolation,
     mission,
     throughput,
+    web,
 )
 from bench.client import BenchClient
 from bench.context import BenchContext
@@ -41,6 +42,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'isolation': isolation.run,
     'feedback': feedback.run,
     'concurrency': concurrency.run,
+    'web': web.run,
     # last: they restart the node for each phase, then once more with the default parameters
     'events': events.run,
     'history': history.run,

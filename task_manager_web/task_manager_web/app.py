@@ -132,7 +132,7 @@ def _add_routes(app: FastAPI, access: Access) -> None:
         A task the Task Manager refuses (unknown, bad task_data, ...) is no HTTP error:
         it ends ERROR with its error code and message.
         """
-        handle = await link.call(
+        handle = await link.send(
             link.client.start_task,
             body.task_name,
             body.task_data,
@@ -160,7 +160,7 @@ def _add_routes(app: FastAPI, access: Access) -> None:
             ClientSubtask(s.task_name, s.task_data, s.allow_skipping, s.task_id)
             for s in body.subtasks
         ]
-        handle, subtask_ids = await link.call(
+        handle, subtask_ids = await link.send(
             link.client.start_mission,
             subtasks,
             task_id=body.task_id,
@@ -171,13 +171,13 @@ def _add_routes(app: FastAPI, access: Access) -> None:
     @app.post('/api/tasks/cancel', dependencies=write, tags=['tasks'])
     async def cancel_tasks(body: models.CancelTasks, link: Link) -> models.Task:
         """system/cancel_task: cancel these tasks, whoever started them; its result."""
-        result = await link.call(link.client.cancel_tasks, body.task_ids, source=link.source)
+        result = await link.send(link.client.cancel_tasks, body.task_ids, source=link.source)
         return models.Task.model_validate(result_json(result))
 
     @app.post('/api/stop', dependencies=write, tags=['tasks'])
     async def stop(link: Link) -> models.Task:
         """system/stop: cancel every task declared cancel_on_stop; its result."""
-        result = await link.call(link.client.stop, source=link.source)
+        result = await link.send(link.client.stop, source=link.source)
         return models.Task.model_validate(result_json(result))
 
     @app.get('/api/active', dependencies=read, tags=['state'])

@@ -83,6 +83,19 @@ class NodeLink:
         self.require_connected()
         return await asyncio.to_thread(partial(function, *args, **kwargs))
 
+    async def send(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """Like `call`, for a call that sends a goal: once the ExecuteTask server is matched.
+
+        The node's topics can match before its action server does; a goal sent before then
+        would be lost. Once matched, the wait returns at once.
+        """
+
+        def when_available() -> T:
+            self.client.wait_until_available()
+            return function(*args, **kwargs)
+
+        return await self.call(when_available)
+
     async def result(self, handle: TaskHandle, timeout_sec: float) -> TaskResult | None:
         """The task's result once it ends; None if it has not within `timeout_sec`."""
         ended: asyncio.Future[None] = self._loop.create_future()
