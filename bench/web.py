@@ -4,13 +4,14 @@ tasks run (every stream must get every event).
 
 The gateway runs as users run it (`task-manager-web`, its own process, in the bench's ROS
 domain); the bench's HTTP client keeps one connection alive, as a UI does. The streams are
-read by an asyncio loop in a thread of the bench process.
+read by another process (bench/stream_readers.py), as browsers would.
 """
 
-import asyncio
 import json
 import socket
 import statistics
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -25,14 +26,11 @@ from bench.dispatch import interleaved
 from bench.replies import BenchError
 from bench.report import Row
 from bench.stats import Summary
+from bench.stream_readers import EVENTS_PER_TASK
 
 ADDED_TARGET_MS = 3.0
 NO_DELAY = (socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 HTTP_TIMEOUT_SEC = 30.0
-STREAMS_OPEN_TIMEOUT_SEC = 60.0
-EVENTS_TIMEOUT_SEC = 60.0
-# each instant task: RECEIVED, STARTED and ENDED
-EVENTS_PER_TASK = ('RECEIVED', 'STARTED', 'ENDED')
 
 
 @contextmanager
@@ -70,73 +68,6 @@ def web_task_ms(http: httpx.Client) -> float:
     return elapsed_ms
 
 
-class EventStreams:
-    """`count` open /api/events streams, each recording the (event, task id) pairs it got."""
-
-    def __init__(self, url: str, token: str, count: int) -> None:
-        self._url = url
-        self._token = token
-        self.seen: list[set[tuple[str, str]]] = [set() for _ in range(count)]
-        self._opened = 0
-        self._changed = threading.Condition()
-        self._loop = asyncio.new_event_loop()
-        self._stopping: asyncio.Event | None = None
-        self._thread = threading.Thread(target=self._loop.run_until_complete, args=(self._main(),))
-        self._thread.start()
-
-    async def _main(self) -> None:
-        self._stopping = asyncio.Event()
-        limits = httpx.Limits(max_connections=len(self.seen) + 10)
-        params = {'token': self._token}
-        async with httpx.AsyncClient(base_url=self._url, limits=limits, timeout=None) as client:
-            readers = [asyncio.create_task(self._read(client, params, seen)) for seen in self.seen]
-            await self._stopping.wait()
-            for reader in readers:
-                reader.cancel()
-            await asyncio.gather(*readers, return_exceptions=True)
-
-    async def _read(
-        self, client: httpx.AsyncClient, params: dict[str, str], seen: set[tuple[str, str]]
-    ) -> None:
-        async with client.stream('GET', '/api/events', params=params) as response:
-            kind = ''
-            async for line in response.aiter_lines():
-                if line.startswith('event: '):
-                    kind = line[len('event: ') :]
-                elif line.startswith('data: ') and kind == 'hello':
-                    self._count_opened()
-                elif line.startswith('data: ') and kind == 'task':
-                    event = json.loads(line[len('data: ') :])
-                    self._record(seen, (event['event'], event['task']['task_id']))
-
-    def _count_opened(self) -> None:
-        with self._changed:
-            self._opened += 1
-            self._changed.notify_all()
-
-    def _record(self, seen: set[tuple[str, str]], pair: tuple[str, str]) -> None:
-        with self._changed:
-            seen.add(pair)
-            self._changed.notify_all()
-
-    def wait_open(self, timeout_sec: float) -> None:
-        with self._changed:
-            if not self._changed.wait_for(lambda: self._opened >= len(self.seen), timeout_sec):
-                raise BenchError(f'{self._opened} of {len(self.seen)} event streams opened')
-
-    def wait_for(self, expected: set[tuple[str, str]], timeout_sec: float) -> int:
-        """How many streams got every expected event within `timeout_sec`."""
-        with self._changed:
-            self._changed.wait_for(lambda: all(expected <= s for s in self.seen), timeout_sec)
-            return sum(expected <= s for s in self.seen)
-
-    def close(self) -> None:
-        if self._stopping is not None:
-            self._loop.call_soon_threadsafe(self._stopping.set)
-        self._thread.join(HTTP_TIMEOUT_SEC)
-        self._loop.close()
-
-
 def _added_row(web_ms: list[float], direct_ms: list[float], label: str) -> Row:
     web, direct = Summary.of(web_ms), Summary.of(direct_ms)
     added = web.median - direct.median
@@ -162,25 +93,35 @@ def run(ctx: BenchContext) -> None:
 
 def _streams(ctx: BenchContext, gateway: GatewayProcess, http: httpx.Client) -> None:
     count = config.WEB_STREAMS
-    streams = EventStreams(gateway.url, gateway.token, count)
+    readers = subprocess.Popen(
+        [sys.executable, '-m', 'bench.stream_readers', gateway.url, gateway.token, str(count)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert readers.stdin is not None and readers.stdout is not None
     try:
-        streams.wait_open(STREAMS_OPEN_TIMEOUT_SEC)
+        if readers.stdout.readline().strip() != 'open':
+            raise BenchError(f'the {count} event streams did not open')
         ctx.settle()
         busy = interleaved(
             lambda: web_task_ms(http), ctx.fibonacci_task_ms, config.WEB_STREAM_TASKS
         )
         since = time.perf_counter()
         ended = http.get('/api/history', params={'limit': len(busy[0]) * 2}).json()
-        expected = {(event, task['task_id']) for task in ended for event in EVENTS_PER_TASK}
-        complete = streams.wait_for(expected, EVENTS_TIMEOUT_SEC)
+        readers.stdin.write(json.dumps([task['task_id'] for task in ended]) + '\n')
+        readers.stdin.flush()
+        complete = json.loads(readers.stdout.readline())['complete']
         drained_sec = time.perf_counter() - since
     finally:
-        streams.close()
+        readers.stdin.close()
+        readers.wait(HTTP_TIMEOUT_SEC)
+    events = len(ended) * len(EVENTS_PER_TASK)
     ctx.report.add(
         _added_row(*busy, f'start?wait=true, {count} event streams open'),
         Row(
             benchmark='web event streams',
-            metric=f'streams that got all {len(expected)} events of {len(ended)} tasks',
+            metric=f'streams that got all {events} events of {len(ended)} tasks',
             measured=f'{complete} of {count}',
             baseline='',
             target=f'{count} of {count}',
@@ -188,6 +129,7 @@ def _streams(ctx: BenchContext, gateway: GatewayProcess, http: httpx.Client) -> 
         ),
     )
     ctx.report.note(
-        f'web: {count} streams had every event {drained_sec:.2f} s after the last task ended; '
-        f'median round trip with them open {statistics.median(busy[0]):.2f} ms'
+        f'web: {count} streams (read by another process) had every event {drained_sec:.2f} s '
+        f'after the last task ended; median round trip with them open '
+        f'{statistics.median(busy[0]):.2f} ms'
     )

@@ -25,8 +25,6 @@ from typing import Any, Generic, Protocol, TypeAlias, TypeVar
 
 import rclpy
 from builtin_interfaces.msg import Time
-from rclpy.action import ActionClient
-from rclpy.action.client import ClientGoalHandle
 from rclpy.client import Client
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -45,6 +43,7 @@ from task_manager.core.errors import TaskManagerUnavailable, TaskTimeout
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task_stats import TaskStats, task_stats
 from task_manager.ros import qos
+from task_manager.ros.action_services import ActionServicesClient
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import result_of
 from task_manager.ros.system.specs import SYSTEM_SPECS
@@ -70,10 +69,6 @@ SERVICE_RETRY_SEC = 0.5
 
 T = TypeVar('T')
 T_contra = TypeVar('T_contra', contravariant=True)
-# The generated message classes are untyped (no stubs), so their type arguments are Any.
-_ExecuteTaskGoalHandle: TypeAlias = ClientGoalHandle[
-    ExecuteTask.Goal, ExecuteTask.Result, ExecuteTask.Feedback
-]
 
 
 class _End(Enum):
@@ -331,7 +326,8 @@ class TaskHandle:
         self.source = source
         self.result_future: Future[TaskResult] = Future()
         """Completes with the TaskResult; awaitable from rclpy coroutines."""
-        self.goal_handle: _ExecuteTaskGoalHandle | None = None
+        self.goal_id: bytes | None = None
+        """The id of its ExecuteTask goal, once the Task Manager accepted it."""
         self.subtasks: list[TaskHandle] = []
         """Of a mission from `start_mission`: a handle per subtask, in order (else empty)."""
         self._client = client
@@ -411,16 +407,9 @@ class TaskManagerClient:
         # key: service name, value: this client's client of it, made on first use
         self._service_clients: dict[str, Client[Any, Any]] = {}
         self._matched: set[str] = set()
-        self._action_client: ActionClient[
-            ExecuteTask.Goal, ExecuteTask.Result, ExecuteTask.Feedback
-        ] = ActionClient(
-            self.node,
-            ExecuteTask,
-            EXECUTE_TASK_ACTION,
-            goal_service_qos_profile=qos.DEEP_RELIABLE,
-            result_service_qos_profile=qos.DEEP_RELIABLE,
-            cancel_service_qos_profile=qos.DEEP_RELIABLE,
-        )
+        # ExecuteTask through the action's own services: rclpy's ActionClient would also read
+        # every status message, which lists every goal the node keeps (see action_services)
+        self._execute_task = ActionServicesClient(self.node, ExecuteTask, EXECUTE_TASK_ACTION)
         self._subscribe(
             ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.LATEST_ACTIVE_TASKS, self._on_active
         )
@@ -488,7 +477,7 @@ class TaskManagerClient:
         topics = {ACTIVE_TASKS_TOPIC, RESULTS_TOPIC}
         if events:  # first: DDS matches both ends of it while we wait for the rest
             self._subscribe_to_events()
-        if not self._action_client.wait_for_server(timeout_sec=timeout_sec):
+        if not self._execute_task.wait_for_server(timeout_sec):
             raise TaskManagerUnavailable(
                 f'no Task Manager answered at {EXECUTE_TASK_ACTION} within {timeout_sec} s'
             )
@@ -587,11 +576,11 @@ class TaskManagerClient:
             source=handle.source,
             task_data=_json(task_data),
         )
-        goal_future = self._action_client.send_goal_async(goal)
-        goal_future.add_done_callback(lambda f: self._on_goal_response(handle, f))
+        goal_id, goal_future = self._execute_task.send_goal(goal)
+        goal_future.add_done_callback(lambda f: self._on_goal_response(handle, goal_id, f))
         with self._lock:
             if not self._lock.wait_for(
-                lambda: handle.goal_handle is not None or handle.done() or self._is_active(handle),
+                lambda: handle.goal_id is not None or handle.done() or self._is_active(handle),
                 self.timeout_sec,
             ):
                 for each in (handle, *handle.subtasks):
@@ -650,9 +639,9 @@ class TaskManagerClient:
 
     def cancel_own(self, handle: TaskHandle, timeout_sec: float) -> bool:
         """Cancel a task this client started, as its client (the task ends CANCELED)."""
-        if handle.goal_handle is None:
+        if handle.goal_id is None:
             return self.cancel_tasks([handle.task_id]).ok
-        response = _wait(handle.goal_handle.cancel_goal_async(), timeout_sec)
+        response = _wait(self._execute_task.cancel(handle.goal_id), timeout_sec)
         return response is not None and len(response.goals_canceling) > 0
 
     # ---- watching -----------------------------------------------------------------------------
@@ -894,12 +883,14 @@ class TaskManagerClient:
 
     # ---- callbacks (executor thread) ---------------------------------------------------------
 
-    def _on_goal_response(self, handle: TaskHandle, future: Future[_ExecuteTaskGoalHandle]) -> None:
-        goal_handle = result_of(future)
+    def _on_goal_response(self, handle: TaskHandle, goal_id: bytes, future: Future[Any]) -> None:
+        if not result_of(future).accepted:  # the Task Manager accepts every goal
+            self._complete(handle, _refused(handle), final=True)
+            return
         with self._lock:
-            handle.goal_handle = goal_handle
+            handle.goal_id = goal_id
             self._lock.notify_all()
-        goal_handle.get_result_async().add_done_callback(
+        self._execute_task.get_result(goal_id).add_done_callback(
             lambda f: self._complete(
                 handle,
                 TaskResult.from_message(result_of(f).result, handle.task_name, handle.source),
@@ -1043,6 +1034,17 @@ def _drain(inbox: _Inbox[T], timeout_sec: float | None, until: Future[Any] | Non
         if item is _End.OF_UPDATES:
             return
         yield item
+
+
+def _refused(handle: TaskHandle) -> TaskResult:
+    return TaskResult(
+        task_id=handle.task_id,
+        task_name=handle.task_name,
+        status=TaskStatus.ERROR,
+        error_code=ErrorCode.TASK_START_FAILED,
+        result={'error': f'{EXECUTE_TASK_ACTION} rejected the goal'},
+        source=handle.source,
+    )
 
 
 def _wait(future: Future[T], timeout_sec: float) -> T | None:

@@ -8,6 +8,7 @@ goals, asks for results and cancels on the action's three services, whose client
 pending requests by sequence number, and reads feedback from the feedback topic.
 """
 
+import time
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -59,6 +60,14 @@ class ActionServicesClient:
 
     def server_is_ready(self) -> bool:
         return all(c.service_is_ready() for c in (self._send_goal, self._get_result, self._cancel))
+
+    def wait_for_server(self, timeout_sec: float) -> bool:
+        """Wait (bounded) until the server serves all three services; whether it does."""
+        deadline = time.monotonic() + timeout_sec
+        return all(
+            c.wait_for_service(timeout_sec=max(deadline - time.monotonic(), 0.0))
+            for c in (self._send_goal, self._get_result, self._cancel)
+        )
 
     def send_goal(
         self, goal: Any, feedback_callback: Callable[[Any], None] | None = None
