@@ -2,13 +2,19 @@
 
 import os
 
-# Keep this run's DDS traffic apart from other runs on the machine, and on it.
-os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
+# Keep this run's DDS traffic apart from other runs on the machine, and on it: each run its
+# own four domains (1-100), each pytest-xdist worker (gw0 to gw3) one of them.
+os.environ.setdefault('TASK_MANAGER_TEST_DOMAIN', str(1 + os.getpid() % 25 * 4))
+os.environ['ROS_DOMAIN_ID'] = str(
+    int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
+    + int(os.environ.get('PYTEST_XDIST_WORKER', 'gw0').removeprefix('gw')) % 4
+)
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 # ROS logs and the Task Manager's default history go inside the repository (git-ignored),
-# never into the user's ~/.ros.
-os.environ.setdefault(
-    'ROS_HOME', os.path.join(os.path.dirname(__file__), 'build', 'test-ros-home', str(os.getpid()))
+# never into the user's ~/.ros; one folder per process (pytest-xdist workers inherit the
+# environment of the process that starts them, and two Task Managers cannot share a history).
+os.environ['ROS_HOME'] = os.path.join(
+    os.path.dirname(__file__), 'build', 'test-ros-home', str(os.getpid())
 )
 
 from collections.abc import Iterator

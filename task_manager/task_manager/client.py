@@ -576,20 +576,47 @@ class TaskManagerClient:
             source=handle.source,
             task_data=_json(task_data),
         )
-        goal_id, goal_future = self._execute_task.send_goal(goal)
-        goal_future.add_done_callback(lambda f: self._on_goal_response(handle, goal_id, f))
-        with self._lock:
-            if not self._lock.wait_for(
-                lambda: handle.goal_id is not None or handle.done() or self._is_active(handle),
-                self.timeout_sec,
-            ):
+        if not self._send_goal(handle, goal):
+            with self._lock:
                 for each in (handle, *handle.subtasks):
                     self._handles_by_id.pop(each.task_id, None)
-                raise TaskManagerUnavailable(
-                    f'the Task Manager did not answer the goal of {handle.task_name} within '
-                    f'{self.timeout_sec} s'
-                )
+            raise TaskManagerUnavailable(
+                f'the Task Manager did not answer the goal of {handle.task_name} within '
+                f'{self.timeout_sec} s'
+            )
         return handle
+
+    def _send_goal(self, handle: TaskHandle, goal: ExecuteTask.Goal) -> bool:
+        """Send the goal until the Task Manager answers (bounded); whether it did.
+
+        A request sent just as DDS matches the node's reader can be lost, so the same goal
+        (same goal id) is sent again after SERVICE_RETRY_SEC, then twice as long, ...: the
+        node's action server refuses a goal id it already has, so it never runs twice.
+        """
+        deadline = time.monotonic() + self.timeout_sec
+        retry_sec = SERVICE_RETRY_SEC
+        goal_id, first = self._execute_task.send_goal(goal)
+        requests = [first]
+
+        def answered() -> bool:
+            return handle.goal_id is not None or handle.done() or self._is_active(handle)
+
+        first.add_done_callback(lambda f: self._on_goal_response(handle, goal_id, f, retried=False))
+        with self._lock:
+            while not answered() and (remaining := deadline - time.monotonic()) > 0:
+                if self._lock.wait_for(answered, min(retry_sec, remaining)):
+                    break
+                retry_sec *= 2
+                _, again = self._execute_task.send_goal(goal, goal_id)
+                again.add_done_callback(
+                    lambda f: self._on_goal_response(handle, goal_id, f, retried=True)
+                )
+                requests.append(again)
+            done = answered()
+        for request in requests:
+            if not request.done():
+                self._execute_task.forget_request(request)
+        return done
 
     def run_task(
         self,
@@ -883,13 +910,24 @@ class TaskManagerClient:
 
     # ---- callbacks (executor thread) ---------------------------------------------------------
 
-    def _on_goal_response(self, handle: TaskHandle, goal_id: bytes, future: Future[Any]) -> None:
-        if not result_of(future).accepted:  # the Task Manager accepts every goal
+    def _on_goal_response(
+        self, handle: TaskHandle, goal_id: bytes, future: Future[Any], retried: bool
+    ) -> None:
+        """The node accepts every new goal: a refusal of a goal sent again means it has it.
+
+        Its answers come in order, so an accepted request is answered before the refusal of
+        the same goal sent again.
+        """
+        with self._lock:
+            if handle.goal_id is not None:  # an answer to another request of the same goal
+                return
+            refused = not result_of(future).accepted and not retried
+            if not refused:
+                handle.goal_id = goal_id
+                self._lock.notify_all()
+        if refused:
             self._complete(handle, _refused(handle), final=True)
             return
-        with self._lock:
-            handle.goal_id = goal_id
-            self._lock.notify_all()
         self._execute_task.get_result(goal_id).add_done_callback(
             lambda f: self._complete(
                 handle,

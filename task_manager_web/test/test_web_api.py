@@ -209,8 +209,9 @@ def test_a_mission_runs_its_subtasks_in_turn(
 
 def test_history_filters_and_csv_export(http: httpx.Client) -> None:
     for _ in range(3):
-        assert start(http, {'task_name': 'instant', 'task_data': {'data': True}}, wait='true')
-    start(http, {'task_name': 'no/such_task'}, wait='true')
+        response = start(http, {'task_name': 'instant', 'task_data': {'data': True}}, wait='true')
+        assert response.json()['task']['status'] == 'DONE', response.text
+    assert start(http, {'task_name': 'no/such_task'}, wait='true').status_code == 200
 
     done = http.get('/api/history', params={'task_name': 'instant', 'status': 'DONE'}).json()
     errors = http.get('/api/history', params={'status': 'ERROR', 'limit': 1}).json()

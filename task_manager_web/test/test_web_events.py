@@ -62,9 +62,8 @@ def test_every_event_of_a_task_arrives_in_order_as_json(
     robot: Robot, http: httpx.Client, events: Stream
 ) -> None:
     assert events.next() == ('hello', {'connected': True})
-    http.post(
-        '/api/tasks/start', json={'task_name': 'fib', 'task_data': {'order': 5}, 'task_id': 'e1'}
-    )
+    body = {'task_name': 'fib', 'task_data': {'order': 5}, 'task_id': 'e1'}
+    assert http.post('/api/tasks/start', json=body).status_code == 202
     robot.fib.wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
 
     seen = events.until(ended('e1'))

@@ -10,10 +10,13 @@ The file uses WAL journaling: readers never block the writer. Nothing here knows
 
 import contextlib
 import dataclasses
+import fcntl
+import os
 import sqlite3
 import time
 from dataclasses import dataclass, fields
 from pathlib import Path
+from typing import IO
 
 from task_manager.core.json_text import compact_json
 from task_manager.core.task import TaskRecord
@@ -48,6 +51,34 @@ _MIGRATIONS = (_SCHEMA_V1,)
 
 class HistoryError(Exception):
     """The history file cannot be used (not a database, or of an unknown schema)."""
+
+
+class HistoryInUseError(Exception):
+    """Another running Task Manager writes this history file (it holds `<file>.lock`)."""
+
+
+def _lock(path: str) -> IO[str]:
+    """Hold an exclusive lock on `<path>.lock` while the store is open (our pid in it).
+
+    Two nodes writing one file would both number results; the lock goes with the process, so
+    a node that was killed leaves none behind.
+    """
+    lock = open(f'{path}.lock', 'a+')  # noqa: SIM115  (held until close())
+    try:
+        fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        lock.seek(0)
+        holder = lock.read().strip() or 'unknown'
+        lock.close()
+        raise HistoryInUseError(
+            f'it is in use by another running Task Manager (pid {holder}); '
+            'give each Task Manager its own history_path'
+        ) from None
+    lock.seek(0)
+    lock.truncate()
+    lock.write(f'{os.getpid()}\n')
+    lock.flush()
+    return lock
 
 
 @dataclass(frozen=True)
@@ -139,16 +170,18 @@ class TaskHistory:
         OSError / sqlite3.Error when it cannot be opened or written.
         """
         self.path = path or MEMORY
+        self._lock: IO[str] | None = None
         if self.path != MEMORY:
             Path(self.path).parent.mkdir(parents=True, exist_ok=True)
+            self._lock = _lock(self.path)
         self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
         try:
             self._prepare()
         except sqlite3.DatabaseError as error:
-            self._db.close()
+            self.close()
             raise HistoryError(f'{self.path} is not a task history database ({error})') from None
         except HistoryError:
-            self._db.close()
+            self.close()
             raise
         self._next_entry = self._max('entry') + 1
         self._next_sequence = self._max('sequence') + 1
@@ -287,6 +320,9 @@ class TaskHistory:
 
     def close(self) -> None:
         self._db.close()
+        if self._lock is not None:
+            self._lock.close()
+            self._lock = None
 
 
 class _Transaction:

@@ -107,7 +107,7 @@ class ActionTaskRunner:
             if record.status is TaskStatus.IN_PROGRESS:
                 record.record_feedback(message_to_dict(feedback))
 
-        goal_id, goal_future = self._client.send_goal(message, on_feedback)
+        goal_id, goal_future = self._client.send_goal(message, feedback_callback=on_feedback)
         if not await wait_for(self._node, goal_future, self._timeouts.goal_response_sec):
             goal_future.add_done_callback(lambda f: self._cancel_late_goal(goal_id, f))
             raise TaskRequestError(

@@ -70,10 +70,14 @@ class ActionServicesClient:
         )
 
     def send_goal(
-        self, goal: Any, feedback_callback: Callable[[Any], None] | None = None
+        self,
+        goal: Any,
+        goal_id: bytes | None = None,
+        feedback_callback: Callable[[Any], None] | None = None,
     ) -> tuple[bytes, Future[Any]]:
-        """Send a goal; returns its id and a future of the SendGoal response (`accepted`)."""
-        goal_id = uuid.uuid4().bytes
+        """Send a goal (with a new id, or `goal_id` to send one again); returns its id and a
+        future of the SendGoal response (`accepted`)."""
+        goal_id = goal_id or uuid.uuid4().bytes
         if feedback_callback is not None:
             self._feedback_callbacks[goal_id] = feedback_callback
         request = self._impl.SendGoalService.Request(goal_id=_uuid(goal_id), goal=goal)
@@ -90,6 +94,10 @@ class ActionServicesClient:
         request = self._impl.CancelGoalService.Request()
         request.goal_info.goal_id = _uuid(goal_id)
         return self._cancel.call_async(request)
+
+    def forget_request(self, future: Future[Any]) -> None:
+        """Stop waiting for the response to a SendGoal request (it was answered otherwise)."""
+        self._send_goal.remove_pending_request(future)
 
     def forget(self, goal_id: bytes) -> None:
         """The goal has ended: drop its feedback callback."""

@@ -10,7 +10,13 @@ from task_manager_msgs.msg import TaskDoneResult, TaskState
 from task_manager_msgs.srv import QueryTaskHistory
 
 from task_manager.core.errors import ConfigurationError
-from task_manager.core.history import HistoryError, HistoryQuery, HistoryRow, TaskHistory
+from task_manager.core.history import (
+    HistoryError,
+    HistoryInUseError,
+    HistoryQuery,
+    HistoryRow,
+    TaskHistory,
+)
 from task_manager.ros.task_events import stamp
 
 
@@ -79,5 +85,5 @@ def open_history(path: str, logger: RcutilsLogger) -> TaskHistory:
                     os.replace(path + suffix, aside + suffix)
             logger.warning(f'{error}: moved it to {aside} and started a new history')
             return TaskHistory(path)
-    except (OSError, sqlite3.Error) as error:
+    except (OSError, sqlite3.Error, HistoryInUseError) as error:
         raise ConfigurationError(f'cannot open the task history {path}: {error}') from None

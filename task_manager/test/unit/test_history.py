@@ -1,6 +1,7 @@
 """TaskHistory: the SQLite store of every request, on real files in a temporary folder."""
 
 import json
+import os
 import sqlite3
 from pathlib import Path
 
@@ -9,6 +10,7 @@ import pytest
 from task_manager.core.history import (
     SCHEMA_VERSION,
     HistoryError,
+    HistoryInUseError,
     HistoryQuery,
     TaskHistory,
 )
@@ -100,10 +102,13 @@ def test_tasks_left_unfinished_by_a_crash_are_closed_once_at_the_next_start(
     running.mark_started(now=6.0)
     crashed.write(running)
     crashed.write(ended('done'))
-    crashed.flush()  # then the process dies: no close
+    crashed.flush()
+    crashed._lock.close()  # type: ignore[union-attr]  # the process dies: no close(), and
+    # its lock on the file goes with it
 
     restarted = TaskHistory(path)
     closed = restarted.close_unfinished('the Task Manager restarted while it ran', now=50.0)
+    restarted.close()
     again = TaskHistory(path).close_unfinished('twice?')
 
     assert [(r.task_id, r.status, r.ended, r.sequence) for r in closed] == [
@@ -203,3 +208,13 @@ def test_a_first_version_file_is_opened_and_upgraded(tmp_path: Path) -> None:
     ]
     version = sqlite3.connect(path).execute('PRAGMA user_version').fetchone()[0]
     assert version == SCHEMA_VERSION
+
+
+def test_a_second_store_on_the_same_file_is_refused_until_the_first_closes(tmp_path: Path) -> None:
+    path = str(tmp_path / 'history.sqlite')
+    first = TaskHistory(path)
+
+    with pytest.raises(HistoryInUseError, match=f'pid {os.getpid()}'):
+        TaskHistory(path)
+    first.close()
+    TaskHistory(path).close()
