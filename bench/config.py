@@ -60,6 +60,9 @@ FEEDBACK_BLOCK_SAMPLES = 50
 WEB_SAMPLES = 150
 WEB_STREAMS = 200
 WEB_STREAM_TASKS = 50
+# the node's start-up (restarts) and its CPU when idle
+STARTUP_SAMPLES = 5
+IDLE_SEC = 10.0
 
 # rclpy's ActionServer keeps each finished goal for result_timeout (10 s by default) and
 # every event of the server walks all the goals it keeps: the node's ExecuteTask server

@@ -23,6 +23,7 @@ from bench import (
     history,
     isolation,
     mission,
+    startup,
     throughput,
     web,
 )
@@ -46,6 +47,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     # last: they restart the node for each phase, then once more with the default parameters
     'events': events.run,
     'history': history.run,
+    'startup': startup.run,
 }
 
 

@@ -202,18 +202,8 @@ def _add_routes(app: FastAPI, access: Access) -> None:
     )
     async def history(link: Link, query: Annotated[HistoryParameters, Query()]) -> Any:
         """Ended tasks from the durable history, newest first; format=csv for a spreadsheet."""
-        states = await link.call(
-            link.client.history,
-            query.task_name,
-            status=query.status,
-            source=query.source,
-            mission_id=query.mission_id,
-            since=query.since,
-            until=query.until,
-            after_sequence=query.after_sequence,
-            limit=query.limit,
-            oldest_first=query.oldest_first,
-        )
+        # the query's fields are the client's filters, by the same names
+        states = await link.call(link.client.history, **query.model_dump(exclude={'format'}))
         tasks = [task_json(s) for s in states]
         if query.format == 'csv':
             return Response(

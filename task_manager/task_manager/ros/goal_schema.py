@@ -13,6 +13,7 @@ from rosidl_parser import definition as idl
 from task_manager.core.task_spec import TaskKind, parse_interface_name
 from task_manager.ros.message_json import (
     HIDDEN_MEMBER,
+    TYPE_ALIASES,
     import_class,
     int_range,
     message_to_dict,
@@ -22,14 +23,6 @@ from task_manager.ros.message_json import (
 JSON_SCHEMA_DIALECT = 'https://json-schema.org/draft/2020-12/schema'
 _FLOAT32_MAX = 3.4028235e38
 _INTEGERS = {f'{u}int{bits}' for bits in (8, 16, 32, 64) for u in ('', 'u')}
-_INTEGER_ALIASES = {
-    'short': 'int16',
-    'unsigned short': 'uint16',
-    'long': 'int32',
-    'unsigned long': 'uint32',
-    'long long': 'int64',
-    'unsigned long long': 'uint64',
-}
 
 
 def goal_schema(msg_class: type) -> dict[str, Any]:
@@ -94,17 +87,17 @@ def _array_schema(slot: idl.AbstractNestedType) -> dict[str, Any]:
 
 
 def _basic_schema(typename: str) -> dict[str, Any]:
-    name = _INTEGER_ALIASES.get(typename, typename)
+    name = TYPE_ALIASES.get(typename, typename)
     if name in _INTEGERS:
         low, high = int_range(name)
         return {'type': 'integer', 'minimum': low, 'maximum': high}
-    if name in ('byte', 'octet', 'uint8'):
+    if name == 'byte':
         return {'type': 'integer', 'minimum': 0, 'maximum': 255}
-    if name in ('float', 'float32'):
+    if name == 'float32':
         return {'type': 'number', 'minimum': -_FLOAT32_MAX, 'maximum': _FLOAT32_MAX}
-    if name in ('double', 'long double', 'float64'):
+    if name == 'float64':
         return {'type': 'number'}
-    if name == 'boolean':
+    if name == 'bool':
         return {'type': 'boolean'}
     if name in ('char', 'wchar'):
         return {'type': 'string', 'minLength': 1, 'maxLength': 1}

@@ -37,7 +37,7 @@ Encoder = Callable[[Any], Any]
 
 HIDDEN_MEMBER = 'structure_needs_at_least_one_member'
 _FLOAT_BOUNDS = {'float32': 3.4028235e38, 'float64': sys.float_info.max}
-_ALIASES = {
+TYPE_ALIASES = {
     'short': 'int16',
     'unsigned short': 'uint16',
     'long': 'int32',
@@ -123,7 +123,7 @@ def _class_name(msg_class: type) -> str:
 def ros_name(slot: idl.AbstractType) -> str:
     """Return the ROS name of a field type, e.g. int32, string<=10, float64[3], pkg/msg/T[]."""
     if isinstance(slot, idl.BasicType):
-        return _ALIASES.get(slot.typename, slot.typename)
+        return TYPE_ALIASES.get(slot.typename, slot.typename)
     if isinstance(slot, idl.NamespacedType):
         return '/'.join(slot.namespaced_name())
     if isinstance(slot, idl.AbstractGenericString):

@@ -2,6 +2,7 @@
 
 import re
 import socket
+import subprocess
 from pathlib import Path
 
 from task_manager_msgs.msg import TaskManagerInstance
@@ -44,8 +45,12 @@ def _pid(probe: TaskManagerProbe) -> int:
 def _refused(second: NodeProcess) -> tuple[int, list[str]]:
     try:
         code = second.wait_exit(EXIT_TIMEOUT_SEC)
-    finally:
+    except subprocess.TimeoutExpired:
         second.stop()
+        raise AssertionError(
+            f'the second Task Manager did not stop within {EXIT_TIMEOUT_SEC} s; its log:\n'
+            + '\n'.join(second.log_lines)
+        ) from None
     return code, [line for line in second.log_lines if '[FATAL]' in line]
 
 

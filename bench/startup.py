@@ -1,0 +1,64 @@
+"""Start-up and idle cost of the node: how long from `task-manager` being started until it
+answers an ExecuteTask goal, and how much CPU it uses when nothing happens.
+
+Start-up: the node is stopped and started again, STARTUP_SAMPLES times; each sample runs
+from just before the process is spawned until the first ExecuteTask round trip (a goal for
+an unknown task, answered at once) has its reply: the interpreter and rclpy loading, the
+parameters, DDS discovery of the node by the bench's client, and the round trip. Idle CPU:
+the node's user + system CPU time (psutil) over IDLE_SEC with no task, after the pause that
+lets its ExecuteTask server drop the goals it keeps.
+"""
+
+import time
+
+import psutil
+
+from bench import config
+from bench.context import BenchContext
+from bench.report import Row
+from bench.stats import Summary
+
+STARTUP_TARGET_MS = 1500.0
+IDLE_CPU_TARGET_PERCENT = 0.5
+
+
+def startup_ms(ctx: BenchContext) -> float:
+    started = time.perf_counter()
+    ctx.restart_node()
+    return (time.perf_counter() - started) * 1000
+
+
+def idle_cpu_percent(pid: int, seconds: float) -> float:
+    """The process's CPU time over `seconds` of wall time, in % of one core."""
+    process = psutil.Process(pid)
+    before = process.cpu_times()
+    time.sleep(seconds)  # the measured interval itself: nothing to wait for
+    after = process.cpu_times()
+    used = (after.user - before.user) + (after.system - before.system)
+    return 100 * used / seconds
+
+
+def run(ctx: BenchContext) -> None:
+    samples = [startup_ms(ctx) for _ in range(config.STARTUP_SAMPLES)]
+    startup = Summary.of(samples)
+    ctx.settle()
+    idle = idle_cpu_percent(ctx.node.pid, config.IDLE_SEC)
+    ctx.report.add(
+        Row(
+            benchmark='startup',
+            metric=f'ms from spawn to the first ExecuteTask reply, med / p95, n={startup.count}',
+            measured=startup.text(0),
+            baseline='',
+            target=f'<= {STARTUP_TARGET_MS:.0f} ms',
+            met=startup.median <= STARTUP_TARGET_MS,
+        ),
+        Row(
+            benchmark='idle',
+            metric=f'node CPU with no task, % of one core over {config.IDLE_SEC:.0f} s',
+            measured=f'{idle:.2f} %',
+            baseline='',
+            target=f'< {IDLE_CPU_TARGET_PERCENT} %',
+            met=idle < IDLE_CPU_TARGET_PERCENT,
+        ),
+    )
+    ctx.report.note(f'startup: samples {", ".join(f"{s:.0f}" for s in samples)} ms')
