@@ -40,18 +40,9 @@ def ros(ros_context: None, request: pytest.FixtureRequest) -> Iterator[RosHarnes
     harness.close()
 
 
-# Test files run first in their process. test_instances.py: two Task Managers must discover
-# each other, and with discovery on localhost Fast DDS announces a participant only to the
-# first few participant ids of its domain; with those ids taken by earlier tests' processes,
-# two later nodes can fail to meet (seen in 2 of 3 runs with the files in another order).
-# Then the slowest files: with the files shared out between two processes (`make test`), one
-# of them at the end would leave the other process idle meanwhile.
-SLOW_FIRST = (
-    'test_instances.py',
-    'test_colcon_build.py',
-    'test_fuzz_inputs.py',
-    'test_taskctl.py',
-)
+# The slowest test files, started first: with the files shared out between two processes
+# (`make test`), one of them at the end would leave the other process idle meanwhile.
+SLOW_FIRST = ('test_colcon_build.py', 'test_fuzz_inputs.py', 'test_taskctl.py')
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
