@@ -18,6 +18,7 @@ from task_manager.testing.servers import ScriptedActionServer, ScriptedService
 from task_manager_web.testing import TIMEOUT_SEC, GatewayProcess, Robot, wait_until
 
 START_TIMEOUT_SEC = 20.0
+SERVER_WAIT_TIMEOUT_SEC = 10.0
 
 
 @pytest.fixture
@@ -34,7 +35,14 @@ def start_robot(ros: RosHarness, tmp_path: Path) -> Iterator[Callable[[], Robot]
     }
     params = write_params_file(
         tmp_path / 'params.yaml',
-        {'tasks': list(tasks), **tasks, 'history_path': str(tmp_path / 'history.sqlite')},
+        {
+            'tasks': list(tasks),
+            **tasks,
+            'history_path': str(tmp_path / 'history.sqlite'),
+            # the node must discover this process's servers: 1 s (the default) is not always
+            # enough with the other test process busy on the same 2 cores
+            'server_wait_timeout': SERVER_WAIT_TIMEOUT_SEC,
+        },
     )
     processes: list[NodeProcess] = []
 
