@@ -725,8 +725,7 @@ class TaskManagerClient:
         """
         self._follow_events()
         inbox: _Inbox[TaskEvent] = queue.SimpleQueue()
-        with self._lock:
-            self._event_listeners.append(inbox)
+        self._add_listener(self._event_listeners, inbox)
         events = self._drain_then_stop(self._event_listeners, inbox, timeout_sec, until)
         # an iterator dropped before its first next() never runs its `finally`
         weakref.finalize(events, self._stop_listening, self._event_listeners, inbox)
@@ -1051,13 +1050,11 @@ class TaskManagerClient:
     @contextlib.contextmanager
     def _listening(self, listeners: list[_Listener[T]], inbox: _Listener[T]) -> Iterator[None]:
         """Have `inbox` get what is put to `listeners` until the block ends."""
-        with self._lock:
-            listeners.append(inbox)
+        stop_listening = self._add_listener(listeners, inbox)
         try:
             yield
         finally:
-            with self._lock:
-                listeners.remove(inbox)
+            stop_listening()
 
 
 def _drain(inbox: _Inbox[T], timeout_sec: float | None, until: Future[Any] | None) -> Iterator[T]:

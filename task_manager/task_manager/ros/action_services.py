@@ -15,6 +15,7 @@ from typing import Any
 
 from rclpy.client import Client
 from rclpy.node import Node
+from rclpy.subscription import Subscription
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
@@ -49,14 +50,12 @@ class ActionServicesClient:
             action_service_name(action_name, 'cancel_goal'),
             qos_profile=DEEP_RELIABLE,
         )
+        self._feedback_topic = f'{action_name.rstrip("/")}/_action/feedback'
         # key: goal id (bytes), value: called with each feedback message of that goal
         self._feedback_callbacks: dict[bytes, Callable[[Any], None]] = {}
-        self._feedback = node.create_subscription(
-            impl.FeedbackMessage,
-            f'{action_name.rstrip("/")}/_action/feedback',
-            self._on_feedback,
-            DEEP_RELIABLE,
-        )
+        # made with the first feedback callback: a client that wants none (the Task Manager's
+        # client of ExecuteTask) does not take every goal's feedback messages
+        self._feedback: Subscription[Any] | None = None
 
     def server_is_ready(self) -> bool:
         return all(c.service_is_ready() for c in (self._send_goal, self._get_result, self._cancel))
@@ -80,6 +79,13 @@ class ActionServicesClient:
         goal_id = goal_id or uuid.uuid4().bytes
         if feedback_callback is not None:
             self._feedback_callbacks[goal_id] = feedback_callback
+            if self._feedback is None:
+                self._feedback = self._node.create_subscription(
+                    self._impl.FeedbackMessage,
+                    self._feedback_topic,
+                    self._on_feedback,
+                    DEEP_RELIABLE,
+                )
         request = self._impl.SendGoalService.Request(goal_id=_uuid(goal_id), goal=goal)
         return goal_id, self._send_goal.call_async(request)
 
