@@ -22,7 +22,7 @@ help:
 	@echo "make bench    benchmarks (not part of make test)"
 
 install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo \
-  $(STAMPS)/task_manager_web $(STAMPS)/chromium
+  $(STAMPS)/task_manager_web $(STAMPS)/task_manager_mqtt $(STAMPS)/chromium $(STAMPS)/mosquitto
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -67,14 +67,29 @@ $(STAMPS)/task_manager_web: task_manager_web/pyproject.toml task_manager_web/set
 	$(PIP) install --quiet -e 'task_manager_web[dev]' -c $(CONSTRAINTS)
 	@touch $@
 
+# The bridge to an MQTT broker (a separate process and package, like the web gateway).
+$(STAMPS)/task_manager_mqtt: task_manager_mqtt/pyproject.toml task_manager_mqtt/setup.py task_manager_mqtt/setup.cfg | $(STAMPS)/task_manager
+	$(PIP) install --quiet -e 'task_manager_mqtt[dev]' -c $(CONSTRAINTS)
+	@touch $@
+
+# A Debian package, installed with apt-get when its program is missing.
+# $(1): package, $(2): a program it installs, $(3): what it is for.
+define debian_package
+	@mkdir -p $(BUILD)
+	@command -v $(2) > /dev/null || test -x /usr/sbin/$(2) || { echo "installing Debian's $(1) ($(3))"; \
+	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends $(1) > $(BUILD)/apt-$(1).log 2>&1 \
+	  || { apt-get update -q > /dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends $(1) > $(BUILD)/apt-$(1).log 2>&1; } \
+	  || { tail -20 $(BUILD)/apt-$(1).log; exit 1; }; }
+	@mkdir -p $(STAMPS) && touch $@
+endef
+
 # Debian's Chromium for the dashboard tests (Playwright drives it; it never downloads a browser).
 $(STAMPS)/chromium: | $(PY)
-	@mkdir -p $(BUILD)
-	@command -v chromium > /dev/null || { echo "installing Debian's chromium (dashboard tests)"; \
-	  DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium > $(BUILD)/apt-chromium.log 2>&1 \
-	  || { apt-get update -q > /dev/null 2>&1 && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends chromium > $(BUILD)/apt-chromium.log 2>&1; } \
-	  || { tail -20 $(BUILD)/apt-chromium.log; exit 1; }; }
-	@mkdir -p $(STAMPS) && touch $@
+	$(call debian_package,chromium,chromium,dashboard tests)
+
+# Debian's mosquitto: the broker of the MQTT tests, `make fleet` and the bench (started by them).
+$(STAMPS)/mosquitto: | $(PY)
+	$(call debian_package,mosquitto,mosquitto,MQTT tests and make fleet)
 
 # `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain), but for
 # the tests of two Task Managers meeting on one domain, run alone afterwards: next to the other

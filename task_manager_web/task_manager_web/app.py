@@ -5,12 +5,10 @@ the OpenAPI description is at /openapi.json and browsable at /docs.
 """
 
 import asyncio
-import contextlib
 import json
 from collections.abc import AsyncIterator, Callable
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
-from functools import cache
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -21,14 +19,11 @@ from fastapi_swagger import patch_fastapi
 
 from task_manager.client import Subtask as ClientSubtask
 from task_manager.client import TaskHandle, TaskManagerClient
-from task_manager.core.errors import ConfigurationError
-from task_manager.core.task_spec import parse_interface_name
 from task_manager.protocol import models
-from task_manager.protocol.records import result_json, task_json
-from task_manager.ros.goal_schema import task_data_schema
+from task_manager.protocol.records import declared_json, result_json, task_json
 from task_manager_web.access import Access
 from task_manager_web.body_limit import BodyLimit
-from task_manager_web.errors import LOG, ApiError, add_error_handlers
+from task_manager_web.errors import ApiError, add_error_handlers
 from task_manager_web.history_csv import history_csv
 from task_manager_web.node_link import EventStream, NodeLink
 
@@ -111,7 +106,7 @@ def _add_routes(app: FastAPI, access: Access) -> None:
     async def declared_tasks(link: Link) -> list[models.DeclaredTask]:
         """The tasks the Task Manager runs, each with a JSON Schema of its task_data."""
         declared = await link.call(link.client.declared_tasks)
-        return [_declared(entry) for entry in declared]
+        return [models.DeclaredTask.model_validate(declared_json(entry)) for entry in declared]
 
     @app.post(
         '/api/tasks/start',
@@ -277,24 +272,3 @@ async def _event_lines(link: NodeLink, stream: EventStream) -> AsyncIterator[str
 
 def _sse(kind: str, data: str) -> str:
     return f'event: {kind}\ndata: {data}\n\n'
-
-
-def _declared(entry: dict[str, Any]) -> models.DeclaredTask:
-    fields = models.DeclaredTask.model_fields
-    known = {name: value for name, value in entry.items() if name in fields}
-    interface = str(entry.get('msg_interface', ''))
-    with contextlib.suppress(ConfigurationError):  # then shown as the node has it
-        interface = str(parse_interface_name(interface))
-    return models.DeclaredTask.model_validate(
-        {**known, 'msg_interface': interface, 'goal_schema': _goal_schema(interface)}
-    )
-
-
-@cache
-def _goal_schema(msg_interface: str) -> dict[str, Any]:
-    """The task_data schema; `{}` (anything) when the interface is not installed here."""
-    try:
-        return task_data_schema(msg_interface)
-    except (ImportError, ConfigurationError, TypeError) as error:
-        LOG.warning('no task_data schema for %s: %s', msg_interface, error)
-        return {}

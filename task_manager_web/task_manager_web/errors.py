@@ -5,7 +5,6 @@ Never a traceback to the client: an unexpected exception is one log line and a 5
 
 import logging
 from collections.abc import Mapping
-from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -13,6 +12,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException
 
 from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.protocol.errors import describe
 
 LOG = logging.getLogger('task_manager_web')
 # key: HTTP status of Starlette's own errors, value: our code for it
@@ -22,6 +22,8 @@ _HTTP_CODES = {
     405: 'method_not_allowed',
     413: 'body_too_large',
 }
+# the parts of a request's error locations that name no field
+REQUEST_PARTS = ('body', 'query', 'path')
 
 
 class ApiError(Exception):
@@ -42,32 +44,11 @@ def error_response(
     return JSONResponse(body, status_code=status, headers=headers)
 
 
-def _field_of(location: tuple[Any, ...]) -> str:
-    """A dotted field path from a pydantic error location, without 'body'/'query'."""
-    parts = [str(part) for part in location if part not in ('body', 'query', 'path')]
-    return '.'.join(parts)
-
-
-def _validation_message(error: dict[str, Any]) -> str:
-    field = _field_of(tuple(error.get('loc', ())))
-    message = str(error.get('msg', 'invalid'))
-    if error.get('type') == 'extra_forbidden':
-        message = 'unknown field (see the schema at /docs for the fields allowed)'
-    if error.get('type') == 'model_attributes_type' and not field:
-        return 'the body must be a JSON object, sent with Content-Type: application/json'
-    if error.get('type') == 'json_invalid':
-        context = error.get('ctx') or {}
-        return f'the body is not valid JSON: {context.get("error", message)}'
-    return f'{field}: {message}' if field else message
-
-
 async def _on_validation_error(_: Request, error: Exception) -> JSONResponse:
     assert isinstance(error, RequestValidationError)
-    errors = list(error.errors())
-    first = errors[0] if errors else {}
-    message = '; '.join(_validation_message(each) for each in errors[:5]) or 'invalid request'
-    # the location of invalid JSON is a character offset, not a field
-    field = '' if first.get('type') == 'json_invalid' else _field_of(tuple(first.get('loc', ())))
+    message, field = describe(list(error.errors()), skip=REQUEST_PARTS)
+    if message == 'the message must be a JSON object':
+        message = 'the body must be a JSON object, sent with Content-Type: application/json'
     return error_response(422, 'invalid_request', message, field)
 
 

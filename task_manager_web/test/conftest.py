@@ -9,54 +9,18 @@ from pathlib import Path
 
 import httpx
 import pytest
-from std_srvs.srv import SetBool
-from test_msgs.action import Fibonacci
 
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, ScriptedRobot, wait_until
 from task_manager.testing.harness import RosHarness
-from task_manager.testing.process import NodeProcess, action_task, service_task, write_params_file
-from task_manager.testing.servers import ScriptedActionServer, ScriptedService
-from task_manager_web.testing import TIMEOUT_SEC, GatewayProcess, Robot, wait_until
-
-START_TIMEOUT_SEC = 20.0
-SERVER_WAIT_TIMEOUT_SEC = 10.0
+from task_manager_web.testing import GatewayProcess
 
 
 @pytest.fixture
 def start_robot(ros: RosHarness, tmp_path: Path) -> Iterator[Callable[[], Robot]]:
     """Start the Task Manager (callable again after `robot.process.stop()`)."""
-    prefix = f'/w{abs(hash(tmp_path)) % 10**8}'
-    fib = ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib')
-    instant = ScriptedService(
-        ros.node, SetBool, f'{prefix}/instant', on_call=lambda call: call.respond(success=True)
-    )
-    tasks = {
-        'fib': action_task('fib', f'{prefix}/fib', reentrant=True, cancel_on_stop=True),
-        'instant': service_task('instant', f'{prefix}/instant', reentrant=True),
-    }
-    params = write_params_file(
-        tmp_path / 'params.yaml',
-        {
-            'tasks': list(tasks),
-            **tasks,
-            'history_path': str(tmp_path / 'history.sqlite'),
-            # the node must discover this process's servers: 1 s (the default) is not always
-            # enough with the other test process busy on the same 2 cores
-            'server_wait_timeout': SERVER_WAIT_TIMEOUT_SEC,
-        },
-    )
-    processes: list[NodeProcess] = []
-
-    def start() -> Robot:
-        process = NodeProcess(params)
-        processes.append(process)
-        process.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
-        return Robot(process, fib, instant)
-
-    yield start
-    for process in processes:
-        process.stop()
-    fib.destroy()
-    instant.destroy()
+    robot = ScriptedRobot(ros, tmp_path)
+    yield robot.start
+    robot.close()
 
 
 @pytest.fixture

@@ -10,7 +10,8 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
-from task_manager_web.testing import TIMEOUT_SEC, GatewayProcess, Robot
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot
+from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
 

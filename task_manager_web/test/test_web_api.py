@@ -11,7 +11,7 @@ import jsonschema
 import pytest
 from test_msgs.action import Fibonacci
 
-from task_manager_web.testing import TIMEOUT_SEC, Robot, check
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
 
 pytestmark = pytest.mark.ros
 

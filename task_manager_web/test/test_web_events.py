@@ -9,7 +9,8 @@ from typing import Any
 import httpx
 import pytest
 
-from task_manager_web.testing import TIMEOUT_SEC, GatewayProcess, Robot, check, wait_until
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
+from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
 

@@ -6,9 +6,9 @@ of the ROS interfaces.
 """
 
 from datetime import datetime
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, RootModel
 
 NAME_MAX = 256
 """The longest task name, task id or source accepted."""
@@ -139,6 +139,109 @@ class DeclaredTask(BaseModel):
     )
 
 
+# ---- MQTT: the documents of the topics under <prefix>/<robot_id>/ ----------------------------
+
+
+class _Addressed(_Request):
+    request_id: str = Field(
+        min_length=1, max_length=NAME_MAX, description='Echoed in the reply, to match it.'
+    )
+
+
+class StartTaskRequest(StartTask, _Addressed):
+    """`start_task`. Without a task_id, the task's id is the request_id, so that a request
+    delivered twice is recognised and starts nothing the second time."""
+
+    op: Literal['start_task']
+
+
+class StartMissionRequest(StartMission, _Addressed):
+    """`start_mission` (the mission's id defaults to the request_id, as for start_task)."""
+
+    op: Literal['start_mission']
+
+
+class CancelRequest(CancelTasks, _Addressed):
+    """`cancel`: system/cancel_task of these ids."""
+
+    op: Literal['cancel']
+
+
+class StopRequest(_Addressed):
+    """`stop`: system/stop."""
+
+    op: Literal['stop']
+
+
+class HistoryRequest(HistoryQuery, _Addressed):
+    """`history`: ended tasks from the durable history."""
+
+    op: Literal['history']
+
+
+RequestBody = Annotated[
+    StartTaskRequest | StartMissionRequest | CancelRequest | StopRequest | HistoryRequest,
+    Field(discriminator='op'),
+]
+
+
+class RobotRequest(RootModel[RequestBody]):
+    """A message of `<prefix>/<robot_id>/request`: one operation, named by `op`."""
+
+
+class Reply(BaseModel):
+    """A message of `<prefix>/<robot_id>/reply`: the answer to one request."""
+
+    request_id: str = Field(description="The request's; empty if it could not be read.")
+    ok: bool
+    op: str = ''
+    task_id: str = Field('', description='start_task, start_mission: the task started.')
+    subtask_ids: list[str] = Field(default_factory=list, description='Of a mission.')
+    duplicate: bool = Field(
+        False, description='The task id was known: nothing started, `task` is that task.'
+    )
+    task: Task | None = Field(
+        None, description='start: its latest state; cancel, stop: the system task, ended.'
+    )
+    tasks: list[Task] | None = Field(None, description='history: the tasks found.')
+    error: ErrorDetail | None = Field(None, description='When ok is false.')
+
+
+ConnectionState = Literal['ONLINE', 'OFFLINE', 'CONNECTIONBROKEN']
+
+
+class Connection(BaseModel):
+    """`<prefix>/<robot_id>/connection` (retained), as VDA 5050's connection topic."""
+
+    robot_id: str
+    connection_state: ConnectionState = Field(
+        description='ONLINE: the bridge is connected; OFFLINE: it stopped cleanly; '
+        'CONNECTIONBROKEN: its last will, sent by the broker when it vanished.'
+    )
+    timestamp: datetime = Field(
+        description='When the state was published (of the last will: when it was set, at '
+        'the connection).'
+    )
+    task_manager_connected: bool = Field(
+        False, description='Whether the bridge reaches the Task Manager node.'
+    )
+    version: str = Field('1', description='Of this protocol.')
+
+
+class ActiveTasks(BaseModel):
+    """`<prefix>/<robot_id>/active_tasks` (retained): every active task."""
+
+    timestamp: datetime
+    tasks: list[Task]
+
+
+class DeclaredTasks(BaseModel):
+    """`<prefix>/<robot_id>/tasks` (retained): the tasks the robot runs."""
+
+    timestamp: datetime
+    tasks: list[DeclaredTask]
+
+
 # key: schema file stem, value: the model it documents
 DOCUMENTS: dict[str, type[BaseModel]] = {
     'start_task': StartTask,
@@ -150,4 +253,9 @@ DOCUMENTS: dict[str, type[BaseModel]] = {
     'started': Started,
     'error': Error,
     'declared_task': DeclaredTask,
+    'mqtt_request': RobotRequest,
+    'mqtt_reply': Reply,
+    'mqtt_connection': Connection,
+    'mqtt_active_tasks': ActiveTasks,
+    'mqtt_tasks': DeclaredTasks,
 }

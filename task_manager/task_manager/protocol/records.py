@@ -4,13 +4,22 @@ Built as plain dicts, fast enough for every event of a busy robot; the tests che
 against the JSON Schema files.
 """
 
+import contextlib
+import logging
 from datetime import UTC, datetime
+from functools import cache
 from typing import Any
 
 from task_manager.client import TaskEvent, TaskResult, TaskState
+from task_manager.core.errors import ConfigurationError
+from task_manager.core.task_spec import parse_interface_name
+from task_manager.protocol.models import DeclaredTask
+from task_manager.ros.goal_schema import task_data_schema
+
+LOG = logging.getLogger(__name__)
 
 
-def _iso(moment: datetime | None) -> str | None:
+def iso(moment: datetime | None) -> str | None:
     """ISO 8601 in UTC, with a Z (as pydantic writes it too)."""
     return None if moment is None else moment.astimezone(UTC).isoformat().replace('+00:00', 'Z')
 
@@ -27,9 +36,9 @@ def task_json(state: TaskState) -> dict[str, Any]:
         'error_code': str(state.error_code),
         'error_message': error if isinstance(error, str) else '',
         'mission_id': state.mission_id,
-        'received': _iso(state.received_at),
-        'started': _iso(state.started_at),
-        'ended': _iso(state.ended_at),
+        'received': iso(state.received_at),
+        'started': iso(state.started_at),
+        'ended': iso(state.ended_at),
         'duration_sec': None if duration is None else duration.total_seconds(),
         'feedback': state.feedback,
         'result': state.result if state.is_final else None,
@@ -58,6 +67,25 @@ def event_json(event: TaskEvent) -> dict[str, Any]:
     """A TaskEvent document."""
     return {
         'event': str(event.kind),
-        'stamp': _iso(event.stamp),
+        'stamp': iso(event.stamp),
         'task': task_json(event.task),
     }
+
+
+def declared_json(entry: dict[str, Any]) -> dict[str, Any]:
+    """A DeclaredTask document of an entry of `TaskManagerClient.declared_tasks()`."""
+    known = {name: value for name, value in entry.items() if name in DeclaredTask.model_fields}
+    interface = str(entry.get('msg_interface', ''))
+    with contextlib.suppress(ConfigurationError):  # then shown as the node has it
+        interface = str(parse_interface_name(interface))
+    return {**known, 'msg_interface': interface, 'goal_schema': _goal_schema(interface)}
+
+
+@cache
+def _goal_schema(msg_interface: str) -> dict[str, Any]:
+    """The task_data schema; `{}` (anything) when the interface is not installed here."""
+    try:
+        return task_data_schema(msg_interface)
+    except (ImportError, ConfigurationError, TypeError) as error:
+        LOG.warning('no task_data schema for %s: %s', msg_interface, error)
+        return {}

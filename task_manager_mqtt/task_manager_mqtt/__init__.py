@@ -1,0 +1,1 @@
+"""MQTT bridge of the ROS 2 Task Manager, and the cloud side of it (FleetClient)."""

@@ -1,0 +1,342 @@
+"""One robot's Task Manager on an MQTT broker: requests in, replies, results and state out.
+
+Three threads meet here, none parked per task: the MQTT client's network thread (paho), the
+Task Manager client's executor thread, and one worker that does everything else in order,
+taking jobs from a queue: requests (which call the Task Manager), results, the retained
+state. The callbacks of the two others only queue jobs, so they never wait.
+
+Results go out in the order of the history's sequence numbers, each at QoS 1: live from the
+ENDED events while the broker is there, and from the node's durable history for whatever
+was missed (the broker away, the bridge restarted, an event lost). See ResultOutbox.
+"""
+
+import logging
+import queue
+import threading
+from collections.abc import Callable
+from datetime import UTC, datetime
+from functools import partial
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
+from paho.mqtt.reasoncodes import ReasonCode
+
+from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
+from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.core.json_text import compact_json
+from task_manager.protocol.records import declared_json, event_json, iso, task_json
+from task_manager_mqtt.outbox import ResultOutbox
+from task_manager_mqtt.requests import RequestHandler
+from task_manager_mqtt.settings import BridgeSettings, Broker, Tls
+from task_manager_mqtt.topics import Topics
+
+LOG = logging.getLogger('task_manager_mqtt')
+HISTORY_PAGE = 1000
+"""Results read from the history per call when catching up."""
+MAX_IN_FLIGHT = 200
+"""QoS 1 messages sent before their acknowledgements (paho's default, 20, slows a catch-up)."""
+RECONNECT_MIN_SEC = 1
+RECONNECT_MAX_SEC = 30
+SESSION_EXPIRY_SEC = 7 * 24 * 3600
+"""How long the broker keeps the bridge's subscription and the requests sent meanwhile."""
+OFFLINE_TIMEOUT_SEC = 2.0
+# MQTT 5 reason codes, and MQTT 3.1.1 return codes, of a connection refused for its credentials
+CREDENTIALS_REFUSED = ('Bad user name or password', 'Not authorized')
+
+
+class Bridge:
+    def __init__(
+        self,
+        settings: BridgeSettings,
+        client: TaskManagerClient,
+        on_failure: Callable[[], None] = lambda: None,
+    ) -> None:
+        """`on_failure` is called (on the MQTT thread) if the bridge cannot go on."""
+        self.settings = settings
+        self.topics = Topics(settings.prefix, settings.robot_id)
+        self.client = client
+        self.outbox = ResultOutbox(settings.acked_file)
+        self.requests = RequestHandler(client, settings.source, settings.max_payload_bytes)
+        self.failed = threading.Event()
+        """Set when the bridge cannot go on (the broker refused its credentials)."""
+        self.failure = ''
+        self._on_failure = on_failure
+        self._jobs: queue.SimpleQueue[Callable[[], None] | None] = queue.SimpleQueue()
+        self._worker = threading.Thread(target=self._work, name='bridge-worker', daemon=True)
+        self._stopping = False
+        self._reconnecting = False
+        # the rest belongs to the worker
+        self._broker_up = False
+        self._declared: dict[str, Any] | None = None
+        # key: task id, value: its Task document
+        self._active: dict[str, dict[str, Any]] = {}
+        self._active_queued = False
+        self.mqtt = self._mqtt_client(settings.broker)
+        self._unsubscribe = [
+            client.on_task_event(lambda event: self._jobs.put(partial(self._on_event, event))),
+            client.on_connection_change(
+                lambda up: self._jobs.put(partial(self._on_node_change, up))
+            ),
+        ]
+
+    # ---- lifecycle ---------------------------------------------------------------------------
+
+    def start(self) -> None:
+        self._worker.start()
+        self._jobs.put(partial(self._on_node_change, self.client.connected))
+        broker = self.settings.broker
+        LOG.info('connecting to the broker at %s as robot %r', broker.url, self.settings.robot_id)
+        properties = Properties(PacketTypes.CONNECT)
+        properties.SessionExpiryInterval = SESSION_EXPIRY_SEC
+        self.mqtt.connect_async(
+            broker.host,
+            broker.port,
+            keepalive=self.settings.keepalive_sec,
+            clean_start=False,
+            properties=properties,
+        )
+        self.mqtt.loop_start()
+
+    def stop(self) -> None:
+        """OFFLINE (retained), a clean disconnection (so no last will), the worker ended."""
+        self._stopping = True
+        if self.mqtt.is_connected():
+            info = self._publish(self.topics.connection, self._connection('OFFLINE'), 1, True)
+            info.wait_for_publish(OFFLINE_TIMEOUT_SEC)
+        self.mqtt.disconnect()
+        self.mqtt.loop_stop()
+        for unsubscribe in self._unsubscribe:
+            unsubscribe()
+        self._jobs.put(None)
+        self._worker.join()
+
+    def _mqtt_client(self, broker: Broker) -> mqtt.Client:
+        client = mqtt.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=f'task_manager_{self.settings.robot_id}',
+            protocol=mqtt.MQTTv5,
+        )
+        if broker.username:
+            client.username_pw_set(broker.username, broker.password or None)
+        if broker.tls is not None:
+            _use_tls(client, broker.tls)
+        will = self._connection('CONNECTIONBROKEN', task_manager_connected=False)
+        client.will_set(self.topics.connection, compact_json(will), qos=1, retain=True)
+        client.reconnect_delay_set(RECONNECT_MIN_SEC, RECONNECT_MAX_SEC)
+        client.max_inflight_messages_set(MAX_IN_FLIGHT)
+        client.on_connect = self._on_connect
+        client.on_connect_fail = self._on_connect_fail
+        client.on_disconnect = self._on_disconnect
+        client.on_message = self._on_message
+        client.on_publish = self._on_publish
+        return client
+
+    # ---- on the MQTT client's thread: queue, never wait -------------------------------------
+
+    def _on_connect(
+        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+    ) -> None:
+        if reason.is_failure:
+            if str(reason) in CREDENTIALS_REFUSED:
+                self.failure = (
+                    f'the broker at {self.settings.broker.url} refused the credentials: '
+                    f'{reason} (check the user name and password)'
+                )
+                self.failed.set()
+                self._on_failure()
+            elif not self._reconnecting:
+                LOG.warning('the broker refused the connection: %s; retrying', reason)
+                self._reconnecting = True
+            return
+        LOG.info(
+            'connected to the broker at %s: topics %s/',
+            self.settings.broker.url,
+            self.topics.topic('').rstrip('/'),
+        )
+        self._reconnecting = False
+        client.subscribe(self.topics.request, qos=1)
+        self._jobs.put(self._on_broker_up)
+
+    def _on_connect_fail(self, _: mqtt.Client, __: Any) -> None:
+        if not self._reconnecting:  # once per series of attempts
+            LOG.warning(
+                'cannot reach the broker at %s; retrying every %d to %d s until it answers',
+                self.settings.broker.url,
+                RECONNECT_MIN_SEC,
+                RECONNECT_MAX_SEC,
+            )
+            self._reconnecting = True
+
+    def _on_disconnect(
+        self, _: mqtt.Client, __: Any, ___: Any, reason: ReasonCode, ____: Any
+    ) -> None:
+        self._jobs.put(self._on_broker_down)
+        if not self._stopping and not self.failed.is_set() and not self._reconnecting:
+            LOG.warning('lost the broker (%s); reconnecting', reason)
+            self._reconnecting = True
+
+    def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
+        self._jobs.put(partial(self._answer, bytes(message.payload)))
+
+    def _on_publish(self, _: mqtt.Client, __: Any, mid: int, reason: ReasonCode, ___: Any) -> None:
+        if reason.is_failure:
+            LOG.error('the broker refused message %d: %s', mid, reason)
+        self.outbox.on_ack(mid)
+
+    # ---- the worker ---------------------------------------------------------------------------
+
+    def _work(self) -> None:
+        while (job := self._jobs.get()) is not None:
+            try:
+                job()
+            except Exception as error:  # one line; the bridge goes on
+                LOG.error('%s failed: %s: %s', _name(job), type(error).__name__, error)
+
+    def _on_broker_up(self) -> None:
+        self._broker_up = True
+        self.outbox.resend_unacked()
+        self._publish_connection()
+        if self._declared is not None:
+            self._publish(self.topics.tasks, self._declared, 1, True)
+        self._publish_active()
+        self._catch_up()
+
+    def _on_broker_down(self) -> None:
+        self._broker_up = False
+
+    def _on_node_change(self, connected: bool) -> None:
+        LOG.info('the Task Manager is %s', 'reachable' if connected else 'not reachable')
+        self._publish_connection()
+        if not connected:
+            return
+        try:
+            self._read_node_state()
+        except TaskManagerUnavailable as error:
+            LOG.warning('cannot read the Task Manager state: %s', error)
+            return
+        self._catch_up()
+
+    def _read_node_state(self) -> None:
+        now = iso(datetime.now(UTC))
+        tasks = [declared_json(entry) for entry in self.client.declared_tasks()]
+        self._declared = {'timestamp': now, 'tasks': tasks}
+        self._publish(self.topics.tasks, self._declared, 1, True)
+        self._active = {s.task_id: task_json(s) for s in self.client.task_states()}
+        self._queue_active()
+        newest = self.client.history(limit=1)
+        newest_sequence = newest[0].sequence if newest else 0
+        if not self.outbox.known:
+            LOG.info(
+                'first start: the results after sequence %d are sent (none from before)',
+                newest_sequence,
+            )
+            self.outbox.start_at(newest_sequence)
+        elif newest_sequence < self.outbox.acked:
+            LOG.warning(
+                'the history ends at sequence %d, before the last acknowledged (%d): a new '
+                'history; sending all of it',
+                newest_sequence,
+                self.outbox.acked,
+            )
+            self.outbox.start_at(0)
+
+    def _on_event(self, event: TaskEvent) -> None:
+        document = event_json(event)
+        self._publish(self.topics.event, document, 0, False)
+        if event.kind == TaskEventKind.ENDED:
+            self._active.pop(event.task.task_id, None)
+            self._send_result(event.task, document['task'])
+        else:
+            self._active[event.task.task_id] = document['task']
+        self._queue_active()
+
+    def _answer(self, payload: bytes) -> None:
+        reply = self.requests.reply(payload)
+        self._publish(self.topics.reply, reply, 1, False)
+
+    # ---- results ------------------------------------------------------------------------------
+
+    def _send_result(self, state: TaskState, document: dict[str, Any]) -> None:
+        """A live result: sent now if it is the next; a gap is filled from the history."""
+        if not self._broker_up or not self.outbox.known:
+            return  # sent from the history once both are there
+        sequence = state.sequence
+        if sequence == 0:  # the node keeps no history: live only
+            self._publish(self.topics.result, document, 1, False)
+        elif self.outbox.is_next(sequence):
+            self._publish_result(sequence, document)
+        elif not self.outbox.is_sent(sequence):
+            self._catch_up()
+
+    def _catch_up(self) -> None:
+        """Send, in order, every result of the history after the last one sent."""
+        if not (self._broker_up and self.outbox.known and self.client.connected):
+            return
+        try:
+            while True:
+                page = self.client.history(
+                    after_sequence=self.outbox.sent, limit=HISTORY_PAGE, oldest_first=True
+                )
+                for state in page:
+                    self._publish_result(state.sequence, task_json(state))
+                if len(page) < HISTORY_PAGE or not self._broker_up:
+                    return
+        except TaskManagerUnavailable as error:
+            LOG.warning('cannot read the history to send the results missed: %s', error)
+
+    def _publish_result(self, sequence: int, document: dict[str, Any]) -> None:
+        self.outbox.before_send()
+        info = self._publish(self.topics.result, document, 1, False)
+        self.outbox.mark_sent(sequence, info.mid)
+
+    # ---- retained state -----------------------------------------------------------------------
+
+    def _queue_active(self) -> None:
+        """Publish the active tasks once the jobs queued now are done (one message for many)."""
+        if not self._active_queued:
+            self._active_queued = True
+            self._jobs.put(self._publish_active)
+
+    def _publish_active(self) -> None:
+        self._active_queued = False
+        if self._broker_up:
+            document = {'timestamp': iso(datetime.now(UTC)), 'tasks': list(self._active.values())}
+            self._publish(self.topics.active_tasks, document, 1, True)
+
+    def _publish_connection(self) -> None:
+        if self._broker_up:
+            self._publish(self.topics.connection, self._connection('ONLINE'), 1, True)
+
+    def _connection(self, state: str, task_manager_connected: bool | None = None) -> dict[str, Any]:
+        if task_manager_connected is None:
+            task_manager_connected = self.client.connected
+        return {
+            'robot_id': self.settings.robot_id,
+            'connection_state': state,
+            'timestamp': iso(datetime.now(UTC)),
+            'task_manager_connected': task_manager_connected,
+            'version': '1',
+        }
+
+    def _publish(
+        self, topic: str, document: dict[str, Any], qos: int, retain: bool
+    ) -> mqtt.MQTTMessageInfo:
+        return self.mqtt.publish(topic, compact_json(document), qos=qos, retain=retain)
+
+
+def _use_tls(client: mqtt.Client, tls: Tls) -> None:
+    client.tls_set(
+        ca_certs=tls.ca_file or None,
+        certfile=tls.cert_file or None,
+        keyfile=tls.key_file or None,
+    )
+    if tls.insecure:
+        client.tls_insecure_set(True)
+
+
+def _name(job: Callable[[], None]) -> str:
+    function = job.func if isinstance(job, partial) else job
+    return getattr(function, '__name__', repr(function))

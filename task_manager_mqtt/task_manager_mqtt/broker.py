@@ -1,0 +1,98 @@
+"""A local mosquitto of our own (Debian's `mosquitto`), for the tests, `make fleet` and the bench.
+
+On 127.0.0.1 only, with an account per robot and one for the cloud, and an ACL that lets a
+robot write only under its own id and read only its own requests; the cloud reads every
+robot's topics and writes their requests. Its sessions and queued messages persist across
+a restart (stop() then start() again), as a production broker's should.
+"""
+
+import getpass
+import secrets
+import shutil
+import socket
+import subprocess
+from collections.abc import Sequence
+from pathlib import Path
+
+from task_manager.testing.process import NodeProcess
+from task_manager_mqtt.settings import DEFAULT_PREFIX
+
+CLOUD_USER = 'cloud'
+READY_LINE = r'mosquitto version \S+ running'
+START_TIMEOUT_SEC = 10.0
+MAX_QUEUED_MESSAGES = 100_000
+"""Per client, while it is away (mosquitto's default, 1,000, would drop a long outage's)."""
+
+
+def mosquitto_executable() -> str:
+    return shutil.which('mosquitto') or '/usr/sbin/mosquitto'
+
+
+def free_port() -> int:
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        port: int = probe.getsockname()[1]
+        return port
+
+
+class MosquittoBroker:
+    def __init__(
+        self, folder: Path, robots: Sequence[str], prefix: str = DEFAULT_PREFIX, port: int = 0
+    ) -> None:
+        self.folder = folder
+        self.prefix = prefix
+        self.port = port or free_port()
+        self.passwords = {user: secrets.token_urlsafe(12) for user in (CLOUD_USER, *robots)}
+        self.process: NodeProcess | None = None
+        self._write_files()
+
+    def url(self, user: str = CLOUD_USER) -> str:
+        return f'mqtt://{user}:{self.passwords[user]}@127.0.0.1:{self.port}'
+
+    def start(self) -> None:
+        command = [mosquitto_executable(), '-c', str(self.folder / 'mosquitto.conf')]
+        self.process = NodeProcess(None, command=command)
+        self.process.wait_for_log(READY_LINE, START_TIMEOUT_SEC)
+
+    def stop(self) -> int:
+        """SIGINT: mosquitto saves its sessions and queued messages, then exits."""
+        if self.process is None:
+            return 0
+        process, self.process = self.process, None
+        return process.stop()
+
+    def _write_files(self) -> None:
+        self.folder.mkdir(parents=True, exist_ok=True)
+        passwords = self.folder / 'passwords'
+        passwords.write_text('')
+        passwords.chmod(0o600)
+        for user, password in self.passwords.items():
+            subprocess.run(
+                ['mosquitto_passwd', '-b', str(passwords), user, password],
+                check=True,
+                capture_output=True,
+            )
+        (self.folder / 'acl').write_text(
+            f'# the cloud reads every robot, and writes their requests\n'
+            f'user {CLOUD_USER}\n'
+            f'topic read {self.prefix}/#\n'
+            f'topic write {self.prefix}/+/request\n'
+            f'\n'
+            f'# a robot (user name = robot id) writes under its own id, reads its requests\n'
+            f'pattern read {self.prefix}/%u/request\n'
+            f'pattern write {self.prefix}/%u/#\n'
+        )
+        (self.folder / 'mosquitto.conf').write_text(
+            f'listener {self.port} 127.0.0.1\n'
+            # run as whoever started it (as root, mosquitto would switch to its own user)
+            f'user {getpass.getuser()}\n'
+            f'allow_anonymous false\n'
+            f'password_file {passwords}\n'
+            f'acl_file {self.folder / "acl"}\n'
+            f'set_tcp_nodelay true\n'
+            f'persistence true\n'
+            f'persistence_location {self.folder}/\n'
+            f'max_queued_messages {MAX_QUEUED_MESSAGES}\n'
+            f'log_dest stderr\n'  # unbuffered: each line as it is written
+            f'log_timestamp false\n'
+        )

@@ -1,0 +1,319 @@
+"""`FleetClient`: the cloud side. Start tasks and missions on robots by id, wait for their
+results, follow every robot's connection and active tasks, through one MQTT broker.
+
+It keeps a session on the broker (a stable client id, clean_start false), so results that
+robots send while this client is away wait for it on the broker. Each robot's results are
+told apart by sequence number: one delivered twice (after a reconnection) is passed on once.
+"""
+
+import itertools
+import json
+import logging
+import threading
+import uuid
+from collections.abc import Callable
+from concurrent.futures import Future
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion
+from paho.mqtt.packettypes import PacketTypes
+from paho.mqtt.properties import Properties
+from paho.mqtt.reasoncodes import ReasonCode
+
+from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker
+from task_manager_mqtt.topics import ANY_ROBOT, Topics
+
+LOG = logging.getLogger('task_manager_mqtt.fleet')
+TIMEOUT_SEC = 10.0
+SESSION_EXPIRY_SEC = 24 * 3600
+# the topics followed, of every robot
+FOLLOWED = ('reply', 'result', 'connection', 'active_tasks', 'tasks')
+
+Document = dict[str, Any]
+
+
+class FleetError(Exception):
+    """A request the robot refused (its error code and message), or no answer in time."""
+
+    def __init__(self, message: str, code: str = '') -> None:
+        super().__init__(message)
+        self.code = code
+
+
+@dataclass
+class RobotView:
+    """What is known of one robot, from its retained topics."""
+
+    robot_id: str
+    connection: Document | None = None
+    active_tasks: list[Document] = field(default_factory=list)
+    tasks: list[Document] = field(default_factory=list)
+    last_sequence: int = 0
+    """Of the last result passed on (results at or below it are duplicates)."""
+
+    @property
+    def online(self) -> bool:
+        return bool(self.connection and self.connection.get('connection_state') == 'ONLINE')
+
+
+@dataclass
+class FleetTask:
+    """A task or mission started on a robot: its reply, then its result (Task documents)."""
+
+    robot_id: str
+    task_id: str
+    reply_future: Future[Document]
+    result_future: Future[Document]
+
+    def accepted(self, timeout_sec: float = TIMEOUT_SEC) -> Document:
+        """The robot's reply (FleetError if it refused the request)."""
+        return _outcome(self.reply_future, timeout_sec, f'reply of {self.robot_id}')
+
+    def result(self, timeout_sec: float = TIMEOUT_SEC) -> Document:
+        """The ended task (a Task document with its status, error code and result)."""
+        return _outcome(self.result_future, timeout_sec, f'result of {self.task_id}')
+
+
+class FleetClient:
+    """Use it as a context manager, or call `connect()` then `close()`."""
+
+    def __init__(
+        self,
+        broker_url: str,
+        *,
+        prefix: str = DEFAULT_PREFIX,
+        client_id: str = '',
+        source: str = 'CLOUD',
+    ) -> None:
+        self.broker = Broker.from_url(broker_url)
+        self.prefix = prefix
+        self.source = source
+        self.robots: dict[str, RobotView] = {}
+        self._all = Topics(prefix, ANY_ROBOT)
+        self._lock = threading.Lock()
+        self._changed = threading.Condition(self._lock)
+        self._replies: dict[str, Future[Document]] = {}
+        # key: (robot id, task id), value: its result, once it comes
+        self._results: dict[tuple[str, str], Future[Document]] = {}
+        self._result_callbacks: list[Callable[[str, Document], None]] = []
+        self._robot_callbacks: list[Callable[[RobotView], None]] = []
+        self._subscribed = threading.Event()
+        self._request_numbers = itertools.count(1)
+        self._mqtt = mqtt.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=client_id or f'fleet_{uuid.uuid4().hex[:12]}',
+            protocol=mqtt.MQTTv5,
+        )
+        if self.broker.username:
+            self._mqtt.username_pw_set(self.broker.username, self.broker.password or None)
+        if self.broker.tls is not None:
+            self._mqtt.tls_set()
+        self._mqtt.max_inflight_messages_set(1000)
+        self._mqtt.on_connect = self._on_connect
+        self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
+        self._mqtt.on_message = self._on_message
+
+    def __enter__(self) -> 'FleetClient':
+        self.connect()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    def connect(self, timeout_sec: float = TIMEOUT_SEC) -> None:
+        """Connect and subscribe (reconnecting by itself afterwards); FleetError if not in time."""
+        properties = Properties(PacketTypes.CONNECT)
+        properties.SessionExpiryInterval = SESSION_EXPIRY_SEC
+        self._mqtt.connect_async(
+            self.broker.host, self.broker.port, clean_start=False, properties=properties
+        )
+        self._mqtt.loop_start()
+        if not self._subscribed.wait(timeout_sec):
+            self.close()
+            raise FleetError(f'no connection to the broker at {self.broker.url} in {timeout_sec} s')
+
+    def close(self) -> None:
+        self._mqtt.disconnect()
+        self._mqtt.loop_stop()
+
+    # ---- requests -----------------------------------------------------------------------------
+
+    def start_task(
+        self,
+        robot_id: str,
+        task_name: str,
+        task_data: Document | None = None,
+        *,
+        task_id: str = '',
+        source: str = '',
+    ) -> FleetTask:
+        """Start a task on a robot; its reply and result come to the FleetTask."""
+        fields = {'task_name': task_name, 'task_data': task_data or {}}
+        return self._start(robot_id, 'start_task', fields, task_id, source)
+
+    def start_mission(
+        self, robot_id: str, subtasks: list[Document], *, task_id: str = '', source: str = ''
+    ) -> FleetTask:
+        """Start a mission: `subtasks` as StartMission's (task_name, task_data, allow_skipping)."""
+        return self._start(robot_id, 'start_mission', {'subtasks': subtasks}, task_id, source)
+
+    def cancel(
+        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/cancel_task on the robot; its ended Task document."""
+        reply = self.request(robot_id, 'cancel', task_ids=task_ids)
+        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['task']
+
+    def stop(self, robot_id: str, timeout_sec: float = TIMEOUT_SEC) -> Document:
+        """system/stop on the robot; its ended Task document."""
+        reply = self.request(robot_id, 'stop')
+        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['task']
+
+    def history(
+        self, robot_id: str, timeout_sec: float = TIMEOUT_SEC, **filters: Any
+    ) -> list[Document]:
+        """Ended tasks from the robot's durable history (HistoryQuery's filters)."""
+        reply = self.request(robot_id, 'history', **filters)
+        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['tasks']
+
+    def request(self, robot_id: str, op: str, **fields: Any) -> Future[Document]:
+        """Send any request; the future completes with the robot's Reply document."""
+        request_id = f'{uuid.uuid4().hex[:12]}-{next(self._request_numbers)}'
+        reply: Future[Document] = Future()
+        with self._lock:
+            self._replies[request_id] = reply
+        document = {'request_id': request_id, 'op': op, **fields}
+        topic = Topics(self.prefix, robot_id).request
+        self._mqtt.publish(topic, json.dumps(document), qos=1)
+        return reply
+
+    def _start(
+        self, robot_id: str, op: str, fields: Document, task_id: str, source: str
+    ) -> FleetTask:
+        task_id = task_id or str(uuid.uuid4())
+        result: Future[Document] = Future()
+        with self._lock:
+            self._results[(robot_id, task_id)] = result
+        reply = self.request(robot_id, op, task_id=task_id, source=source or self.source, **fields)
+        reply.add_done_callback(lambda done: self._on_start_reply(robot_id, task_id, done))
+        return FleetTask(robot_id, task_id, reply, result)
+
+    def _on_start_reply(self, robot_id: str, task_id: str, reply: Future[Document]) -> None:
+        document = reply.result()
+        if document.get('ok'):
+            return
+        with self._lock:
+            result = self._results.pop((robot_id, task_id), None)
+        if result is not None and not result.done():
+            error = document.get('error') or {}
+            result.set_exception(FleetError(error.get('message', 'refused'), error.get('code', '')))
+
+    # ---- following the fleet ------------------------------------------------------------------
+
+    def on_result(self, callback: Callable[[str, Document], None]) -> None:
+        """`callback(robot_id, task)` for every result of every robot (once per sequence)."""
+        self._result_callbacks.append(callback)
+
+    def on_robot_change(self, callback: Callable[[RobotView], None]) -> None:
+        """`callback(robot)` when a robot's connection, active or declared tasks change."""
+        self._robot_callbacks.append(callback)
+
+    def wait_for(
+        self, condition: Callable[[dict[str, RobotView]], bool], timeout_sec: float = TIMEOUT_SEC
+    ) -> bool:
+        """Wait until `condition(robots)` holds (checked at each change); whether it did."""
+        with self._changed:
+            return self._changed.wait_for(lambda: condition(self.robots), timeout_sec)
+
+    def wait_online(self, robot_ids: list[str], timeout_sec: float = TIMEOUT_SEC) -> bool:
+        """Wait until these robots are ONLINE and reach their Task Manager."""
+
+        def ready(robots: dict[str, RobotView]) -> bool:
+            return all(
+                (r := robots.get(i)) is not None
+                and r.online
+                and bool(r.connection and r.connection.get('task_manager_connected'))
+                for i in robot_ids
+            )
+
+        return self.wait_for(ready, timeout_sec)
+
+    # ---- on the MQTT client's thread ----------------------------------------------------------
+
+    def _on_connect(
+        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+    ) -> None:
+        if reason.is_failure:
+            LOG.warning('the broker refused the connection: %s', reason)
+            return
+        client.subscribe([(self._all.topic(name), 1) for name in FOLLOWED])
+
+    def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
+        name = message.topic.rsplit('/', 1)[-1]
+        robot_id = self._all.robot_of(message.topic)
+        try:
+            document = json.loads(message.payload) if message.payload else None
+        except ValueError:
+            LOG.warning('%s: not JSON, ignored', message.topic)
+            return
+        if not isinstance(document, dict | None):
+            LOG.warning('%s: not a JSON object, ignored', message.topic)
+        elif name not in ('reply', 'result'):
+            self._on_robot_state(robot_id, name, document)
+        elif document is not None:
+            (self._on_reply if name == 'reply' else partial(self._on_result, robot_id))(document)
+
+    def _on_reply(self, document: Document) -> None:
+        with self._lock:
+            reply = self._replies.pop(document.get('request_id', ''), None)
+        if reply is not None:
+            reply.set_result(document)
+
+    def _on_result(self, robot_id: str, task: Document) -> None:
+        sequence = int(task.get('sequence') or 0)
+        with self._lock:
+            robot = self._robot(robot_id)
+            if sequence and sequence <= robot.last_sequence:
+                return  # delivered again after a reconnection
+            robot.last_sequence = max(robot.last_sequence, sequence)
+            result = self._results.pop((robot_id, task.get('task_id', '')), None)
+        if result is not None and not result.done():
+            result.set_result(task)
+        for callback in self._result_callbacks:
+            callback(robot_id, task)
+
+    def _on_robot_state(self, robot_id: str, name: str, document: Document | None) -> None:
+        with self._changed:
+            robot = self._robot(robot_id)
+            if name == 'connection':
+                robot.connection = document
+            elif name == 'active_tasks':
+                robot.active_tasks = (document or {}).get('tasks', [])
+            elif name == 'tasks':
+                robot.tasks = (document or {}).get('tasks', [])
+            self._changed.notify_all()
+        for callback in self._robot_callbacks:
+            callback(robot)
+
+    def _robot(self, robot_id: str) -> RobotView:
+        robot = self.robots.get(robot_id)
+        if robot is None:
+            robot = self.robots[robot_id] = RobotView(robot_id)
+        return robot
+
+
+def _outcome(future: Future[Document], timeout_sec: float, what: str) -> Document:
+    try:
+        return _checked(future.result(timeout_sec))
+    except TimeoutError:
+        raise FleetError(f'no {what} within {timeout_sec} s', 'timeout') from None
+
+
+def _checked(reply: Document) -> Document:
+    if reply.get('ok') is False:
+        error = reply.get('error') or {}
+        raise FleetError(error.get('message', 'refused'), error.get('code', ''))
+    return reply

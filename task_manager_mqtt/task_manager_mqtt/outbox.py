@@ -1,0 +1,105 @@
+"""Which results the broker has: by the history's sequence numbers, the last acknowledged on disk.
+
+Results go out in sequence order. `sent` is the last handed to the MQTT client; `acked` the
+last one the broker acknowledged with every one before it, kept in a file (written with an
+atomic rename), so that a restart of the bridge sends again what was not acknowledged and
+nothing else. Thread-safe: acknowledgements arrive on the MQTT client's thread.
+"""
+
+import contextlib
+import os
+import threading
+from pathlib import Path
+
+
+class ResultOutbox:
+    def __init__(self, acked_file: Path) -> None:
+        self._file = acked_file
+        self._lock = threading.Lock()
+        self.known = acked_file.exists()
+        """Whether a previous run left its acknowledged sequence (else: start from now)."""
+        self.acked = _read(acked_file)
+        self.sent = self.acked
+        # key: sequence, value: acknowledged; in the order sent (which is by sequence)
+        self._unacked: dict[int, bool] = {}
+        # key: message id of the MQTT client, value: the sequence it carries
+        self._by_message: dict[int, int] = {}
+        # acknowledgements that came while a result was being handed over, before its id
+        # was known here (publish() had not returned yet)
+        self._early_acks: set[int] | None = None
+
+    def is_next(self, sequence: int) -> bool:
+        """Whether `sequence` follows what was sent (else a gap to fill from the history)."""
+        return sequence == self.sent + 1
+
+    def is_sent(self, sequence: int) -> bool:
+        return sequence <= self.sent
+
+    def before_send(self) -> None:
+        """Call just before handing a result to the MQTT client (then `mark_sent`)."""
+        with self._lock:
+            self._early_acks = set()
+
+    def mark_sent(self, sequence: int, message_id: int) -> None:
+        """`sequence` was handed to the MQTT client as message `message_id`."""
+        with self._lock:
+            early, self._early_acks = self._early_acks or set(), None
+            self.sent = max(self.sent, sequence)
+            self._unacked[sequence] = False
+            self._by_message[message_id] = sequence
+            if message_id in early:  # acknowledged before publish() returned
+                self._acknowledge(message_id)
+
+    def on_ack(self, message_id: int) -> None:
+        """The broker acknowledged message `message_id` (on the MQTT client's thread)."""
+        with self._lock:
+            if message_id in self._by_message:
+                self._acknowledge(message_id)
+            elif self._early_acks is not None:
+                self._early_acks.add(message_id)
+
+    def resend_unacked(self) -> None:
+        """After a reconnection: send again everything after the last acknowledged.
+
+        The messages of the connection before keep their ids: the MQTT client sends them
+        again too, and their acknowledgements count once sent again here.
+        """
+        with self._lock:
+            self.sent = self.acked
+            self._unacked.clear()
+
+    def start_at(self, sequence: int) -> None:
+        """Treat everything up to `sequence` as acknowledged (a first start: from now)."""
+        with self._lock:
+            self.acked = self.sent = sequence
+            self.known = True
+            _write(self._file, sequence)
+
+    def _acknowledge(self, message_id: int) -> None:
+        sequence = self._by_message.pop(message_id)
+        if sequence not in self._unacked:
+            return  # sent before resend_unacked() and not yet again: it will be
+        self._unacked[sequence] = True
+        advanced = self.acked
+        while self._unacked:
+            first = next(iter(self._unacked))
+            if not self._unacked[first]:
+                break
+            del self._unacked[first]
+            advanced = max(advanced, first)
+        if advanced != self.acked:
+            self.acked = advanced
+            _write(self._file, advanced)
+
+
+def _read(path: Path) -> int:
+    with contextlib.suppress(OSError, ValueError):
+        return max(int(path.read_text().strip() or 0), 0)
+    return 0
+
+
+def _write(path: Path, sequence: int) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f'{path.name}.partial')
+    partial.write_text(f'{sequence}\n')
+    os.replace(partial, path)

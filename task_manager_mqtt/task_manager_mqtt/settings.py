@@ -1,0 +1,135 @@
+"""What the bridge and the FleetClient need to reach a broker, from a URL, arguments or YAML.
+
+A broker URL is `mqtt://[user[:password]@]host[:port]` (1883 by default), or `mqtts://`
+for TLS (8883 by default).
+"""
+
+import os
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+from urllib.parse import unquote, urlsplit
+
+import yaml
+
+DEFAULT_PREFIX = 'task_manager/v1'
+DEFAULT_PORTS = {'mqtt': 1883, 'mqtts': 8883}
+TOPIC_FORBIDDEN = ('+', '#', '/')
+
+
+class SettingsError(ValueError):
+    """A setting that cannot be used; the message names it."""
+
+
+@dataclass(frozen=True)
+class Tls:
+    ca_file: str = ''
+    """Certificate authorities to trust; empty: the system's."""
+    cert_file: str = ''
+    """A client certificate, with key_file, when the broker asks for one."""
+    key_file: str = ''
+    insecure: bool = False
+    """Do not check the broker's host name (tests only)."""
+
+
+@dataclass(frozen=True)
+class Broker:
+    """Where and as whom to connect."""
+
+    host: str = '127.0.0.1'
+    port: int = 1883
+    username: str = ''
+    password: str = ''
+    tls: Tls | None = None
+
+    @classmethod
+    def from_url(cls, url: str, tls: Tls | None = None) -> 'Broker':
+        parts = urlsplit(url)
+        if parts.scheme not in DEFAULT_PORTS or not parts.hostname:
+            raise SettingsError(
+                f'broker URL {url!r}: expected mqtt://[user[:password]@]host[:port] or mqtts://...'
+            )
+        try:
+            port = parts.port or DEFAULT_PORTS[parts.scheme]
+        except ValueError as error:
+            raise SettingsError(f'broker URL {url!r}: {error}') from None
+        if parts.scheme == 'mqtts' and tls is None:
+            tls = Tls()
+        return cls(
+            host=parts.hostname,
+            port=port,
+            username=unquote(parts.username or ''),
+            password=unquote(parts.password or ''),
+            tls=tls,
+        )
+
+    @property
+    def url(self) -> str:
+        """The URL without the password."""
+        scheme = 'mqtts' if self.tls else 'mqtt'
+        user = f'{self.username}@' if self.username else ''
+        return f'{scheme}://{user}{self.host}:{self.port}'
+
+
+@dataclass(frozen=True)
+class BridgeSettings:
+    robot_id: str
+    broker: Broker = field(default_factory=Broker)
+    prefix: str = DEFAULT_PREFIX
+    source: str = 'CLOUD'
+    """The source of the tasks the cloud starts without naming one."""
+    state_file: Path | None = None
+    """Where the last sequence number the broker acknowledged is kept; None: the default."""
+    max_payload_bytes: int = 1_048_576
+    keepalive_sec: int = 10
+    """How soon the broker notices a vanished bridge (and sends its last will): 1.5x this."""
+
+    def __post_init__(self) -> None:
+        check_name('robot_id', self.robot_id)
+        if not self.prefix or self.prefix.startswith('/') or self.prefix.endswith('/'):
+            raise SettingsError(f'prefix {self.prefix!r}: a topic prefix without leading or '
+                                'trailing "/"')  # fmt: skip
+        if any(c in self.prefix for c in '+#'):
+            raise SettingsError(f'prefix {self.prefix!r} may not hold "+" or "#"')
+
+    @property
+    def acked_file(self) -> Path:
+        if self.state_file is not None:
+            return self.state_file
+        ros_home = Path(os.environ.get('ROS_HOME') or Path.home() / '.ros')
+        return ros_home / 'task_manager' / 'mqtt' / f'{self.robot_id}.acked'
+
+
+def check_name(what: str, name: str) -> None:
+    """A robot id is one topic level: not empty, no '/', '+' or '#'."""
+    if not name or any(c in name for c in TOPIC_FORBIDDEN):
+        raise SettingsError(f'{what} {name!r}: one topic level, without "/", "+" or "#"')
+
+
+def read_yaml(path: Path) -> dict[str, Any]:
+    """The settings file: a mapping of the command line's long options (with _ for -)."""
+    try:
+        loaded = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as error:
+        raise SettingsError(f'cannot read the settings file {path}: {error}') from None
+    if loaded is None:
+        return {}
+    if not isinstance(loaded, dict):
+        raise SettingsError(f'the settings file {path} must hold a mapping')
+    return loaded
+
+
+def tls_from(values: dict[str, Any]) -> Tls | None:
+    """A Tls of the `tls` mapping of a settings file (None when absent)."""
+    given = values.get('tls')
+    if given is None or given is False:
+        return None
+    if given is True:
+        return Tls()
+    if not isinstance(given, dict):
+        raise SettingsError('tls: a mapping of ca_file, cert_file, key_file, insecure')
+    known = {f.name for f in fields(Tls)}
+    unknown = sorted(set(given) - known)
+    if unknown:
+        raise SettingsError(f'tls: unknown keys {unknown}; allowed: {sorted(known)}')
+    return Tls(**given)

@@ -1,0 +1,69 @@
+"""Fixtures of the bridge's tests: a real mosquitto, a real Task Manager node, the bridge as
+users run it, and the cloud's FleetClient."""
+
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from task_manager.testing.gateway import Robot, ScriptedRobot
+from task_manager.testing.harness import RosHarness
+from task_manager_mqtt.broker import MosquittoBroker
+from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.testing import ROBOT, BridgeProcess
+
+ONLINE_TIMEOUT_SEC = 20.0
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[MosquittoBroker]:
+    broker = MosquittoBroker(tmp_path / 'broker', robots=[ROBOT, 'robot2'])
+    broker.start()
+    yield broker
+    broker.stop()
+
+
+@pytest.fixture
+def start_robot(ros: RosHarness, tmp_path: Path) -> Iterator[Callable[[], Robot]]:
+    robot = ScriptedRobot(ros, tmp_path)
+    yield robot.start
+    robot.close()
+
+
+@pytest.fixture
+def robot(start_robot: Callable[[], Robot]) -> Robot:
+    return start_robot()
+
+
+@pytest.fixture
+def start_bridge(broker: MosquittoBroker, tmp_path: Path) -> Iterator[Callable[..., BridgeProcess]]:
+    """Start `task-manager-mqtt` for robot1 (args added); stopped cleanly at the end."""
+    bridges: list[BridgeProcess] = []
+
+    def start(*args: str, wait: bool = True, url: str = '') -> BridgeProcess:
+        bridge = BridgeProcess(
+            ROBOT, url or broker.url(ROBOT), tmp_path / 'acked', *args, wait=wait
+        )
+        bridges.append(bridge)
+        return bridge
+
+    yield start
+    for bridge in bridges:
+        if not bridge.killed:
+            bridge.stop()
+
+
+@pytest.fixture
+def fleet(broker: MosquittoBroker) -> Iterator[FleetClient]:
+    with FleetClient(broker.url()) as client:
+        yield client
+
+
+@pytest.fixture
+def online(
+    robot: Robot, start_bridge: Callable[..., BridgeProcess], fleet: FleetClient
+) -> FleetClient:
+    """The node, its bridge and the cloud client, once the robot is ONLINE with its node."""
+    start_bridge()
+    assert fleet.wait_online([ROBOT], ONLINE_TIMEOUT_SEC), fleet.robots
+    return fleet

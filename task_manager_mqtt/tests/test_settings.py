@@ -1,0 +1,58 @@
+"""The bridge's settings: broker URLs, the YAML file, and what is refused (no ROS)."""
+
+from pathlib import Path
+
+import pytest
+
+from task_manager_mqtt.main import main, settings_from
+from task_manager_mqtt.settings import Broker, SettingsError
+
+
+def test_broker_urls() -> None:
+    broker = Broker.from_url('mqtt://robot%2F1:p%40ss@broker.local')
+    assert (broker.host, broker.port, broker.username, broker.password) == (
+        'broker.local', 1883, 'robot/1', 'p@ss',
+    )  # fmt: skip
+    assert broker.tls is None and broker.url == 'mqtt://robot/1@broker.local:1883'
+    secure = Broker.from_url('mqtts://10.0.0.2')
+    assert (secure.port, secure.tls is not None) == (8883, True)
+    for bad in ('http://host', 'mqtt://', 'mqtt://host:99999'):
+        with pytest.raises(SettingsError, match='broker URL'):
+            Broker.from_url(bad)
+
+
+def test_the_file_gives_settings_and_options_win(tmp_path: Path) -> None:
+    password = tmp_path / 'password'
+    password.write_text('secret\n')
+    config = tmp_path / 'bridge.yaml'
+    config.write_text(
+        'robot_id: robot7\n'
+        'broker_url: mqtts://robot7@broker.example.com\n'
+        f'password_file: {password}\n'
+        'tls: {ca_file: /etc/ca.pem}\n'
+        'prefix: site/a\n'
+    )
+    settings = settings_from({'config': config, 'prefix': 'site/b'})
+    assert settings.robot_id == 'robot7' and settings.prefix == 'site/b'
+    assert settings.broker.password == 'secret' and settings.broker.tls is not None
+    assert settings.broker.tls.ca_file == '/etc/ca.pem'
+
+
+@pytest.mark.parametrize(
+    ('options', 'message'),
+    [
+        ({}, 'robot_id is required'),
+        ({'robot_id': 'a/b'}, 'one topic level'),
+        ({'robot_id': 'r', 'prefix': '/x'}, 'prefix'),
+        ({'robot_id': 'r', 'colour': 'red'}, "unknown settings \\['colour'\\]"),
+    ],
+)
+def test_unusable_settings_are_named(options: dict[str, str], message: str) -> None:
+    with pytest.raises(SettingsError, match=message):
+        settings_from(options)
+
+
+def test_unusable_settings_exit_2_with_one_line(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(['--robot-id', 'r', '--broker-url', 'tcp://host']) == 2
+    error = capsys.readouterr().err
+    assert error.count('\n') == 1 and 'broker URL' in error
