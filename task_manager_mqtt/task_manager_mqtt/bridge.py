@@ -198,10 +198,10 @@ class Bridge:
     def _on_broker_up(self) -> None:
         self._broker_up = True
         self.outbox.resend_unacked()
-        self._publish_connection()
         if self._declared is not None:
             self._publish(self.topics.tasks, self._declared, 1, True)
         self._publish_active()
+        self._publish_connection()  # last: once ONLINE is seen, the state above is there
         self._catch_up()
 
     def _on_broker_down(self) -> None:
@@ -209,15 +209,14 @@ class Bridge:
 
     def _on_node_change(self, connected: bool) -> None:
         LOG.info('the Task Manager is %s', 'reachable' if connected else 'not reachable')
-        self._publish_connection()
-        if not connected:
-            return
-        try:
-            self._read_node_state()
-        except TaskManagerUnavailable as error:
-            LOG.warning('cannot read the Task Manager state: %s', error)
-            return
-        self._catch_up()
+        if connected:
+            try:
+                self._read_node_state()
+            except TaskManagerUnavailable as error:
+                LOG.warning('cannot read the Task Manager state: %s', error)
+        self._publish_connection()  # after the node's state, as on a broker connection
+        if connected:
+            self._catch_up()
 
     def _read_node_state(self) -> None:
         now = iso(datetime.now(UTC))
@@ -225,7 +224,7 @@ class Bridge:
         self._declared = {'timestamp': now, 'tasks': tasks}
         self._publish(self.topics.tasks, self._declared, 1, True)
         self._active = {s.task_id: task_json(s) for s in self.client.task_states()}
-        self._queue_active()
+        self._publish_active()
         newest = self.client.history(limit=1)
         newest_sequence = newest[0].sequence if newest else 0
         if not self.outbox.known:

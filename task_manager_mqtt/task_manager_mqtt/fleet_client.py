@@ -14,7 +14,6 @@ import uuid
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass, field
-from functools import partial
 from typing import Any
 
 import paho.mqtt.client as mqtt
@@ -29,8 +28,9 @@ from task_manager_mqtt.topics import ANY_ROBOT, Topics
 LOG = logging.getLogger('task_manager_mqtt.fleet')
 TIMEOUT_SEC = 10.0
 SESSION_EXPIRY_SEC = 24 * 3600
-# the topics followed, of every robot
-FOLLOWED = ('reply', 'result', 'connection', 'active_tasks', 'tasks')
+# the topics followed, of every robot; the connection last, so that the retained state of a
+# robot is there when it is seen ONLINE
+FOLLOWED = ('reply', 'result', 'tasks', 'active_tasks', 'connection')
 
 Document = dict[str, Any]
 
@@ -53,6 +53,8 @@ class RobotView:
     tasks: list[Document] = field(default_factory=list)
     last_sequence: int = 0
     """Of the last result passed on (results at or below it are duplicates)."""
+    duplicates: int = 0
+    """Results delivered again (after a reconnection) and not passed on."""
 
     @property
     def online(self) -> bool:
@@ -87,7 +89,9 @@ class FleetClient:
         prefix: str = DEFAULT_PREFIX,
         client_id: str = '',
         source: str = 'CLOUD',
+        events: bool = False,
     ) -> None:
+        """`events`: also follow every task event of every robot (see `on_event`)."""
         self.broker = Broker.from_url(broker_url)
         self.prefix = prefix
         self.source = source
@@ -100,6 +104,8 @@ class FleetClient:
         self._results: dict[tuple[str, str], Future[Document]] = {}
         self._result_callbacks: list[Callable[[str, Document], None]] = []
         self._robot_callbacks: list[Callable[[RobotView], None]] = []
+        self._event_callbacks: list[Callable[[str, Document], None]] = []
+        self._followed = (*FOLLOWED, 'event') if events else FOLLOWED
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
         self._mqtt = mqtt.Client(
@@ -115,6 +121,11 @@ class FleetClient:
         self._mqtt.on_connect = self._on_connect
         self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
         self._mqtt.on_message = self._on_message
+        self._handlers = {
+            'reply': self._on_reply,
+            'result': self._on_result,
+            'event': self._on_event,
+        }
 
     def __enter__(self) -> 'FleetClient':
         self.connect()
@@ -179,9 +190,11 @@ class FleetClient:
         reply = self.request(robot_id, 'history', **filters)
         return _outcome(reply, timeout_sec, f'reply of {robot_id}')['tasks']
 
-    def request(self, robot_id: str, op: str, **fields: Any) -> Future[Document]:
+    def request(
+        self, robot_id: str, op: str, *, request_id: str = '', **fields: Any
+    ) -> Future[Document]:
         """Send any request; the future completes with the robot's Reply document."""
-        request_id = f'{uuid.uuid4().hex[:12]}-{next(self._request_numbers)}'
+        request_id = request_id or f'{uuid.uuid4().hex[:12]}-{next(self._request_numbers)}'
         reply: Future[Document] = Future()
         with self._lock:
             self._replies[request_id] = reply
@@ -217,6 +230,10 @@ class FleetClient:
         """`callback(robot_id, task)` for every result of every robot (once per sequence)."""
         self._result_callbacks.append(callback)
 
+    def on_event(self, callback: Callable[[str, Document], None]) -> None:
+        """`callback(robot_id, event)` for every TaskEvent document (with `events=True`)."""
+        self._event_callbacks.append(callback)
+
     def on_robot_change(self, callback: Callable[[RobotView], None]) -> None:
         """`callback(robot)` when a robot's connection, active or declared tasks change."""
         self._robot_callbacks.append(callback)
@@ -249,7 +266,7 @@ class FleetClient:
         if reason.is_failure:
             LOG.warning('the broker refused the connection: %s', reason)
             return
-        client.subscribe([(self._all.topic(name), 1) for name in FOLLOWED])
+        client.subscribe([(self._all.topic(name), 1) for name in self._followed])
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
         name = message.topic.rsplit('/', 1)[-1]
@@ -261,12 +278,16 @@ class FleetClient:
             return
         if not isinstance(document, dict | None):
             LOG.warning('%s: not a JSON object, ignored', message.topic)
-        elif name not in ('reply', 'result'):
+        elif name not in ('reply', 'result', 'event'):
             self._on_robot_state(robot_id, name, document)
         elif document is not None:
-            (self._on_reply if name == 'reply' else partial(self._on_result, robot_id))(document)
+            self._handlers[name](robot_id, document)
 
-    def _on_reply(self, document: Document) -> None:
+    def _on_event(self, robot_id: str, document: Document) -> None:
+        for callback in self._event_callbacks:
+            callback(robot_id, document)
+
+    def _on_reply(self, _: str, document: Document) -> None:
         with self._lock:
             reply = self._replies.pop(document.get('request_id', ''), None)
         if reply is not None:
@@ -277,7 +298,8 @@ class FleetClient:
         with self._lock:
             robot = self._robot(robot_id)
             if sequence and sequence <= robot.last_sequence:
-                return  # delivered again after a reconnection
+                robot.duplicates += 1  # delivered again after a reconnection
+                return
             robot.last_sequence = max(robot.last_sequence, sequence)
             result = self._results.pop((robot_id, task.get('task_id', '')), None)
         if result is not None and not result.done():

@@ -55,15 +55,18 @@ def start_bridge(broker: MosquittoBroker, tmp_path: Path) -> Iterator[Callable[.
 
 @pytest.fixture
 def fleet(broker: MosquittoBroker) -> Iterator[FleetClient]:
-    with FleetClient(broker.url()) as client:
+    with FleetClient(broker.url(), events=True) as client:
         yield client
 
 
 @pytest.fixture
-def online(
-    robot: Robot, start_bridge: Callable[..., BridgeProcess], fleet: FleetClient
-) -> FleetClient:
-    """The node, its bridge and the cloud client, once the robot is ONLINE with its node."""
-    start_bridge()
+def bridge(robot: Robot, start_bridge: Callable[..., BridgeProcess]) -> BridgeProcess:
+    """The bridge of robot1, connected to the broker, its node running."""
+    return start_bridge()
+
+
+@pytest.fixture
+def online(bridge: BridgeProcess, fleet: FleetClient) -> FleetClient:
+    """The cloud client, once robot1 is ONLINE and reaches its node."""
     assert fleet.wait_online([ROBOT], ONLINE_TIMEOUT_SEC), fleet.robots
     return fleet

@@ -1,15 +1,23 @@
 """The bridge between a real Task Manager and a real mosquitto, driven by the FleetClient."""
 
+from collections.abc import Callable
+from typing import Any
+
 import pytest
 
-from task_manager.testing.gateway import check
+from task_manager.client import TaskManagerClient
+from task_manager.testing.gateway import TIMEOUT_SEC, check, wait_until
+from task_manager_mqtt.broker import MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient
-from task_manager_mqtt.testing import ROBOT
+from task_manager_mqtt.testing import ROBOT, BridgeProcess
 
 pytestmark = pytest.mark.ros
+BURST = 200
 
 
 def test_a_task_and_a_mission_from_the_cloud(online: FleetClient) -> None:
+    events: list[dict[str, Any]] = []
+    online.on_event(lambda robot_id, event: events.append(check(event, 'task_event')))
     task = online.start_task(ROBOT, 'instant', {'data': True})
     reply = check(task.accepted(), 'mqtt_reply')
     assert reply['ok'] and reply['task_id'] == task.task_id and not reply['duplicate']
@@ -28,6 +36,60 @@ def test_a_task_and_a_mission_from_the_cloud(online: FleetClient) -> None:
     ended = mission.result()
     assert (ended['task_name'], ended['status']) == ('system/mission', 'DONE'), ended
 
+    of_task = [e['event'] for e in events if e['task']['task_id'] == task.task_id]
+    assert of_task == ['RECEIVED', 'STARTED', 'ENDED']
     robot = online.robots[ROBOT]
     check(robot.connection, 'mqtt_connection')
     assert {t['task_name'] for t in robot.tasks} >= {'fib', 'instant', 'system/mission'}
+
+
+def test_a_request_delivered_twice_starts_one_task(online: FleetClient) -> None:
+    request: dict[str, Any] = {
+        'task_name': 'fib',
+        'task_data': {'order': 1},
+        'request_id': 'cloud-42',
+    }
+    first = online.request(ROBOT, 'start_task', **request).result(TIMEOUT_SEC)
+    again = check(online.request(ROBOT, 'start_task', **request).result(TIMEOUT_SEC), 'mqtt_reply')
+    # without a task_id, the request_id is the task's id: the second is recognised
+    assert first['ok'] and first['task_id'] == 'cloud-42' and not first['duplicate']
+    assert again['ok'] and again['duplicate'] and again['task']['task_id'] == 'cloud-42'
+    assert online.cancel(ROBOT, ['cloud-42'])['status'] == 'DONE'
+    stored = online.history(ROBOT, source='CLOUD', task_name='fib')
+    assert [t['task_id'] for t in stored] == ['cloud-42']
+
+
+def test_every_result_of_a_broker_outage_arrives_once_in_order(
+    online: FleetClient, broker: MosquittoBroker
+) -> None:
+    results: list[dict[str, Any]] = []
+    online.on_result(lambda _, task: results.append(task))
+    with TaskManagerClient('outage_test', timeout_sec=TIMEOUT_SEC) as client:
+        client.wait_until_available()
+        handles = [client.start_task('instant', {'data': True}) for _ in range(BURST // 2)]
+        wait_until(lambda: len(results) >= BURST // 4, 'results before the outage')
+        broker.stop()
+        handles += [client.start_task('instant', {'data': True}) for _ in range(BURST // 2)]
+        for handle in handles:
+            assert handle.result(TIMEOUT_SEC).ok
+        broker.start()
+        wait_until(lambda: len(results) >= BURST, f'{BURST} results', timeout_sec=30)
+    assert sorted(t['task_id'] for t in results) == sorted(h.task_id for h in handles)
+    sequences = [t['sequence'] for t in results]
+    assert sequences == sorted(sequences) and len(set(sequences)) == BURST
+
+
+def test_a_restarted_bridge_sends_what_ended_meanwhile_and_nothing_again(
+    online: FleetClient, bridge: BridgeProcess, start_bridge: Callable[..., BridgeProcess]
+) -> None:
+    first = online.start_task(ROBOT, 'instant', {'data': True})
+    first.result()
+    results: list[dict[str, Any]] = []
+    online.on_result(lambda _, task: results.append(task))
+    assert bridge.stop() == 0
+    with TaskManagerClient('restart_test', timeout_sec=TIMEOUT_SEC) as client:
+        ended = [client.run_task('instant', {'data': True}).task_id for _ in range(5)]
+    start_bridge()
+    wait_until(lambda: len(results) >= len(ended), 'the results that ended meanwhile')
+    assert [t['task_id'] for t in results] == ended
+    assert online.robots[ROBOT].duplicates == 0
