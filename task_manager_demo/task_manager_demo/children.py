@@ -66,8 +66,14 @@ class Child:
     """
 
     def __init__(
-        self, name: str, command: list[str], events: Events, cwd: Path | None = None
+        self,
+        name: str,
+        command: list[str],
+        events: Events,
+        cwd: Path | None = None,
+        env: dict[str, str] | None = None,
     ) -> None:
+        """`env`: added to the environment."""
         self.name = name
         self.output: list[str] = []
         self._events = events
@@ -76,7 +82,7 @@ class Child:
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
-            env=child_environment(),
+            env={**child_environment(), **(env or {})},
             cwd=cwd,
             process_group=0,
         )

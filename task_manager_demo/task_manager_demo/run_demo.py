@@ -8,26 +8,17 @@ launcher itself is killed, its children get SIGTERM.
 """
 
 import argparse
-import contextlib
 import os
 import queue
 import re
 import shutil
 import sys
 import textwrap
-import time
 from pathlib import Path
 
-from task_manager_demo.children import (
-    Child,
-    Event,
-    Events,
-    Exited,
-    Line,
-    Signalled,
-    forward_stop_signals,
-)
+from task_manager_demo.children import Events, forward_stop_signals
 from task_manager_demo.robot_interface import ROBOT_READY_LOG
+from task_manager_demo.supervisor import EXIT_FAILED, Supervisor, say
 
 PACKAGE = 'task_manager_demo'
 PARAMS_NAME = 'demo_tasks.yaml'
@@ -39,12 +30,8 @@ DEFAULT_WEB_PORT = 8080
 TASK_MANAGER_READY = re.compile(r'Task Manager ready with \d+ task\(s\): (?P<tasks>.*)$')
 ROBOT_READY = re.compile(re.escape(ROBOT_READY_LOG) + r' at (?P<pose>\([^)]*\))')
 READY_TIMEOUT_SEC = 30.0
-STOP_TIMEOUT_SEC = 10.0
-EXIT_FAILED = 1
 EXIT_USAGE = 2
 RULE = '=' * 78
-# Colour codes of ROS log lines, when the children log in colour (on a terminal).
-COLOUR_CODE = re.compile(r'\x1b\[[0-9;]*m')
 
 
 def default_params_file() -> Path:
@@ -106,122 +93,32 @@ def banner(tasks: str, robot_pose: str, params_file: Path, dashboard: str = '') 
     )
 
 
-def say(text: str) -> None:
-    # OSError: the terminal is gone (its window was closed); the demo goes on stopping.
-    with contextlib.suppress(OSError):
-        print(text, flush=True)
-
-
-class Demo:
-    """Supervises the two children through one event queue."""
+class Demo(Supervisor):
+    """The robot, the Task Manager and (unless web_port is None) the web gateway."""
 
     def __init__(self, params_file: Path, events: Events, web_port: int | None) -> None:
         """`web_port`: where the web gateway listens (0: any free port); None: no gateway."""
+        super().__init__(events)
         self.params_file = params_file
-        self.events = events
         self.web_port = web_port
-        self.web: Child | None = None
-        self.children: list[Child] = []
-        self.streaming = False
 
     def start(self) -> None:
-        robot = [find_executable(*ROBOT_EXECUTABLE)]
-        self.robot = self._start('sim_robot', robot)
+        self.start_child('sim_robot', [find_executable(*ROBOT_EXECUTABLE)], ROBOT_READY)
         task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
-        self.task_manager = self._start('task_manager', [*task_manager, str(self.params_file)])
+        self.start_child('task_manager', [*task_manager, str(self.params_file)], TASK_MANAGER_READY)
         if self.web_port is not None:
             web = [find_executable(*WEB_EXECUTABLE), '--port', str(self.web_port)]
-            self.web = self._start('web', web)
-
-    def _start(self, name: str, command: list[str]) -> Child:
-        child = Child(name, command, self.events)
-        self.children.append(child)
-        return child
+            self.start_child('web', web, WEB_READY)
 
     def run(self, ready_timeout_sec: float) -> int:
-        """Wait for both children to be ready, then until a signal; the exit code."""
-        ready = self._wait_ready(time.monotonic() + ready_timeout_sec)
+        """Wait for the children to be ready, then until a signal; the exit code."""
+        ready = self.wait_ready(ready_timeout_sec)
         if ready is None:
             return EXIT_FAILED
         if not ready:
             return 0
         say(banner(ready['tasks'], ready['pose'], self.params_file, ready.get('dashboard', '')))
-        self.streaming = True
-        return self._follow()
-
-    def _wait_ready(self, deadline: float) -> dict[str, str] | None:
-        """The ready lines' details; {} when stopped by a signal first; None on a failure."""
-        waiting = {self.robot: ROBOT_READY, self.task_manager: TASK_MANAGER_READY}
-        if self.web is not None:
-            waiting[self.web] = WEB_READY
-        details: dict[str, str] = {}
-        while waiting:
-            event = self._next(deadline)
-            if event is None:
-                self._report(list(waiting), 'was not ready in time')
-                return None
-            if isinstance(event, Signalled):
-                return {}
-            if isinstance(event, Exited):
-                code = event.child.wait(STOP_TIMEOUT_SEC)
-                self._report([event.child], f'exited with code {code} before it was ready')
-                return None
-            pattern = waiting.get(event.child)
-            match = pattern.search(COLOUR_CODE.sub('', event.text)) if pattern else None
-            if match:
-                details.update(match.groupdict())
-                del waiting[event.child]
-        return details
-
-    def _next(self, deadline: float) -> Event | None:
-        try:
-            return self.events.get(timeout=max(deadline - time.monotonic(), 0.0))
-        except queue.Empty:
-            return None
-
-    @staticmethod
-    def _report(children: list[Child], state: str) -> None:
-        for child in children:
-            say(f'{child.name} {state}; its output:')
-            say('\n'.join(f'  {line}' for line in child.output) or '  (none)')
-
-    def _follow(self) -> int:
-        """Stream the children's logs until a signal (0) or a child's exit (failure)."""
-        while True:
-            event = self.events.get()
-            if isinstance(event, Signalled):
-                return 0
-            if isinstance(event, Line):
-                say(event.text)
-            else:
-                code = event.child.wait(STOP_TIMEOUT_SEC)
-                say(f'{event.child.name} exited unexpectedly with code {code}')
-                return EXIT_FAILED
-
-    def stop(self) -> bool:
-        """Stop the Task Manager first, so it can still cancel its tasks on the robot.
-
-        True when every child stopped by itself within its bound.
-        """
-        return all([self._stop(child) for child in reversed(self.children)])
-
-    def _stop(self, child: Child) -> bool:
-        """SIGINT, a bounded wait (a further Ctrl-C is passed on), a kill as a last resort."""
-        child.interrupt()
-        deadline = time.monotonic() + STOP_TIMEOUT_SEC
-        while child.output_open:
-            event = self._next(deadline)
-            if event is None:
-                break
-            if isinstance(event, Signalled):
-                child.interrupt()
-            elif isinstance(event, Line) and self.streaming:
-                say(event.text)
-        if child.wait(deadline - time.monotonic()) is None:
-            say(f'{child.name} did not stop within {STOP_TIMEOUT_SEC} s: killing it')
-            child.kill()
-            return False
-        return True
+        return self.follow()
 
 
 def parse_arguments(argv: list[str] | None) -> argparse.Namespace:

@@ -21,6 +21,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.event_handler import EventHandler
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import QoSProfile
 from rclpy.task import Future
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto
@@ -52,6 +53,11 @@ FLOAT_PARAMETERS = {
     'dock_theta': 0.0,
 }
 POSITIVE_PARAMETERS = ('linear_speed', 'angular_speed', 'update_rate')
+
+# The camera keeps every request of a burst (hundreds of photos from a fleet manager): with
+# the services' default depth, 10, requests beyond it are dropped while it is busy, and
+# their tasks would end ERROR only at the Task Manager's service_response_timeout.
+REQUEST_BURST_QOS = QoSProfile(depth=1000)
 
 
 class ConfigurationError(ValueError):
@@ -152,7 +158,13 @@ class SimRobot(Node):
         self._action_server(NavigateToPose, NAVIGATE_ACTION, self._navigate, group)
         self._action_server(Spin, SPIN_ACTION, self._spin, group)
         self._action_server(Dock, DOCK_ACTION, self._dock, group)
-        self.create_service(TakePhoto, TAKE_PHOTO_SERVICE, self._take_photo, callback_group=group)
+        self.create_service(
+            TakePhoto,
+            TAKE_PHOTO_SERVICE,
+            self._take_photo,
+            qos_profile=REQUEST_BURST_QOS,
+            callback_group=group,
+        )
         self.get_logger().info(
             f'{ROBOT_READY_LOG} at {self.base.pose}: serving {NAVIGATE_ACTION}, {SPIN_ACTION}, '
             f'{DOCK_ACTION}, {TAKE_PHOTO_SERVICE} (dock "{self.dock_id}" at {self.dock_pose})'

@@ -13,6 +13,7 @@ was missed (the broker away, the bridge restarted, an event lost). See ResultOut
 import logging
 import queue
 import threading
+import time
 from collections.abc import Callable
 from datetime import UTC, datetime
 from functools import partial
@@ -43,6 +44,8 @@ RECONNECT_MAX_SEC = 30
 SESSION_EXPIRY_SEC = 7 * 24 * 3600
 """How long the broker keeps the bridge's subscription and the requests sent meanwhile."""
 OFFLINE_TIMEOUT_SEC = 2.0
+QUIET_CHECK_SEC = 1.0
+"""After the last task ended, when to look in the history for results not sent."""
 # MQTT 5 reason codes, and MQTT 3.1.1 return codes, of a connection refused for its credentials
 CREDENTIALS_REFUSED = ('Bad user name or password', 'Not authorized')
 
@@ -74,6 +77,9 @@ class Bridge:
         # key: task id, value: its Task document
         self._active: dict[str, dict[str, Any]] = {}
         self._active_queued = False
+        self._check_due: float | None = None
+        self._node_ready = False
+        """The worker has read the node's state since it last connected."""
         self.mqtt = self._mqtt_client(settings.broker)
         self._unsubscribe = [
             client.on_task_event(lambda event: self._jobs.put(partial(self._on_event, event))),
@@ -189,11 +195,29 @@ class Bridge:
     # ---- the worker ---------------------------------------------------------------------------
 
     def _work(self) -> None:
-        while (job := self._jobs.get()) is not None:
+        while True:
+            try:
+                job = self._jobs.get(timeout=self._until_check())
+            except queue.Empty:  # quiet since the last task ended: the check is due
+                self._check_due = None
+                job = self._catch_up
+            if job is None:
+                return
             try:
                 job()
             except Exception as error:  # one line; the bridge goes on
                 LOG.error('%s failed: %s: %s', _name(job), type(error).__name__, error)
+
+    def _check_soon(self) -> None:
+        """Look for results not sent once no task has ended for QUIET_CHECK_SEC.
+
+        A safety net: an ENDED event that never arrives (or a history read that failed)
+        would otherwise leave its result unsent until the next task ends.
+        """
+        self._check_due = time.monotonic() + QUIET_CHECK_SEC
+
+    def _until_check(self) -> float | None:
+        return None if self._check_due is None else max(self._check_due - time.monotonic(), 0.0)
 
     def _on_broker_up(self) -> None:
         self._broker_up = True
@@ -209,13 +233,15 @@ class Bridge:
 
     def _on_node_change(self, connected: bool) -> None:
         LOG.info('the Task Manager is %s', 'reachable' if connected else 'not reachable')
+        self._node_ready = False
         if connected:
             try:
                 self._read_node_state()
+                self._node_ready = True
             except TaskManagerUnavailable as error:
                 LOG.warning('cannot read the Task Manager state: %s', error)
         self._publish_connection()  # after the node's state, as on a broker connection
-        if connected:
+        if self._node_ready:
             self._catch_up()
 
     def _read_node_state(self) -> None:
@@ -225,6 +251,10 @@ class Bridge:
         self._publish(self.topics.tasks, self._declared, 1, True)
         self._active = {s.task_id: task_json(s) for s in self.client.task_states()}
         self._publish_active()
+        self._set_start_point()
+
+    def _set_start_point(self) -> None:
+        """From which sequence on results are sent: a first start sends none from before."""
         newest = self.client.history(limit=1)
         newest_sequence = newest[0].sequence if newest else 0
         if not self.outbox.known:
@@ -253,6 +283,8 @@ class Bridge:
         self._queue_active()
 
     def _answer(self, payload: bytes) -> None:
+        if not self.outbox.known and self.client.connected:
+            self._set_start_point()  # before any task this request starts could end
         reply = self.requests.reply(payload)
         self._publish(self.topics.reply, reply, 1, False)
 
@@ -260,6 +292,7 @@ class Bridge:
 
     def _send_result(self, state: TaskState, document: dict[str, Any]) -> None:
         """A live result: sent now if it is the next; a gap is filled from the history."""
+        self._check_soon()
         if not self._broker_up or not self.outbox.known:
             return  # sent from the history once both are there
         sequence = state.sequence
@@ -311,7 +344,7 @@ class Bridge:
 
     def _connection(self, state: str, task_manager_connected: bool | None = None) -> dict[str, Any]:
         if task_manager_connected is None:
-            task_manager_connected = self.client.connected
+            task_manager_connected = self._node_ready and self.client.connected
         return {
             'robot_id': self.settings.robot_id,
             'connection_state': state,

@@ -49,9 +49,13 @@ class MosquittoBroker:
     def url(self, user: str = CLOUD_USER) -> str:
         return f'mqtt://{user}:{self.passwords[user]}@127.0.0.1:{self.port}'
 
+    @property
+    def command(self) -> list[str]:
+        """The broker's command line (which logs READY_LINE once it listens)."""
+        return [mosquitto_executable(), '-c', str(self.folder / 'mosquitto.conf')]
+
     def start(self) -> None:
-        command = [mosquitto_executable(), '-c', str(self.folder / 'mosquitto.conf')]
-        self.process = NodeProcess(None, command=command)
+        self.process = NodeProcess(None, command=self.command)
         self.process.wait_for_log(READY_LINE, START_TIMEOUT_SEC)
 
     def stop(self) -> int:

@@ -1,0 +1,176 @@
+"""Console script `task-manager-fleet` (`make fleet`): a fleet of simulated robots on a broker.
+
+Starts a local mosquitto (an account per robot and one for the cloud; each robot may write
+only under its own id), then for each robot, in a ROS domain of its own: the simulated
+robot, a Task Manager with the demo's tasks, and its MQTT bridge. Once all are ready it
+prints the broker URL with the cloud's credentials and the example to run, then streams
+their logs. Ctrl-C stops everything it started.
+"""
+
+import argparse
+import os
+import queue
+import re
+import sys
+import textwrap
+from pathlib import Path
+
+from task_manager_mqtt.broker import READY_LINE, MosquittoBroker
+from task_manager_mqtt.settings import DEFAULT_PREFIX
+
+from task_manager_demo.children import Events, forward_stop_signals
+from task_manager_demo.run_demo import (
+    READY_TIMEOUT_SEC,
+    ROBOT_EXECUTABLE,
+    ROBOT_READY,
+    TASK_MANAGER_EXECUTABLE,
+    TASK_MANAGER_READY,
+    default_params_file,
+    find_executable,
+    shown_path,
+)
+from task_manager_demo.supervisor import EXIT_FAILED, Supervisor, say
+
+BRIDGE_EXECUTABLE = ('task-manager-mqtt', 'task_manager_mqtt')
+BRIDGE_READY = re.compile(r'connected to the broker')
+BROKER_READY = re.compile(READY_LINE)
+DEFAULT_ROBOTS = 3
+DEFAULT_PORT = 1883
+DEFAULT_FIRST_DOMAIN = 1
+RULE = '=' * 78
+EXAMPLE = Path('examples') / 'fleet_mission.py'
+
+
+class Fleet(Supervisor):
+    def __init__(self, options: argparse.Namespace, events: Events) -> None:
+        super().__init__(events, prefix_lines=True)
+        self.robot_ids = [f'robot{n}' for n in range(1, options.robots + 1)]
+        self.domains = {r: options.first_domain + i for i, r in enumerate(self.robot_ids)}
+        self.folder: Path = options.folder
+        self.params_file = default_params_file()
+        self.robot_args: list[str] = options.robot_arg or []
+        self.broker = MosquittoBroker(
+            self.folder / 'broker', self.robot_ids, port=options.broker_port
+        )
+
+    def start(self) -> None:
+        self.start_child('broker', self.broker.command, BROKER_READY)
+        for robot_id in self.robot_ids:
+            self._start_robot(robot_id)
+
+    def _start_robot(self, robot_id: str) -> None:
+        home = self.folder / robot_id
+        home.mkdir(parents=True, exist_ok=True)
+        password_file = home / 'mqtt_password'
+        password_file.write_text(self.broker.passwords[robot_id] + '\n')
+        password_file.chmod(0o600)
+        env = {'ROS_DOMAIN_ID': str(self.domains[robot_id]), 'ROS_HOME': str(home)}
+        robot = [find_executable(*ROBOT_EXECUTABLE)]
+        if self.robot_args:
+            robot += ['--ros-args', *(arg for p in self.robot_args for arg in ('-p', p))]
+        self.start_child(f'{robot_id}/sim_robot', robot, ROBOT_READY, env)
+        task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
+        self.start_child(
+            f'{robot_id}/task_manager',
+            [*task_manager, str(self.params_file)],
+            TASK_MANAGER_READY,
+            env,
+        )
+        bridge = [
+            find_executable(*BRIDGE_EXECUTABLE),
+            '--robot-id',
+            robot_id,
+            '--broker-url',
+            f'mqtt://{robot_id}@127.0.0.1:{self.broker.port}',
+            '--password-file',
+            str(password_file),
+        ]
+        self.start_child(f'{robot_id}/bridge', bridge, BRIDGE_READY, env)
+
+    def run(self, ready_timeout_sec: float) -> int:
+        ready = self.wait_ready(ready_timeout_sec)
+        if ready is None:
+            return EXIT_FAILED
+        if not ready:
+            return 0
+        say(self.banner())
+        return self.follow()
+
+    def banner(self) -> str:
+        url = self.broker.url()
+        python = shown_path(Path(sys.executable))
+        robots = ', '.join(f'{r} (ROS domain {d})' for r, d in self.domains.items())
+        return '\n'.join(
+            [
+                RULE,
+                f'Fleet ready: {len(self.robot_ids)} simulated robots, each with a Task Manager '
+                'and its MQTT bridge',
+                f'  broker: {url}',
+                "          (the cloud's account; each robot has its own, see "
+                f'{shown_path(self.broker.folder / "acl")})',
+                textwrap.fill(
+                    robots, width=len(RULE), initial_indent='  robots: ', subsequent_indent=' ' * 10
+                ),
+                f'  topics: {DEFAULT_PREFIX}/<robot_id>/request, reply, result, event, '
+                'active_tasks, tasks, connection',
+                '',
+                'In a second terminal, send a mission to every robot and watch the fleet:',
+                f'  {python} {EXAMPLE} --broker-url {url}',
+                '',
+                'Ctrl-C stops the broker, the robots, their Task Managers and bridges.',
+                RULE,
+            ]
+        )
+
+
+def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
+    ros_home = Path(os.environ.get('ROS_HOME') or Path.home() / '.ros')
+    parser = argparse.ArgumentParser(prog='task-manager-fleet', description=__doc__)
+    parser.add_argument('--robots', type=int, default=DEFAULT_ROBOTS, help='how many (3)')
+    parser.add_argument(
+        '--broker-port', type=int, default=DEFAULT_PORT, help='0: any free one (1883)'
+    )
+    parser.add_argument(
+        '--first-domain',
+        type=int,
+        default=DEFAULT_FIRST_DOMAIN,
+        help='ROS domain of robot1; robot2 gets the next, ... (1)',
+    )
+    parser.add_argument(
+        '--folder',
+        type=Path,
+        default=ros_home / 'task_manager' / 'fleet',
+        help="broker files and each robot's ROS_HOME ($ROS_HOME/task_manager/fleet)",
+    )
+    parser.add_argument(
+        '--robot-arg',
+        action='append',
+        metavar='NAME:=VALUE',
+        help='a ROS parameter of every simulated robot (e.g. linear_speed:=4.0)',
+    )
+    parser.add_argument('--ready-timeout', type=float, default=READY_TIMEOUT_SEC)
+    options = parser.parse_args(argv)
+    if options.robots < 1:
+        parser.error('--robots: at least 1')
+    return options
+
+
+def main(argv: list[str] | None = None) -> int:
+    options = parse_arguments(argv)
+    events: Events = queue.SimpleQueue()
+    forward_stop_signals(events)
+    fleet = Fleet(options, events)
+    try:
+        fleet.start()
+        code = fleet.run(options.ready_timeout)
+    finally:
+        stopped_cleanly = fleet.stop()
+    if not stopped_cleanly:
+        return EXIT_FAILED
+    if code == 0:
+        say('task-manager-fleet: the fleet has stopped')
+    return code
+
+
+if __name__ == '__main__':
+    sys.exit(main())

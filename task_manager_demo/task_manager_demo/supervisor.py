@@ -1,0 +1,123 @@
+"""Supervising the children of a launcher (`task-manager-demo`, `task-manager-fleet`).
+
+The children are started, each with the log line that says it is ready; the launcher waits
+(bounded) for all of them, then streams their logs until a signal or a child's exit, and
+stops them in the reverse order of their start (SIGINT, a bounded wait, a kill as a last
+resort). Everything arrives through one event queue, so the main thread never polls.
+"""
+
+import contextlib
+import queue
+import re
+import time
+
+from task_manager_demo.children import Child, Event, Events, Exited, Line, Signalled
+
+STOP_TIMEOUT_SEC = 10.0
+EXIT_FAILED = 1
+# Colour codes of ROS log lines, when the children log in colour (on a terminal).
+COLOUR_CODE = re.compile(r'\x1b\[[0-9;]*m')
+
+
+def say(text: str) -> None:
+    # OSError: the terminal is gone (its window was closed); the launcher goes on stopping.
+    with contextlib.suppress(OSError):
+        print(text, flush=True)
+
+
+class Supervisor:
+    def __init__(self, events: Events, prefix_lines: bool = False) -> None:
+        """`prefix_lines`: stream each log line as `[child] line`."""
+        self.events = events
+        self.children: list[Child] = []
+        self.streaming = False
+        self._prefix_lines = prefix_lines
+        self._ready: dict[Child, re.Pattern[str]] = {}
+
+    def start_child(
+        self,
+        name: str,
+        command: list[str],
+        ready: re.Pattern[str],
+        env: dict[str, str] | None = None,
+    ) -> Child:
+        """Start a child; `ready`: its log line that says it is ready (named groups kept)."""
+        child = Child(name, command, self.events, env=env)
+        self.children.append(child)
+        self._ready[child] = ready
+        return child
+
+    def wait_ready(self, timeout_sec: float) -> dict[str, str] | None:
+        """The named groups of the ready lines; {} when stopped by a signal first; None on a
+        failure (a child not ready in time, or gone: its output is shown)."""
+        deadline = time.monotonic() + timeout_sec
+        waiting = dict(self._ready)
+        details: dict[str, str] = {}
+        while waiting:
+            event = self._next(deadline)
+            if event is None:
+                self._report(list(waiting), 'was not ready in time')
+                return None
+            if isinstance(event, Signalled):
+                return {}
+            if isinstance(event, Exited):
+                code = event.child.wait(STOP_TIMEOUT_SEC)
+                self._report([event.child], f'exited with code {code} before it was ready')
+                return None
+            pattern = waiting.get(event.child)
+            match = pattern.search(COLOUR_CODE.sub('', event.text)) if pattern else None
+            if match:
+                details.update(match.groupdict())
+                del waiting[event.child]
+        return details
+
+    def follow(self) -> int:
+        """Stream the children's logs until a signal (0) or a child's exit (failure)."""
+        self.streaming = True
+        while True:
+            event = self.events.get()
+            if isinstance(event, Signalled):
+                return 0
+            if isinstance(event, Line):
+                self._say_line(event)
+            else:
+                code = event.child.wait(STOP_TIMEOUT_SEC)
+                say(f'{event.child.name} exited unexpectedly with code {code}')
+                return EXIT_FAILED
+
+    def stop(self) -> bool:
+        """Stop the children, the last started first; True when each stopped by itself."""
+        return all([self._stop(child) for child in reversed(self.children)])
+
+    def _stop(self, child: Child) -> bool:
+        """SIGINT, a bounded wait (a further Ctrl-C is passed on), a kill as a last resort."""
+        child.interrupt()
+        deadline = time.monotonic() + STOP_TIMEOUT_SEC
+        while child.output_open:
+            event = self._next(deadline)
+            if event is None:
+                break
+            if isinstance(event, Signalled):
+                child.interrupt()
+            elif isinstance(event, Line) and self.streaming:
+                self._say_line(event)
+        if child.wait(deadline - time.monotonic()) is None:
+            say(f'{child.name} did not stop within {STOP_TIMEOUT_SEC} s: killing it')
+            child.kill()
+            return False
+        return True
+
+    def _say_line(self, line: Line) -> None:
+        say(f'[{line.child.name}] {line.text}' if self._prefix_lines else line.text)
+
+    def _next(self, deadline: float) -> Event | None:
+        try:
+            return self.events.get(timeout=max(deadline - time.monotonic(), 0.0))
+        except queue.Empty:
+            return None
+
+    @staticmethod
+    def _report(children: list[Child], state: str) -> None:
+        for child in children:
+            say(f'{child.name} {state}; its output:')
+            say('\n'.join(f'  {line}' for line in child.output) or '  (none)')
