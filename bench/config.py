@@ -60,6 +60,9 @@ FEEDBACK_BLOCK_SAMPLES = 50
 WEB_SAMPLES = 150
 WEB_STREAMS = 200
 WEB_STREAM_TASKS = 50
+# the MQTT bridge: round trips from the cloud client vs ExecuteTask; results of an outage
+MQTT_SAMPLES = 150
+MQTT_OUTAGE_TASKS = 1000
 # the node's start-up (restarts) and its CPU when idle
 STARTUP_SAMPLES = 5
 IDLE_SEC = 10.0

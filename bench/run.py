@@ -23,6 +23,7 @@ from bench import (
     history,
     isolation,
     mission,
+    mqtt,
     startup,
     throughput,
     web,
@@ -44,6 +45,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'feedback': feedback.run,
     'concurrency': concurrency.run,
     'web': web.run,
+    'mqtt': mqtt.run,
     # last: they restart the node for each phase, then once more with the default parameters
     'events': events.run,
     'history': history.run,

@@ -20,18 +20,16 @@ from functools import partial
 from typing import Any
 
 import paho.mqtt.client as mqtt
-from paho.mqtt.enums import CallbackAPIVersion
-from paho.mqtt.packettypes import PacketTypes
-from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
 from task_manager.protocol.records import declared_json, event_json, iso, task_json
+from task_manager_mqtt.connection import RECONNECT_MIN_SEC, connect, new_client
 from task_manager_mqtt.outbox import ResultOutbox
 from task_manager_mqtt.requests import RequestHandler
-from task_manager_mqtt.settings import BridgeSettings, Broker, Tls
+from task_manager_mqtt.settings import BridgeSettings, Broker
 from task_manager_mqtt.topics import Topics
 
 LOG = logging.getLogger('task_manager_mqtt')
@@ -39,8 +37,6 @@ HISTORY_PAGE = 1000
 """Results read from the history per call when catching up."""
 MAX_IN_FLIGHT = 200
 """QoS 1 messages sent before their acknowledgements (paho's default, 20, slows a catch-up)."""
-RECONNECT_MIN_SEC = 1
-RECONNECT_MAX_SEC = 30
 SESSION_EXPIRY_SEC = 7 * 24 * 3600
 """How long the broker keeps the bridge's subscription and the requests sent meanwhile."""
 OFFLINE_TIMEOUT_SEC = 2.0
@@ -95,16 +91,7 @@ class Bridge:
         self._jobs.put(partial(self._on_node_change, self.client.connected))
         broker = self.settings.broker
         LOG.info('connecting to the broker at %s as robot %r', broker.url, self.settings.robot_id)
-        properties = Properties(PacketTypes.CONNECT)
-        properties.SessionExpiryInterval = SESSION_EXPIRY_SEC
-        self.mqtt.connect_async(
-            broker.host,
-            broker.port,
-            keepalive=self.settings.keepalive_sec,
-            clean_start=False,
-            properties=properties,
-        )
-        self.mqtt.loop_start()
+        connect(self.mqtt, broker, self.settings.keepalive_sec, SESSION_EXPIRY_SEC)
 
     def stop(self) -> None:
         """OFFLINE (retained), a clean disconnection (so no last will), the worker ended."""
@@ -120,19 +107,10 @@ class Bridge:
         self._worker.join()
 
     def _mqtt_client(self, broker: Broker) -> mqtt.Client:
-        client = mqtt.Client(
-            CallbackAPIVersion.VERSION2,
-            client_id=f'task_manager_{self.settings.robot_id}',
-            protocol=mqtt.MQTTv5,
-        )
-        if broker.username:
-            client.username_pw_set(broker.username, broker.password or None)
-        if broker.tls is not None:
-            _use_tls(client, broker.tls)
+        client_id = f'task_manager_{self.settings.robot_id}'
+        client = new_client(client_id, broker, self.settings.reconnect_max_sec, MAX_IN_FLIGHT)
         will = self._connection('CONNECTIONBROKEN', task_manager_connected=False)
         client.will_set(self.topics.connection, compact_json(will), qos=1, retain=True)
-        client.reconnect_delay_set(RECONNECT_MIN_SEC, RECONNECT_MAX_SEC)
-        client.max_inflight_messages_set(MAX_IN_FLIGHT)
         client.on_connect = self._on_connect
         client.on_connect_fail = self._on_connect_fail
         client.on_disconnect = self._on_disconnect
@@ -172,7 +150,7 @@ class Bridge:
                 'cannot reach the broker at %s; retrying every %d to %d s until it answers',
                 self.settings.broker.url,
                 RECONNECT_MIN_SEC,
-                RECONNECT_MAX_SEC,
+                self.settings.reconnect_max_sec,
             )
             self._reconnecting = True
 
@@ -357,16 +335,6 @@ class Bridge:
         self, topic: str, document: dict[str, Any], qos: int, retain: bool
     ) -> mqtt.MQTTMessageInfo:
         return self.mqtt.publish(topic, compact_json(document), qos=qos, retain=retain)
-
-
-def _use_tls(client: mqtt.Client, tls: Tls) -> None:
-    client.tls_set(
-        ca_certs=tls.ca_file or None,
-        certfile=tls.cert_file or None,
-        keyfile=tls.key_file or None,
-    )
-    if tls.insecure:
-        client.tls_insecure_set(True)
 
 
 def _name(job: Callable[[], None]) -> str:

@@ -17,17 +17,17 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import paho.mqtt.client as mqtt
-from paho.mqtt.enums import CallbackAPIVersion
-from paho.mqtt.packettypes import PacketTypes
-from paho.mqtt.properties import Properties
 from paho.mqtt.reasoncodes import ReasonCode
 
+from task_manager_mqtt.connection import connect, new_client
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker
 from task_manager_mqtt.topics import ANY_ROBOT, Topics
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
 TIMEOUT_SEC = 10.0
 SESSION_EXPIRY_SEC = 24 * 3600
+RECONNECT_MAX_SEC = 2
+KEEPALIVE_SEC = 60
 # the topics followed, of every robot; the connection last, so that the retained state of a
 # robot is there when it is seen ONLINE
 FOLLOWED = ('reply', 'result', 'tasks', 'active_tasks', 'connection')
@@ -108,16 +108,9 @@ class FleetClient:
         self._followed = (*FOLLOWED, 'event') if events else FOLLOWED
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
-        self._mqtt = mqtt.Client(
-            CallbackAPIVersion.VERSION2,
-            client_id=client_id or f'fleet_{uuid.uuid4().hex[:12]}',
-            protocol=mqtt.MQTTv5,
+        self._mqtt = new_client(
+            client_id or f'fleet_{uuid.uuid4().hex[:12]}', self.broker, RECONNECT_MAX_SEC, 1000
         )
-        if self.broker.username:
-            self._mqtt.username_pw_set(self.broker.username, self.broker.password or None)
-        if self.broker.tls is not None:
-            self._mqtt.tls_set()
-        self._mqtt.max_inflight_messages_set(1000)
         self._mqtt.on_connect = self._on_connect
         self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
         self._mqtt.on_message = self._on_message
@@ -136,12 +129,7 @@ class FleetClient:
 
     def connect(self, timeout_sec: float = TIMEOUT_SEC) -> None:
         """Connect and subscribe (reconnecting by itself afterwards); FleetError if not in time."""
-        properties = Properties(PacketTypes.CONNECT)
-        properties.SessionExpiryInterval = SESSION_EXPIRY_SEC
-        self._mqtt.connect_async(
-            self.broker.host, self.broker.port, clean_start=False, properties=properties
-        )
-        self._mqtt.loop_start()
+        connect(self._mqtt, self.broker, KEEPALIVE_SEC, SESSION_EXPIRY_SEC)
         if not self._subscribed.wait(timeout_sec):
             self.close()
             raise FleetError(f'no connection to the broker at {self.broker.url} in {timeout_sec} s')

@@ -41,6 +41,7 @@ DEFAULTS: dict[str, Any] = {
     'source': 'CLOUD',
     'max_payload_bytes': 1_048_576,
     'keepalive_sec': 10,
+    'reconnect_max_sec': 2,
 }
 LOG_FORMAT = 'task-manager-mqtt: [%(levelname)s] %(message)s'
 
@@ -69,6 +70,9 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument('--max-payload-bytes', type=int, help='largest request (1 MiB)')
     parser.add_argument('--keepalive-sec', type=int, help='MQTT keep-alive (10 s)')
+    parser.add_argument(
+        '--reconnect-max-sec', type=int, help='longest wait between connection attempts (2 s)'
+    )
     return parser.parse_args(argv)
 
 
@@ -99,6 +103,7 @@ def settings_from(options: dict[str, Any]) -> BridgeSettings:
         state_file=None if state_file is None else Path(state_file),
         max_payload_bytes=int(values['max_payload_bytes']),
         keepalive_sec=int(values['keepalive_sec']),
+        reconnect_max_sec=int(values['reconnect_max_sec']),
     )
 
 

@@ -83,6 +83,10 @@ class BridgeSettings:
     max_payload_bytes: int = 1_048_576
     keepalive_sec: int = 10
     """How soon the broker notices a vanished bridge (and sends its last will): 1.5x this."""
+    reconnect_max_sec: int = 2
+    """The longest wait between two connection attempts (they start 1 s apart, doubling):
+    how soon after a broker's return the results waiting are sent. Raise it for a fleet of
+    thousands of robots on one broker, so that a broker restart is not met by all at once."""
 
     def __post_init__(self) -> None:
         check_name('robot_id', self.robot_id)
