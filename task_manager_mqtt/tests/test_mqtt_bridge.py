@@ -93,3 +93,13 @@ def test_a_restarted_bridge_sends_what_ended_meanwhile_and_nothing_again(
     wait_until(lambda: len(results) >= len(ended), 'the results that ended meanwhile')
     assert [t['task_id'] for t in results] == ended
     assert online.robots[ROBOT].duplicates == 0
+
+
+def test_bad_requests_get_an_error_reply_and_start_nothing(online: FleetClient) -> None:
+    unknown = check(online.request(ROBOT, 'dance').result(TIMEOUT_SEC), 'mqtt_reply')
+    missing = check(online.request(ROBOT, 'start_task').result(TIMEOUT_SEC), 'mqtt_reply')
+    assert not unknown['ok'] and unknown['error']['field'] == 'op'
+    allowed = 'allowed: start_task, start_mission, cancel, stop, history'
+    assert allowed in unknown['error']['message']
+    assert not missing['ok'] and missing['error']['field'] == 'task_name'
+    assert online.history(ROBOT, source='CLOUD') == []
