@@ -25,8 +25,8 @@ def demo() -> Iterator[None]:
         task_manager.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
         yield
     finally:
-        assert task_manager.stop() == 0
-        assert robot.stop() == 0
+        assert task_manager.stop() == 0, '\n'.join(task_manager.log_lines)
+        assert robot.stop() == 0, robot.output
 
 
 def run_example(name: str, *args: str) -> subprocess.CompletedProcess[str]:
