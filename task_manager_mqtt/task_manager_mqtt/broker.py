@@ -37,17 +37,26 @@ def free_port() -> int:
 
 class MosquittoBroker:
     def __init__(
-        self, folder: Path, robots: Sequence[str], prefix: str = DEFAULT_PREFIX, port: int = 0
+        self,
+        folder: Path,
+        robots: Sequence[str],
+        prefix: str = DEFAULT_PREFIX,
+        port: int = 0,
+        tls: bool = False,
     ) -> None:
+        """`tls`: listen with TLS only, with a certificate of a CA of its own (`ca_file`)."""
         self.folder = folder
         self.prefix = prefix
         self.port = port or free_port()
+        self.tls = tls
+        self.ca_file: Path | None = None
         self.passwords = {user: secrets.token_urlsafe(12) for user in (CLOUD_USER, *robots)}
         self.process: NodeProcess | None = None
         self._write_files()
 
     def url(self, user: str = CLOUD_USER) -> str:
-        return f'mqtt://{user}:{self.passwords[user]}@127.0.0.1:{self.port}'
+        scheme = 'mqtts' if self.tls else 'mqtt'
+        return f'{scheme}://{user}:{self.passwords[user]}@127.0.0.1:{self.port}'
 
     @property
     def command(self) -> list[str]:
@@ -98,5 +107,13 @@ class MosquittoBroker:
             f'persistence_location {self.folder}/\n'
             f'max_queued_messages {MAX_QUEUED_MESSAGES}\n'
             f'log_dest stderr\n'  # unbuffered: each line as it is written
-            f'log_timestamp false\n'
+            f'log_timestamp false\n' + self._tls_lines()
         )
+
+    def _tls_lines(self) -> str:
+        if not self.tls:
+            return ''
+        from task_manager_mqtt.certificates import write_broker_certificates  # tests only
+
+        self.ca_file, certificate, key = write_broker_certificates(self.folder)
+        return f'cafile {self.ca_file}\ncertfile {certificate}\nkeyfile {key}\n'

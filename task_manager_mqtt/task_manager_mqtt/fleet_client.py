@@ -20,7 +20,7 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
 from task_manager_mqtt.connection import connect, new_client
-from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker
+from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, Tls
 from task_manager_mqtt.topics import ANY_ROBOT, Topics
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
@@ -90,9 +90,14 @@ class FleetClient:
         client_id: str = '',
         source: str = 'CLOUD',
         events: bool = False,
+        ca_file: str = '',
     ) -> None:
-        """`events`: also follow every task event of every robot (see `on_event`)."""
-        self.broker = Broker.from_url(broker_url)
+        """`events`: also follow every task event of every robot (see `on_event`).
+
+        `ca_file`: with an mqtts:// URL, the certificate authorities to trust (else the
+        system's).
+        """
+        self.broker = Broker.from_url(broker_url, Tls(ca_file=ca_file) if ca_file else None)
         self.prefix = prefix
         self.source = source
         self.robots: dict[str, RobotView] = {}

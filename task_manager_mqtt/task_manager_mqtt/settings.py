@@ -53,6 +53,8 @@ class Broker:
             port = parts.port or DEFAULT_PORTS[parts.scheme]
         except ValueError as error:
             raise SettingsError(f'broker URL {url!r}: {error}') from None
+        if parts.scheme == 'mqtt' and tls is not None:
+            raise SettingsError(f'broker URL {url!r}: TLS settings need an mqtts:// URL')
         if parts.scheme == 'mqtts' and tls is None:
             tls = Tls()
         return cls(

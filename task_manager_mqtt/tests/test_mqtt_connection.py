@@ -102,3 +102,20 @@ def test_a_broker_down_at_start_is_retried_and_said_once(
     finally:
         bridge.stop()
         later.stop()
+
+
+def test_tls_with_the_brokers_own_certificate_authority(
+    robot: Robot, start_bridge: Callable[..., BridgeProcess], tmp_path: Path
+) -> None:
+    secure = MosquittoBroker(tmp_path / 'tls', robots=[ROBOT], tls=True)
+    secure.start()
+    try:
+        assert secure.url().startswith('mqtts://') and secure.ca_file is not None
+        bridge = start_bridge('--ca-file', str(secure.ca_file), url=secure.url(ROBOT))
+        with FleetClient(secure.url(), ca_file=str(secure.ca_file)) as fleet:
+            assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
+            task = fleet.start_task(ROBOT, 'instant', {'data': True})
+            assert task.result()['status'] == 'DONE'
+        assert bridge.stop() == 0
+    finally:
+        secure.stop()

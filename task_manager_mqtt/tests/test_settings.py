@@ -5,7 +5,7 @@ from pathlib import Path
 import pytest
 
 from task_manager_mqtt.main import main, settings_from
-from task_manager_mqtt.settings import Broker, SettingsError
+from task_manager_mqtt.settings import Broker, SettingsError, Tls
 
 
 def test_broker_urls() -> None:
@@ -19,6 +19,8 @@ def test_broker_urls() -> None:
     for bad in ('http://host', 'mqtt://', 'mqtt://host:99999'):
         with pytest.raises(SettingsError, match='broker URL'):
             Broker.from_url(bad)
+    with pytest.raises(SettingsError, match='need an mqtts:// URL'):
+        Broker.from_url('mqtt://host', Tls(ca_file='ca.pem'))
 
 
 def test_the_file_gives_settings_and_options_win(tmp_path: Path) -> None:
