@@ -17,11 +17,13 @@ os.environ['ROS_HOME'] = os.path.join(
     os.path.dirname(__file__), 'build', 'test-ros-home', str(os.getpid())
 )
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 import rclpy
 
+from task_manager.testing.gateway import Robot, ScriptedRobot
 from task_manager.testing.harness import RosHarness
 
 
@@ -38,6 +40,20 @@ def ros(ros_context: None, request: pytest.FixtureRequest) -> Iterator[RosHarnes
     harness = RosHarness(f'test_{abs(hash(request.node.nodeid)) % 10**8}')
     yield harness
     harness.close()
+
+
+@pytest.fixture
+def start_robot(ros: RosHarness, tmp_path: Path) -> Iterator[Callable[[], Robot]]:
+    """The gateways' tests: start a Task Manager serving `fib` and `instant` (see
+    ScriptedRobot); callable again after `robot.process.stop()`."""
+    robot = ScriptedRobot(ros, tmp_path)
+    yield robot.start
+    robot.close()
+
+
+@pytest.fixture
+def robot(start_robot: Callable[[], Robot]) -> Robot:
+    return start_robot()
 
 
 # The slowest test files, started first: with the files shared out between two processes

@@ -9,16 +9,15 @@ launcher itself is killed, its children get SIGTERM.
 
 import argparse
 import os
-import queue
 import re
 import shutil
 import sys
 import textwrap
 from pathlib import Path
 
-from task_manager_demo.children import Events, forward_stop_signals
+from task_manager_demo.children import Events
 from task_manager_demo.robot_interface import ROBOT_READY_LOG
-from task_manager_demo.supervisor import EXIT_FAILED, Supervisor, say
+from task_manager_demo.supervisor import Supervisor, say, supervise
 
 PACKAGE = 'task_manager_demo'
 PARAMS_NAME = 'demo_tasks.yaml'
@@ -110,15 +109,8 @@ class Demo(Supervisor):
             web = [find_executable(*WEB_EXECUTABLE), '--port', str(self.web_port)]
             self.start_child('web', web, WEB_READY)
 
-    def run(self, ready_timeout_sec: float) -> int:
-        """Wait for the children to be ready, then until a signal; the exit code."""
-        ready = self.wait_ready(ready_timeout_sec)
-        if ready is None:
-            return EXIT_FAILED
-        if not ready:
-            return 0
-        say(banner(ready['tasks'], ready['pose'], self.params_file, ready.get('dashboard', '')))
-        return self.follow()
+    def banner(self, ready: dict[str, str]) -> str:
+        return banner(ready['tasks'], ready['pose'], self.params_file, ready.get('dashboard', ''))
 
 
 def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
@@ -148,19 +140,12 @@ def main(argv: list[str] | None = None) -> int:
     if not params_file.is_file():
         say(f'task-manager-demo: no parameters file {params_file}')
         return EXIT_USAGE
-    events: Events = queue.SimpleQueue()
-    forward_stop_signals(events)
-    demo = Demo(params_file, events, None if options.no_web else options.web_port)
-    try:
-        demo.start()
-        code = demo.run(options.ready_timeout)
-    finally:
-        stopped_cleanly = demo.stop()
-    if not stopped_cleanly:
-        return EXIT_FAILED
-    if code == 0:
-        say('task-manager-demo: the robot and the Task Manager have stopped')
-    return code
+    web_port = None if options.no_web else options.web_port
+    return supervise(
+        lambda events: Demo(params_file, events, web_port),
+        options.ready_timeout,
+        'task-manager-demo: the robot and the Task Manager have stopped',
+    )
 
 
 if __name__ == '__main__':

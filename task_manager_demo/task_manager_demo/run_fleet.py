@@ -9,7 +9,6 @@ their logs. Ctrl-C stops everything it started.
 
 import argparse
 import os
-import queue
 import re
 import sys
 import textwrap
@@ -18,7 +17,7 @@ from pathlib import Path
 from task_manager_mqtt.broker import READY_LINE, MosquittoBroker
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 
-from task_manager_demo.children import Events, forward_stop_signals
+from task_manager_demo.children import Events
 from task_manager_demo.run_demo import (
     READY_TIMEOUT_SEC,
     ROBOT_EXECUTABLE,
@@ -29,7 +28,7 @@ from task_manager_demo.run_demo import (
     find_executable,
     shown_path,
 )
-from task_manager_demo.supervisor import EXIT_FAILED, Supervisor, say
+from task_manager_demo.supervisor import Supervisor, supervise
 
 BRIDGE_EXECUTABLE = ('task-manager-mqtt', 'task_manager_mqtt')
 BRIDGE_READY = re.compile(r'connected to the broker')
@@ -87,16 +86,7 @@ class Fleet(Supervisor):
         ]
         self.start_child(f'{robot_id}/bridge', bridge, BRIDGE_READY, env)
 
-    def run(self, ready_timeout_sec: float) -> int:
-        ready = self.wait_ready(ready_timeout_sec)
-        if ready is None:
-            return EXIT_FAILED
-        if not ready:
-            return 0
-        say(self.banner())
-        return self.follow()
-
-    def banner(self) -> str:
+    def banner(self, ready: dict[str, str]) -> str:
         url = self.broker.url()
         python = shown_path(Path(sys.executable))
         robots = ', '.join(f'{r} (ROS domain {d})' for r, d in self.domains.items())
@@ -157,19 +147,11 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     options = parse_arguments(argv)
-    events: Events = queue.SimpleQueue()
-    forward_stop_signals(events)
-    fleet = Fleet(options, events)
-    try:
-        fleet.start()
-        code = fleet.run(options.ready_timeout)
-    finally:
-        stopped_cleanly = fleet.stop()
-    if not stopped_cleanly:
-        return EXIT_FAILED
-    if code == 0:
-        say('task-manager-fleet: the fleet has stopped')
-    return code
+    return supervise(
+        lambda events: Fleet(options, events),
+        options.ready_timeout,
+        'task-manager-fleet: the fleet has stopped',
+    )
 
 
 if __name__ == '__main__':

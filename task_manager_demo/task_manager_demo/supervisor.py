@@ -10,8 +10,17 @@ import contextlib
 import queue
 import re
 import time
+from collections.abc import Callable
 
-from task_manager_demo.children import Child, Event, Events, Exited, Line, Signalled
+from task_manager_demo.children import (
+    Child,
+    Event,
+    Events,
+    Exited,
+    Line,
+    Signalled,
+    forward_stop_signals,
+)
 
 STOP_TIMEOUT_SEC = 10.0
 EXIT_FAILED = 1
@@ -26,6 +35,8 @@ def say(text: str) -> None:
 
 
 class Supervisor:
+    """Subclasses start their children in `start` and say what to try in `banner`."""
+
     def __init__(self, events: Events, prefix_lines: bool = False) -> None:
         """`prefix_lines`: stream each log line as `[child] line`."""
         self.events = events
@@ -46,6 +57,23 @@ class Supervisor:
         self.children.append(child)
         self._ready[child] = ready
         return child
+
+    def start(self) -> None:
+        raise NotImplementedError
+
+    def banner(self, ready: dict[str, str]) -> str:
+        """What is printed once every child is ready (`ready`: their ready lines' groups)."""
+        raise NotImplementedError
+
+    def run(self, ready_timeout_sec: float) -> int:
+        """Wait for the children to be ready, then until a signal; the exit code."""
+        ready = self.wait_ready(ready_timeout_sec)
+        if ready is None:
+            return EXIT_FAILED
+        if not ready:
+            return 0
+        say(self.banner(ready))
+        return self.follow()
 
     def wait_ready(self, timeout_sec: float) -> dict[str, str] | None:
         """The named groups of the ready lines; {} when stopped by a signal first; None on a
@@ -121,3 +149,21 @@ class Supervisor:
         for child in children:
             say(f'{child.name} {state}; its output:')
             say('\n'.join(f'  {line}' for line in child.output) or '  (none)')
+
+
+def supervise(make: Callable[[Events], Supervisor], ready_timeout_sec: float, stopped: str) -> int:
+    """Start, run and stop the supervisor `make(events)` gives; `stopped` said after a clean
+    stop. The exit code: 0, or EXIT_FAILED when a child failed or did not stop by itself."""
+    events: Events = queue.SimpleQueue()
+    forward_stop_signals(events)
+    supervisor = make(events)
+    try:
+        supervisor.start()
+        code = supervisor.run(ready_timeout_sec)
+    finally:
+        stopped_cleanly = supervisor.stop()
+    if not stopped_cleanly:
+        return EXIT_FAILED
+    if code == 0:
+        say(stopped)
+    return code

@@ -6,8 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from task_manager.testing.gateway import Robot, ScriptedRobot
-from task_manager.testing.harness import RosHarness
+from task_manager.testing.gateway import Robot
 from task_manager_mqtt.broker import MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.testing import ROBOT, BridgeProcess
@@ -21,18 +20,6 @@ def broker(tmp_path: Path) -> Iterator[MosquittoBroker]:
     broker.start()
     yield broker
     broker.stop()
-
-
-@pytest.fixture
-def start_robot(ros: RosHarness, tmp_path: Path) -> Iterator[Callable[[], Robot]]:
-    robot = ScriptedRobot(ros, tmp_path)
-    yield robot.start
-    robot.close()
-
-
-@pytest.fixture
-def robot(start_robot: Callable[[], Robot]) -> Robot:
-    return start_robot()
 
 
 @pytest.fixture

@@ -10,22 +10,8 @@ from pathlib import Path
 import httpx
 import pytest
 
-from task_manager.testing.gateway import TIMEOUT_SEC, Robot, ScriptedRobot, wait_until
-from task_manager.testing.harness import RosHarness
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, wait_until
 from task_manager_web.testing import GatewayProcess
-
-
-@pytest.fixture
-def start_robot(ros: RosHarness, tmp_path: Path) -> Iterator[Callable[[], Robot]]:
-    """Start the Task Manager (callable again after `robot.process.stop()`)."""
-    robot = ScriptedRobot(ros, tmp_path)
-    yield robot.start
-    robot.close()
-
-
-@pytest.fixture
-def robot(start_robot: Callable[[], Robot]) -> Robot:
-    return start_robot()
 
 
 @pytest.fixture
