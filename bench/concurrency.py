@@ -24,7 +24,7 @@ from test_msgs.action import Fibonacci
 from bench import config
 from bench.client import BENCH_SOURCE, ActiveTasksWatcher, Publication, task_status
 from bench.context import BenchContext, succeeded
-from bench.processes import ResourceSampler
+from bench.processes import ResourceSampler, cpu_percent
 from bench.replies import BenchError
 from bench.report import Row
 from bench.stats import Summary, last_reply_after, ratio
@@ -33,6 +33,8 @@ from task_manager.ros.futures import result_of
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray
 
 THREAD_GROWTH_ALLOWED = 2
+# 1,000 tasks each woken once a second would cost far more than this in Python
+WAITING_CPU_TARGET_PERCENT = 2.0
 PUBLICATION_COPY_TOPIC = '/bench/active_tasks_copy'
 MIB = 1024 * 1024
 
@@ -51,6 +53,8 @@ class HoldRun:
 
     ramp_sec: float
     drain_sec: float
+    waiting_cpu_percent: float = 0.0
+    """The node's CPU while every task waited on its server (through the manager only)."""
 
 
 def direct_hold(ctx: BenchContext, count: int) -> HoldRun:
@@ -78,6 +82,8 @@ def managed_hold(
         for index in range(count)
     ]
     ramp_sec = watcher.wait_in_progress(count, config.BURST_TIMEOUT_SEC) - started
+    with ctx.profiled(f'{count} tasks waiting on their server'):
+        waiting_cpu = cpu_percent(ctx.node.pid, config.WAITING_CPU_SEC)
     watcher.take_history()
     loaded_ms = [ctx.fibonacci_task_ms() for _ in range(config.LOADED_SAMPLES)]
     loaded_gaps_ms = publication_gaps_ms(watcher.take_history(), count)
@@ -91,7 +97,7 @@ def managed_hold(
     failed = sum(1 for future in results if task_status(result_of(future)) != 'DONE')
     if failed:
         raise BenchError(f'{failed} of {count} held tasks did not end DONE')
-    return HoldRun(ramp_sec, drain_sec), Loaded(loaded_ms, loaded_gaps_ms)
+    return HoldRun(ramp_sec, drain_sec, waiting_cpu), Loaded(loaded_ms, loaded_gaps_ms)
 
 
 def publication_gaps_ms(history: list[Publication], in_progress: int) -> list[float]:
@@ -146,9 +152,18 @@ class Usage:
     rss_bytes: int
 
 
-def resource_rows(count: int, idle: Usage, peak: Usage) -> list[Row]:
+def resource_rows(count: int, idle: Usage, peak: Usage, waiting_cpu: float) -> list[Row]:
     growth = peak.threads - idle.threads
     return [
+        Row(
+            benchmark=f'concurrency {count}',
+            metric=f'node CPU while all wait on their server, % of one core over '
+            f'{config.WAITING_CPU_SEC:.0f} s',
+            measured=f'{waiting_cpu:.2f} %',
+            baseline='',
+            target=f'< {WAITING_CPU_TARGET_PERCENT:.0f} % (no per-task polling)',
+            met=waiting_cpu < WAITING_CPU_TARGET_PERCENT,
+        ),
         Row(
             benchmark=f'concurrency {count}',
             metric='node threads, idle -> peak',
@@ -244,6 +259,6 @@ def run(ctx: BenchContext) -> None:
     peak_usage = Usage(sampler.peak_threads, sampler.peak_rss_bytes)
     ctx.report.add(
         *hold_rows(count, direct, managed),
-        *resource_rows(count, idle_usage, peak_usage),
+        *resource_rows(count, idle_usage, peak_usage, managed.waiting_cpu_percent),
         *publication_rows(count, idle, loaded, publication_copy(ctx, count)),
     )

@@ -22,6 +22,7 @@ from bench import (
     feedback,
     history,
     isolation,
+    leak,
     mission,
     mqtt,
     startup,
@@ -49,6 +50,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     # last: they restart the node for each phase, then once more with the default parameters
     'events': events.run,
     'history': history.run,
+    'leak': leak.run,
     'startup': startup.run,
 }
 

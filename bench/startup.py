@@ -12,11 +12,9 @@ lets its ExecuteTask server drop the goals it keeps.
 import re
 import time
 
-import psutil
-
 from bench import config
 from bench.context import BenchContext
-from bench.processes import start_node
+from bench.processes import cpu_percent, start_node
 from bench.replies import BenchError
 from bench.report import Row
 from bench.stats import Summary
@@ -42,23 +40,13 @@ def startup_ms(ctx: BenchContext) -> tuple[float, float]:
     return replied_ms, (float(ready['stamp']) - spawned_at) * 1000
 
 
-def idle_cpu_percent(pid: int, seconds: float) -> float:
-    """The process's CPU time over `seconds` of wall time, in % of one core."""
-    process = psutil.Process(pid)
-    before = process.cpu_times()
-    time.sleep(seconds)  # the measured interval itself: nothing to wait for
-    after = process.cpu_times()
-    used = (after.user - before.user) + (after.system - before.system)
-    return 100 * used / seconds
-
-
 def run(ctx: BenchContext) -> None:
     pairs = [startup_ms(ctx) for _ in range(config.STARTUP_SAMPLES)]
     samples = [replied for replied, _ in pairs]
     startup = Summary.of(samples)
     ready = Summary.of([ready for _, ready in pairs])
     ctx.settle()
-    idle = idle_cpu_percent(ctx.node.pid, config.IDLE_SEC)
+    idle = cpu_percent(ctx.node.pid, config.IDLE_SEC)
     ctx.report.add(
         Row(
             benchmark='startup',
