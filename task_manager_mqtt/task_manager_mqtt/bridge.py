@@ -108,7 +108,11 @@ class Bridge:
 
     def _mqtt_client(self, broker: Broker) -> mqtt.Client:
         client_id = f'task_manager_{self.settings.robot_id}'
-        client = new_client(client_id, broker, self.settings.reconnect_max_sec, MAX_IN_FLIGHT)
+        # a request is acknowledged once answered: one the bridge received but never answered
+        # (it was killed) is delivered again when it reconnects
+        client = new_client(
+            client_id, broker, self.settings.reconnect_max_sec, MAX_IN_FLIGHT, manual_ack=True
+        )
         will = self._connection('CONNECTIONBROKEN', task_manager_connected=False)
         client.will_set(self.topics.connection, compact_json(will), qos=1, retain=True)
         client.on_connect = self._on_connect
@@ -163,7 +167,7 @@ class Bridge:
             self._reconnecting = True
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
-        self._jobs.put(partial(self._answer, bytes(message.payload)))
+        self._jobs.put(partial(self._answer, bytes(message.payload), message.mid, message.qos))
 
     def _on_publish(self, _: mqtt.Client, __: Any, mid: int, reason: ReasonCode, ___: Any) -> None:
         if reason.is_failure:
@@ -260,11 +264,12 @@ class Bridge:
             self._active[event.task.task_id] = document['task']
         self._queue_active()
 
-    def _answer(self, payload: bytes) -> None:
+    def _answer(self, payload: bytes, message_id: int, qos: int) -> None:
         if not self.outbox.known and self.client.connected:
             self._set_start_point()  # before any task this request starts could end
         reply = self.requests.reply(payload)
         self._publish(self.topics.reply, reply, 1, False)
+        self.mqtt.ack(message_id, qos)
 
     # ---- results ------------------------------------------------------------------------------
 

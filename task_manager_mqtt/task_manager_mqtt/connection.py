@@ -14,14 +14,24 @@ RECONNECT_MIN_SEC = 1
 
 
 def new_client(
-    client_id: str, broker: Broker, reconnect_max_sec: int, max_in_flight: int
+    client_id: str,
+    broker: Broker,
+    reconnect_max_sec: int,
+    max_in_flight: int,
+    manual_ack: bool = False,
 ) -> mqtt.Client:
     """An MQTT 5 client with the broker's credentials and TLS; it sends each packet at once.
 
     `max_in_flight`: QoS 1 messages sent before their acknowledgements (paho's default, 20,
-    slows a burst).
+    slows a burst). `manual_ack`: a message received is acknowledged by `client.ack()`, not
+    as soon as it arrived.
     """
-    client = mqtt.Client(CallbackAPIVersion.VERSION2, client_id=client_id, protocol=mqtt.MQTTv5)
+    client = mqtt.Client(
+        CallbackAPIVersion.VERSION2,
+        client_id=client_id,
+        protocol=mqtt.MQTTv5,
+        manual_ack=manual_ack,
+    )
     if broker.username:
         client.username_pw_set(broker.username, broker.password or None)
     if broker.tls is not None:
