@@ -27,6 +27,7 @@ LOG = logging.getLogger('task_manager_mqtt.fleet')
 TIMEOUT_SEC = 10.0
 SESSION_EXPIRY_SEC = 24 * 3600
 RECONNECT_MAX_SEC = 2
+FINAL_STATUSES = ('DONE', 'ERROR', 'CANCELED')
 KEEPALIVE_SEC = 60
 # the topics followed, of every robot; the connection last, so that the retained state of a
 # robot is there when it is seen ONLINE
@@ -208,12 +209,19 @@ class FleetClient:
         return FleetTask(robot_id, task_id, reply, result)
 
     def _on_start_reply(self, robot_id: str, task_id: str, reply: Future[Document]) -> None:
+        """A refused start fails its result; a duplicate of an ended task has it already."""
         document = reply.result()
-        if document.get('ok'):
+        known = document.get('task') or {}
+        ended = document.get('duplicate') and known.get('status') in FINAL_STATUSES
+        if document.get('ok') and not ended:
             return
         with self._lock:
             result = self._results.pop((robot_id, task_id), None)
-        if result is not None and not result.done():
+        if result is None or result.done():
+            return
+        if ended:
+            result.set_result(known)
+        else:
             error = document.get('error') or {}
             result.set_exception(FleetError(error.get('message', 'refused'), error.get('code', '')))
 

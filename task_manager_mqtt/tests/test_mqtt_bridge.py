@@ -57,6 +57,10 @@ def test_a_request_delivered_twice_starts_one_task(online: FleetClient) -> None:
     assert online.cancel(ROBOT, ['cloud-42'])['status'] == 'DONE'
     stored = online.history(ROBOT, source='CLOUD', task_name='fib')
     assert [t['task_id'] for t in stored] == ['cloud-42']
+    # started again once it ended: the FleetTask has the ended task at once
+    again_later = online.start_task(ROBOT, 'fib', {'order': 1}, task_id='cloud-42')
+    assert again_later.accepted()['duplicate']
+    assert again_later.result()['status'] == 'CANCELED'
 
 
 def test_every_result_of_a_broker_outage_arrives_once_in_order(
