@@ -35,7 +35,7 @@ def running_bridge(ctx: BenchContext) -> Iterator[tuple[MosquittoBroker, FleetCl
     broker.start()
     bridge = BridgeProcess(ROBOT, broker.url(ROBOT), ctx.log_dir / 'mqtt_acked')
     try:
-        with FleetClient(broker.url()) as fleet:
+        with FleetClient(broker.url(), client_id='bench-cloud') as fleet:
             if not fleet.wait_online([ROBOT], config.CONNECT_TIMEOUT_SEC):
                 raise BenchError('the bridge did not come online with its node')
             yield broker, fleet

@@ -1,8 +1,9 @@
 """`FleetClient`: the cloud side. Start tasks and missions on robots by id, wait for their
 results, follow every robot's connection and active tasks, through one MQTT broker.
 
-It keeps a session on the broker (a stable client id, clean_start false), so results that
-robots send while this client is away wait for it on the broker. Each robot's results are
+Given a client id of its own (stable across runs), it keeps a session on the broker, so
+that results robots send while this client is away (a restart, the broker's) wait for it
+there; without one, its session ends with its connection. Each robot's results are
 told apart by sequence number: one delivered twice (after a reconnection) is passed on once.
 """
 
@@ -93,7 +94,9 @@ class FleetClient:
         events: bool = False,
         ca_file: str = '',
     ) -> None:
-        """`events`: also follow every task event of every robot (see `on_event`).
+        """`client_id`: a stable one keeps this client's session (and the results sent while
+        it is away) on the broker for SESSION_EXPIRY_SEC; empty: a new id, no session kept.
+        `events`: also follow every task event of every robot (see `on_event`).
 
         `ca_file`: with an mqtts:// URL, the certificate authorities to trust (else the
         system's).
@@ -114,6 +117,7 @@ class FleetClient:
         self._followed = (*FOLLOWED, 'event') if events else FOLLOWED
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
+        self._session_sec = SESSION_EXPIRY_SEC if client_id else 0
         self._mqtt = new_client(
             client_id or f'fleet_{uuid.uuid4().hex[:12]}', self.broker, RECONNECT_MAX_SEC, 1000
         )
@@ -135,7 +139,7 @@ class FleetClient:
 
     def connect(self, timeout_sec: float = TIMEOUT_SEC) -> None:
         """Connect and subscribe (reconnecting by itself afterwards); FleetError if not in time."""
-        connect(self._mqtt, self.broker, KEEPALIVE_SEC, SESSION_EXPIRY_SEC)
+        connect(self._mqtt, self.broker, KEEPALIVE_SEC, self._session_sec)
         if not self._subscribed.wait(timeout_sec):
             self.close()
             raise FleetError(f'no connection to the broker at {self.broker.url} in {timeout_sec} s')

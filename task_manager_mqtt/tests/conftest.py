@@ -42,7 +42,7 @@ def start_bridge(broker: MosquittoBroker, tmp_path: Path) -> Iterator[Callable[.
 
 @pytest.fixture
 def fleet(broker: MosquittoBroker) -> Iterator[FleetClient]:
-    with FleetClient(broker.url(), events=True) as client:
+    with FleetClient(broker.url(), client_id='test-cloud', events=True) as client:
         yield client
 
 
