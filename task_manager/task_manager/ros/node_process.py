@@ -11,10 +11,12 @@ from rclpy.task import Future
 
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.params_file import check_params_file, params_files
+from task_manager.ros import parking_executor
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import wake
 from task_manager.ros.instances import describe
 from task_manager.ros.node import EXECUTE_TASK_ACTION, NODE_NAME, TaskManagerNode
+from task_manager.ros.parking_executor import ParkingExecutor
 
 EXIT_CONFIGURATION_ERROR = 2
 EXIT_ANOTHER_TASK_MANAGER = 2
@@ -63,7 +65,8 @@ def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # rcl refuses the arguments or the parameters file
         return _refuse_configuration(error)
-    executor = SingleThreadedExecutor()
+    parking_executor.install()
+    executor = ParkingExecutor()
     try:
         node = TaskManagerNode()
     except Exception as error:  # a value rclpy refuses (a list of mixed types, a bad name)

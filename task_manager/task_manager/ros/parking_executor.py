@@ -1,0 +1,79 @@
+"""An executor that resumes a waiting coroutine only once the future it awaits has completed.
+
+rclpy's executors resume every pending coroutine task at each wake-up (a timer, a message,
+anything): with 1,000 tasks waiting on their servers, every wake-up steps 1,000 coroutines
+that only find their future still pending. Here a task suspended on a pending rclpy Future
+is *parked*: taken out of the executor's task list until that future completes, when it is
+put back and the executor woken. A task suspended on anything else is resumed at each
+wake-up, as before.
+
+How the awaited future is known: `Future.__await__` is replaced (in this process, by
+`install()`) by one that notes the future on a thread-local just before it yields; the task
+reads the note after each step. Nothing else about futures changes.
+"""
+
+import threading
+from collections.abc import Callable, Generator
+from typing import Any
+
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.task import Future, Task
+
+_noted = threading.local()
+
+
+def _await_noting_the_future(self: Future[Any]) -> Generator[None, None, Any]:
+    while self._pending():
+        _noted.future = self
+        yield
+    return self.result()
+
+
+def install() -> None:
+    """Let coroutines awaiting rclpy futures tell the ParkingExecutor what they await."""
+    Future.__await__ = _await_noting_the_future  # type: ignore[method-assign]
+
+
+class _ParkingTask(Task[Any]):
+    def __init__(self, executor: 'ParkingExecutor', handler: Callable[..., Any], args: Any,
+                 kwargs: Any) -> None:  # fmt: skip
+        super().__init__(handler, args, kwargs, executor=executor)
+        self._parking = executor
+        self.parked = False
+
+    def __call__(self) -> None:
+        _noted.future = None
+        super().__call__()
+        awaited, _noted.future = getattr(_noted, 'future', None), None
+        if awaited is not None and self._pending() and not awaited.done():
+            self._parking.park(self, awaited)
+
+
+class ParkingExecutor(SingleThreadedExecutor):
+    """A SingleThreadedExecutor whose coroutine tasks wait off its list (see the module)."""
+
+    def create_task(self, callback: Callable[..., Any], *args: Any, **kwargs: Any) -> Task[Any]:
+        task = _ParkingTask(self, callback, args, kwargs)
+        self._resume(task)
+        return task
+
+    def park(self, task: _ParkingTask, awaited: Future[Any]) -> None:
+        """Take `task` off the list until `awaited` completes (or is cancelled)."""
+        with self._tasks_lock:
+            task.parked = True
+            self._tasks = [entry for entry in self._tasks if entry[0] is not task]
+        awaited.add_done_callback(lambda _: self._unpark(task))
+
+    def _unpark(self, task: _ParkingTask) -> None:
+        with self._tasks_lock:
+            if not task.parked:
+                return
+            task.parked = False
+        self._resume(task)
+
+    def _resume(self, task: Task[Any]) -> None:
+        """Put `task` on the list and wake the executor (thread-safe)."""
+        with self._tasks_lock:
+            self._tasks.append((task, None, None))
+            if self._guard:
+                self._guard.trigger()
