@@ -1,0 +1,62 @@
+"""ParkingExecutor: a coroutine waiting on a future is not stepped until the future completes."""
+
+import threading
+
+import pytest
+from rclpy.task import Future
+
+from task_manager.ros import parking_executor
+from task_manager.ros.parking_executor import ParkingExecutor
+
+pytestmark = pytest.mark.ros
+UNRELATED_WAKE_UPS = 20
+
+
+class CountingFuture(Future[int]):
+    """Counts how often an awaiting coroutine checked it (once per step of the coroutine)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.checks = 0
+
+    def _pending(self) -> bool:
+        self.checks += 1
+        return super()._pending()
+
+
+def test_a_waiting_coroutine_is_stepped_only_when_its_future_completes(ros_context: None) -> None:
+    parking_executor.install()
+    executor = ParkingExecutor()
+    future = CountingFuture()
+    seen: list[int | None] = []
+
+    async def waiter() -> None:
+        seen.append(await future)
+
+    task = executor.create_task(waiter)
+    executor.spin_once(timeout_sec=0.0)  # runs it up to the await
+    checks_at_the_await = future.checks
+    for _ in range(UNRELATED_WAKE_UPS):
+        executor.create_task(lambda: None)
+        executor.spin_once(timeout_sec=0.0)
+    assert future.checks == checks_at_the_await  # rclpy's executor steps it at each wake-up
+
+    threading.Thread(target=future.set_result, args=(7,)).start()  # from another thread
+    executor.spin_until_future_complete(task, timeout_sec=5.0)
+    assert task.done() and seen == [7]
+    executor.shutdown()
+
+
+def test_a_coroutine_awaiting_a_future_already_done_goes_on_at_once(ros_context: None) -> None:
+    parking_executor.install()
+    executor = ParkingExecutor()
+    done: Future[int] = Future()
+    done.set_result(3)
+
+    async def twice() -> int:
+        return (await done or 0) + (await done or 0)
+
+    task = executor.create_task(twice)
+    executor.spin_until_future_complete(task, timeout_sec=5.0)
+    assert task.result() == 6
+    executor.shutdown()
