@@ -13,6 +13,8 @@ from typing import Any, TypeVar
 from rclpy.node import Node
 from rclpy.task import Future
 
+from task_manager.ros.cleanup import destroy_timer
+
 T = TypeVar('T')
 
 
@@ -107,7 +109,7 @@ async def wait_for(node: Node, future: Future[Any], timeout_sec: float) -> bool:
         winner = await resolved(node, first_completed([future, deadline]))
     finally:
         timer.cancel()
-        node.destroy_timer(timer)
+        destroy_timer(node, timer)
     return winner == 0 or future.done()
 
 
@@ -136,5 +138,5 @@ async def wait_until_ready(node: Node, is_ready: Callable[[], bool], timeout_sec
     finally:
         for timer in (checker, limit):
             timer.cancel()
-            node.destroy_timer(timer)
+            destroy_timer(node, timer)
     return ready.done() or bool(is_ready())

@@ -19,6 +19,7 @@ from rclpy.timer import Timer
 
 from task_manager.core.history import TaskHistory
 from task_manager.core.task import TaskRecord
+from task_manager.ros.cleanup import destroy_timer
 
 WRITE_ERROR_LOG_PERIOD_SEC = 60.0
 RETRY_AFTER_SEC = 5.0
@@ -85,6 +86,6 @@ class HistoryWriter:
 
     def _retry_flush(self) -> None:
         if self._retry is not None:
-            self._node.destroy_timer(self._retry)
+            destroy_timer(self._node, self._retry)
             self._retry = None
         self._flush_soon()

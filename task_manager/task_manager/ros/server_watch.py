@@ -16,6 +16,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
 
+from task_manager.ros.cleanup import destroy_timer
+
 # A probe answers True (alive now), False (gone now), or a future that completes if alive.
 Probe = Callable[[], bool | Future]
 
@@ -65,7 +67,7 @@ class ServerWatch:
         self._in_flight.discard(execution)
         if not self._in_flight and self._timer is not None:
             self._timer.cancel()
-            self._node.destroy_timer(self._timer)
+            destroy_timer(self._node, self._timer)
             self._timer = None
             self._probe_in_flight = None
 

@@ -10,6 +10,7 @@ from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, status_for_service_response
 from task_manager.core.task_spec import TaskSpec
+from task_manager.ros.cleanup import destroy_timer
 from task_manager.ros.execution import RunnerTimeouts
 from task_manager.ros.futures import wait_for, wait_until_ready
 from task_manager.ros.message_json import message_from_json, message_to_dict
@@ -52,7 +53,7 @@ class ServiceExecution:
 
     def _clean_up(self) -> None:
         self._deadline.cancel()
-        self._node.destroy_timer(self._deadline)
+        destroy_timer(self._node, self._deadline)
         if not self._response_future.done():
             self._client.remove_pending_request(self._response_future)
 

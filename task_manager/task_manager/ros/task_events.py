@@ -18,6 +18,7 @@ from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.task import TaskRecord
 from task_manager.ros import qos
+from task_manager.ros.cleanup import destroy_timer
 from task_manager.ros.message_json import dict_to_json
 
 TASK_EVENTS_TOPIC = '/task_manager/task_events'
@@ -110,7 +111,7 @@ class TaskEventStream:
         """Send the held feedback of `record`, if any (its slot has come, or it ends)."""
         timer = self._timers.pop(record.task_id, None)
         if timer is not None:
-            self._node.destroy_timer(timer)
+            destroy_timer(self._node, timer)
         gate = self._gates.get(record.task_id)
         if gate is not None and gate.release(time.monotonic()):
             self._publish(TaskEvent.FEEDBACK, record)

@@ -8,6 +8,7 @@ from task_manager_msgs.action import Wait
 
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.ros.cleanup import destroy_timer
 from task_manager.ros.message_json import message_from_json
 from task_manager.ros.system.specs import WAIT_SPEC
 
@@ -46,7 +47,7 @@ class WaitExecution:
     def _end(self, status: TaskStatus) -> None:
         for timer in self._timers:
             timer.cancel()
-            self._node.destroy_timer(timer)
+            destroy_timer(self._node, timer)
         self._timers.clear()
         if not self.outcome.done():
             self.outcome.set_result(TaskEnd(status, {}))
