@@ -11,8 +11,8 @@ CONSTRAINTS := requirements/ros-constraints.txt
 PARAMS ?= task_manager/params/task_manager_defaults.yaml
 # The dashboard's port for `make run` (0: any free one).
 WEB_PORT ?= 8080
-# The broker's port for `make fleet` (0: any free one).
-FLEET_PORT ?= 1883
+# The broker's port for `make fleet`; 0: any free one (a system mosquitto may hold 1883).
+FLEET_PORT ?= 0
 
 .PHONY: help install test run fleet bench lint clean
 

@@ -1,7 +1,7 @@
 """Send a photo mission to every robot of a fleet through the broker, and print its progress
 (run `make fleet` first; it prints this command with the broker URL).
 
-.venv/bin/python examples/fleet_mission.py --broker-url mqtt://cloud:PASSWORD@127.0.0.1:1883
+.venv/bin/python examples/fleet_mission.py --broker-url mqtt://cloud:PASSWORD@127.0.0.1:PORT
 """
 
 import argparse

@@ -34,7 +34,8 @@ BRIDGE_EXECUTABLE = ('task-manager-mqtt', 'task_manager_mqtt')
 BRIDGE_READY = re.compile(r'connected to the broker')
 BROKER_READY = re.compile(READY_LINE)
 DEFAULT_ROBOTS = 3
-DEFAULT_PORT = 1883
+DEFAULT_PORT = 0
+"""Any free port: a system mosquitto (Debian starts one when installed) may hold 1883."""
 DEFAULT_FIRST_DOMAIN = 1
 RULE = '=' * 78
 EXAMPLE = Path('examples') / 'fleet_mission.py'
@@ -118,7 +119,7 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog='task-manager-fleet', description=__doc__)
     parser.add_argument('--robots', type=int, default=DEFAULT_ROBOTS, help='how many (3)')
     parser.add_argument(
-        '--broker-port', type=int, default=DEFAULT_PORT, help='0: any free one (1883)'
+        '--broker-port', type=int, default=DEFAULT_PORT, help='default 0: any free one'
     )
     parser.add_argument(
         '--first-domain',
