@@ -10,6 +10,9 @@ from typing import Any
 __all__ = [
     'ActiveTaskInfo',
     'ErrorCode',
+    'OverlapPolicy',
+    'Pause',
+    'ScheduleInfo',
     'Subtask',
     'TaskEvent',
     'TaskEventKind',
@@ -22,12 +25,17 @@ __all__ = [
     'TaskStats',
     'TaskStatus',
     'TaskTimeout',
+    'scheduled_next_run',
 ]
 
 # key: public name, value: the module that defines it
 _DEFINED_IN = {
     'ActiveTaskInfo': 'task_manager.client',
-    'Subtask': 'task_manager.client',
+    'Subtask': 'task_manager.missions',
+    'Pause': 'task_manager.pauses',
+    'ScheduleInfo': 'task_manager.schedules',
+    'scheduled_next_run': 'task_manager.schedules',
+    'OverlapPolicy': 'task_manager.core.schedule',
     'TaskHandle': 'task_manager.client',
     'TaskManagerClient': 'task_manager.client',
     'TaskResult': 'task_manager.client',

@@ -1,4 +1,4 @@
-"""`TaskManagerClient`: start, watch and cancel tasks of a running Task Manager from Python.
+"""`TaskManagerClient`: start, watch, cancel, pause and schedule tasks of a running Task Manager.
 
 The client generates every task id itself and takes a task's outcome from whichever comes
 first, the ExecuteTask result or the task's message on /task_manager/results, so a lost
@@ -10,7 +10,6 @@ handle of its task by id. A client that joins late asks /task_manager/get_task_s
 """
 
 import contextlib
-import json
 import queue
 import threading
 import time
@@ -42,12 +41,18 @@ from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistor
 from task_manager.core.errors import TaskManagerUnavailable, TaskTimeout
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task_stats import TaskStats, task_stats
+from task_manager.message_values import datetime_of, json_object, json_text, stamp_of
+from task_manager.missions import MISSION_TASK, mission_task_data
+from task_manager.missions import Subtask as Subtask  # public here too, as before
+from task_manager.pauses import Pause as Pause  # the type of TaskState.pauses
+from task_manager.pauses import PauseMethods, parse_pauses, paused_time, running_time
 from task_manager.ros import qos
 from task_manager.ros.action_services import ActionServicesClient
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import result_of
 from task_manager.ros.system.specs import SYSTEM_SPECS
 from task_manager.ros.task_events import TASK_EVENTS_TOPIC
+from task_manager.schedules import ScheduleMethods
 
 EXECUTE_TASK_ACTION = '/task_manager/execute_task'
 ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
@@ -88,28 +93,6 @@ class _Listener(Protocol[T_contra]):
     def put(self, item: T_contra, /) -> None: ...
 
 
-def _datetime(stamp: Any) -> datetime | None:
-    """A builtin_interfaces/Time as a timezone-aware (UTC) datetime; None for zero (not yet)."""
-    if stamp.sec == 0 and stamp.nanosec == 0:
-        return None
-    return datetime.fromtimestamp(stamp.sec, UTC) + timedelta(microseconds=stamp.nanosec // 1000)
-
-
-def _stamp(moment: datetime) -> Time:
-    """A datetime as a builtin_interfaces/Time (a naive one is taken as local time)."""
-    nanoseconds = round(moment.timestamp() * 1e9)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
-
-
-def _json_object(text: str) -> dict[str, Any]:
-    """A JSON object from a message field; anything else is kept as `{"raw": text}`."""
-    try:
-        value = json.loads(text or '{}')
-    except json.JSONDecodeError:
-        return {'raw': text}
-    return value if isinstance(value, dict) else {'raw': text}
-
-
 @dataclass(frozen=True)
 class TaskResult:
     """How a task ended.
@@ -130,6 +113,8 @@ class TaskResult:
     started_at: datetime | None = None
     """When it started on its server; None also when it never started."""
     ended_at: datetime | None = None
+    paused: timedelta = timedelta(0)
+    """How long it was paused (known with the stamps)."""
 
     @property
     def ok(self) -> bool:
@@ -137,10 +122,11 @@ class TaskResult:
 
     @property
     def duration(self) -> timedelta | None:
-        """How long it ran, from its start to its end; None if it never started or unknown."""
+        """How long it ran: from its start to its end, less the time it was paused; None if it
+        never started or unknown."""
         if self.started_at is None or self.ended_at is None:
             return None
-        return max(self.ended_at - self.started_at, timedelta(0))
+        return max(self.ended_at - self.started_at - self.paused, timedelta(0))
 
     @property
     def error_message(self) -> str:
@@ -156,17 +142,18 @@ class TaskResult:
             task_name=getattr(message, 'task_name', '') or task_name,
             status=TaskStatus(message.task_status),
             error_code=ErrorCode(message.error_code),
-            result=_json_object(message.task_result),
+            result=json_object(message.task_result),
             source=getattr(message, 'source', '') or source,
         )
 
     def with_stamps_of(self, state: 'TaskState') -> 'TaskResult':
-        """This result with the stamps of `state` (the same task's)."""
+        """This result with the stamps (and time paused) of `state` (the same task's)."""
         return replace(
             self,
             received_at=state.received_at,
             started_at=state.started_at,
             ended_at=state.ended_at,
+            paused=state.paused_before_end(),
         )
 
 
@@ -204,20 +191,31 @@ class TaskState:
     """The result once the task has ended; None before."""
     sequence: int = 0
     """Once ended: its number in the task history (only grows, never repeats); 0 before."""
+    paused: timedelta = timedelta(0)
+    """Time spent paused (the message's paused_sec)."""
+    pauses: list[Pause] = field(default_factory=list)
+    """Each pause, oldest first; the last is still open while the task is PAUSED."""
 
     @property
     def is_final(self) -> bool:
         return self.status.is_final
 
     def elapsed(self, now: datetime | None = None) -> timedelta | None:
-        """How long it has run: from its start to its end, or to `now` (default: the present).
+        """How long it has run: from its start to its end, or to `now` (default: the present),
+        less the time paused (the clock stops while it is paused).
 
         None if it has not started. The stamps are the Task Manager's wall clock.
         """
         if self.started_at is None:
             return None
         end = self.ended_at or now or datetime.now(UTC)
-        return max(end - self.started_at, timedelta(0))
+        return running_time(self.started_at, end, self.pauses, self.paused)
+
+    def paused_before_end(self) -> timedelta:
+        """Time paused, up to its end once ended (a task may end while paused)."""
+        if self.ended_at is None:
+            return self.paused
+        return paused_time(self.pauses, self.paused, self.ended_at)
 
     def to_result(self) -> TaskResult:
         """The TaskResult of an ended task (of one still active: its result so far, `{}`)."""
@@ -231,6 +229,7 @@ class TaskState:
             received_at=self.received_at,
             started_at=self.started_at,
             ended_at=self.ended_at,
+            paused=self.paused_before_end(),
         )
 
     @classmethod
@@ -243,12 +242,14 @@ class TaskState:
             source=message.source,
             error_code=ErrorCode(message.error_code),
             mission_id=message.mission_id,
-            received_at=_datetime(message.received),
-            started_at=_datetime(message.started),
-            ended_at=_datetime(message.ended),
-            feedback=_json_object(message.feedback) if message.feedback else None,
-            result=_json_object(message.task_result) if message.task_result else None,
+            received_at=datetime_of(message.received),
+            started_at=datetime_of(message.started),
+            ended_at=datetime_of(message.ended),
+            feedback=json_object(message.feedback) if message.feedback else None,
+            result=json_object(message.task_result) if message.task_result else None,
             sequence=message.sequence,
+            paused=timedelta(seconds=max(message.paused_sec, 0.0)),
+            pauses=parse_pauses(message.pauses),
         )
 
 
@@ -261,6 +262,10 @@ class TaskEventKind(StrEnum):
     """The task started on its server (not for a request refused before starting)."""
     FEEDBACK = 'FEEDBACK'
     """New feedback (at most `feedback_rate_hz` a second; the latest wins)."""
+    PAUSED = 'PAUSED'
+    """system/pause paused the task (its status is PAUSED; it is still active)."""
+    RESUMED = 'RESUMED'
+    """system/resume resumed the task (its status is IN_PROGRESS again)."""
     ENDED = 'ENDED'
     """The task ended (the last event of a task)."""
 
@@ -278,22 +283,8 @@ class TaskEvent:
     @classmethod
     def from_message(cls, message: Any) -> 'TaskEvent':
         """From a task_manager_msgs/msg/TaskEvent."""
-        stamp = _datetime(message.stamp) or datetime.fromtimestamp(0, UTC)
+        stamp = datetime_of(message.stamp) or datetime.fromtimestamp(0, UTC)
         return cls(TaskEventKind(message.event), stamp, TaskState.from_message(message.task))
-
-
-@dataclass(frozen=True)
-class Subtask:
-    """One subtask of a mission; `task_data` is a dict or a JSON string."""
-
-    task_name: str
-    task_data: dict[str, Any] | str = field(default_factory=dict)
-    allow_skipping: bool = False
-    task_id: str = ''
-
-
-def _json(data: dict[str, Any] | str | None) -> str:
-    return data if isinstance(data, str) else json.dumps(data or {})
 
 
 FeedbackCallback: TypeAlias = Callable[[dict[str, Any]], None]
@@ -382,7 +373,7 @@ class TaskHandle:
         return self._client.cancel_own(self, timeout_sec)
 
 
-class TaskManagerClient:
+class TaskManagerClient(PauseMethods, ScheduleMethods):
     """A client of the Task Manager with its own node, spun in a background thread.
 
     Use it as a context manager, or call `close()`.
@@ -574,7 +565,7 @@ class TaskManagerClient:
             task_id=handle.task_id,
             task_name=handle.task_name,
             source=handle.source,
-            task_data=_json(task_data),
+            task_data=json_text(task_data),
         )
         if not self._send_goal(handle, goal):
             with self._lock:
@@ -638,18 +629,8 @@ class TaskManagerClient:
         the mission never reached never ends.
         """
         subtask_ids = [s.task_id or str(uuid.uuid4()) for s in subtasks]
-        data = {
-            'subtasks': [
-                {
-                    'task_id': subtask_id,
-                    'task_name': s.task_name,
-                    'task_data': _json(s.task_data),
-                    'allow_skipping': s.allow_skipping,
-                }
-                for s, subtask_id in zip(subtasks, subtask_ids, strict=True)
-            ]
-        }
-        handle = TaskHandle(self, task_id or str(uuid.uuid4()), 'system/mission', source)
+        data = mission_task_data(subtasks, subtask_ids)
+        handle = TaskHandle(self, task_id or str(uuid.uuid4()), MISSION_TASK, source)
         handle.subtasks = [
             TaskHandle(self, subtask_id, s.task_name, MISSION_SOURCE)
             for s, subtask_id in zip(subtasks, subtask_ids, strict=True)
@@ -811,8 +792,8 @@ class TaskManagerClient:
             status=str(status),
             source=source,
             mission_id=mission_id,
-            ended_after=Time() if since is None else _stamp(since),
-            ended_before=Time() if until is None else _stamp(until),
+            ended_after=Time() if since is None else stamp_of(since),
+            ended_before=Time() if until is None else stamp_of(until),
             after_sequence=after_sequence,
             limit=limit,
             oldest_first=oldest_first,

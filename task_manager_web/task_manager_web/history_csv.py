@@ -18,6 +18,7 @@ COLUMNS = (
     'started',
     'ended',
     'duration_sec',
+    'paused_sec',
     'result',
 )
 

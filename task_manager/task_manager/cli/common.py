@@ -143,3 +143,20 @@ def finish(result: TaskResult) -> None:
         what = result.error_code or result.status
         progress.print(f'{what}: {result.error_message}', markup=False, soft_wrap=True)
     raise typer.Exit(EXIT_CODES[result.status])
+
+
+def report_each(result: TaskResult, done_field: str, done_word: str) -> None:
+    """Print `<id>  <done_word>` for each id a system task did, and on stderr each of its
+    errors as `<status>: <error>`; exit with its status' code unless it ended DONE."""
+    for done_id in result.result.get(done_field) or []:
+        print(f'{done_id}  {done_word}', flush=True)
+    errors = [str(line) for line in result.result.get('errors') or []]
+    if result.error_message:  # refused before it ran: no per-id lines
+        errors.append(result.error_message)
+    elif not result.ok and not errors:
+        errors.append(str(result.result.get('message') or f'{result.task_name} failed'))
+    what = result.error_code or result.status
+    for line in errors:
+        progress.print(f'{what}: {line}', markup=False, soft_wrap=True)
+    if not result.ok:
+        raise typer.Exit(EXIT_CODES[result.status])

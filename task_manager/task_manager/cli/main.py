@@ -9,13 +9,15 @@ from task_manager.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_UNAVAILAB
 from task_manager.cli.verbs.cancel import cancel, stop
 from task_manager.cli.verbs.history import history, stats
 from task_manager.cli.verbs.mission import mission
+from task_manager.cli.verbs.pause import pause, resume
+from task_manager.cli.verbs.schedule import schedule_app
 from task_manager.cli.verbs.start import start
 from task_manager.cli.verbs.tasks import tasks
 from task_manager.cli.verbs.watch import active, results
 
 app = typer.Typer(
     name='taskctl',
-    help='Start, watch and cancel the tasks of a running ROS 2 Task Manager.',
+    help='Start, watch, pause, cancel and schedule the tasks of a running ROS 2 Task Manager.',
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -32,8 +34,9 @@ def options(
     ctx.obj = {'timeout_sec': timeout}
 
 
-for verb in (start, mission, cancel, stop, active, results, history, stats, tasks):
+for verb in (start, mission, cancel, stop, pause, resume, active, results, history, stats, tasks):
     app.command()(verb)
+app.add_typer(schedule_app)
 
 
 def main() -> None:

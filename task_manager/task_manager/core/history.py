@@ -19,9 +19,10 @@ from pathlib import Path
 from typing import IO
 
 from task_manager.core.json_text import compact_json
-from task_manager.core.task import TaskRecord
+from task_manager.core.schedule_store import SCHEDULES_SCHEMA, ScheduleStore
+from task_manager.core.task import TaskRecord, pauses_to_json
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 MEMORY = ':memory:'
 
 _SCHEMA_V1 = """
@@ -45,8 +46,17 @@ CREATE INDEX tasks_by_name ON tasks (task_name, sequence);
 CREATE INDEX tasks_by_end ON tasks (ended);
 """
 
+# Version 2: each task's pauses (system/pause) and the time it spent paused; the schedules.
+_SCHEMA_V2 = (
+    """
+ALTER TABLE tasks ADD COLUMN paused_sec REAL NOT NULL DEFAULT 0;
+ALTER TABLE tasks ADD COLUMN pauses TEXT NOT NULL DEFAULT '[]';
+"""
+    + SCHEDULES_SCHEMA
+)
+
 # Each step upgrades the schema from the version before it; index 0 creates version 1.
-_MIGRATIONS = (_SCHEMA_V1,)
+_MIGRATIONS = (_SCHEMA_V1, _SCHEMA_V2)
 
 
 class HistoryError(Exception):
@@ -98,6 +108,9 @@ class HistoryRow:
     started: float | None
     ended: float | None
     sequence: int | None
+    paused_sec: float = 0.0
+    pauses: str = '[]'
+    """JSON list of {"paused", "paused_by", "resumed", "resumed_by"}."""
 
 
 COLUMNS = tuple(f.name for f in fields(HistoryRow))
@@ -157,6 +170,8 @@ def _row(record: TaskRecord, entry: int, sequence: int | None) -> tuple[object, 
         record.started_at,
         record.ended_at,
         sequence,
+        record.paused_sec(),
+        pauses_to_json(record.pauses),
     )
 
 
@@ -215,6 +230,10 @@ class TaskHistory:
 
     def transaction(self) -> '_Transaction':
         return _Transaction(self._db)
+
+    def schedule_store(self) -> ScheduleStore:
+        """The schedules, in the same file and connection."""
+        return ScheduleStore(self._db, self.transaction)
 
     # ---- changes (buffered) -----------------------------------------------------------
 

@@ -3,7 +3,7 @@
 from collections.abc import Iterator
 
 from task_manager.core.errors import TaskRequestError
-from task_manager.core.status import ErrorCode, TaskStatus
+from task_manager.core.status import ErrorCode
 from task_manager.core.task import TaskRecord
 from task_manager.core.task_spec import TaskSpec
 
@@ -36,8 +36,9 @@ class TaskRegistry:
     def remove(self, task_id: str) -> None:
         self.active_tasks_by_id.pop(task_id, None)
 
-    def in_progress(self) -> list[TaskRecord]:
-        return [t for t in self.active_tasks_by_id.values() if t.status is TaskStatus.IN_PROGRESS]
+    def started(self) -> list[TaskRecord]:
+        """Tasks that have started and not ended (IN_PROGRESS or PAUSED)."""
+        return [t for t in self.active_tasks_by_id.values() if t.status.is_started]
 
     def conflicts_of(self, spec: TaskSpec, new_task_id: str) -> list[TaskRecord]:
         """Tasks that must be cancelled before a new task of `spec` may start.

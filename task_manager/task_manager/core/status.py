@@ -10,6 +10,8 @@ class TaskStatus(StrEnum):
     """Accepted by the manager, not started on its server yet (e.g. waiting for conflicts)."""
     IN_PROGRESS = 'IN_PROGRESS'
     """Running on its server."""
+    PAUSED = 'PAUSED'
+    """Started, then paused by system/pause; still active (not in the original package)."""
     DONE = 'DONE'
     """Ended successfully (or cancelled, for tasks with cancel_reported_as_success)."""
     ERROR = 'ERROR'
@@ -20,6 +22,11 @@ class TaskStatus(StrEnum):
     @property
     def is_final(self) -> bool:
         return self in (TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED)
+
+    @property
+    def is_started(self) -> bool:
+        """Started and not ended: shown in active_tasks."""
+        return self in (TaskStatus.IN_PROGRESS, TaskStatus.PAUSED)
 
 
 class ErrorCode(StrEnum):
@@ -54,5 +61,7 @@ class CancelReason(StrEnum):
     """system/stop."""
     MISSION = 'mission'
     """The mission the task belongs to was cancelled."""
+    SCHEDULE = 'schedule'
+    """A newer run of the same schedule replaced it (overlap CANCEL_OTHER)."""
     SHUTDOWN = 'shutdown'
     """The Task Manager is shutting down."""

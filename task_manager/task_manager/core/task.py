@@ -1,5 +1,10 @@
-"""One task request and its lifecycle: RECEIVED -> IN_PROGRESS -> DONE | ERROR | CANCELED."""
+"""One task request and its lifecycle: RECEIVED -> IN_PROGRESS -> DONE | ERROR | CANCELED.
 
+A started task may be PAUSED and resumed (back to IN_PROGRESS) any number of times; a paused
+task may also end (cancelled, or a mission whose last subtask ends while it is paused).
+"""
+
+import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -12,7 +17,12 @@ from task_manager.core.task_spec import TaskSpec
 # key: status, value: the statuses a task may move to from it
 _ALLOWED_TRANSITIONS: dict[TaskStatus, frozenset[TaskStatus]] = {
     TaskStatus.RECEIVED: frozenset({TaskStatus.IN_PROGRESS, TaskStatus.ERROR, TaskStatus.CANCELED}),
-    TaskStatus.IN_PROGRESS: frozenset({TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED}),
+    TaskStatus.IN_PROGRESS: frozenset(
+        {TaskStatus.PAUSED, TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED}
+    ),
+    TaskStatus.PAUSED: frozenset(
+        {TaskStatus.IN_PROGRESS, TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED}
+    ),
     TaskStatus.DONE: frozenset(),
     TaskStatus.ERROR: frozenset(),
     TaskStatus.CANCELED: frozenset(),
@@ -41,6 +51,29 @@ class TaskEnd:
 
 
 @dataclass
+class PauseSpan:
+    """One pause of a task: when and by whom it was paused, and resumed (if it was)."""
+
+    paused_at: float
+    paused_by: str
+    resumed_at: float | None = None
+    resumed_by: str = ''
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            'paused': self.paused_at,
+            'paused_by': self.paused_by,
+            'resumed': self.resumed_at,
+            'resumed_by': self.resumed_by,
+        }
+
+
+def pauses_to_json(pauses: list[PauseSpan]) -> str:
+    """Pauses as a compact JSON list ('[]' when never paused)."""
+    return json.dumps([span.to_dict() for span in pauses], separators=(',', ':'))
+
+
+@dataclass
 class TaskRecord:
     """Everything the manager knows of one task request, from receipt to its end."""
 
@@ -62,6 +95,8 @@ class TaskRecord:
     """The request's task_data, as the client sent it."""
     sequence: int | None = None
     """Once ended: its number in the task history (it only grows)."""
+    pauses: list[PauseSpan] = field(default_factory=list)
+    """Each pause, oldest first; the last one is open while the task is PAUSED."""
     feedback_listeners: list[Callable[['TaskRecord'], None]] = field(
         default_factory=list, repr=False
     )
@@ -82,9 +117,39 @@ class TaskRecord:
             )
         self.status = status
 
+    def _require(self, before: TaskStatus, status: TaskStatus) -> None:
+        if self.status is not before:
+            raise InvalidTransition(
+                f'task {self.task_id}: cannot go from {self.status} to {status} this way'
+            )
+
     def mark_started(self, now: float | None = None) -> None:
+        self._require(TaskStatus.RECEIVED, TaskStatus.IN_PROGRESS)
         self._move_to(TaskStatus.IN_PROGRESS)
         self.started_at = time.time() if now is None else now
+
+    def mark_paused(self, by: str, now: float | None = None) -> None:
+        """Paused at the request of source `by`."""
+        self._move_to(TaskStatus.PAUSED)
+        self.pauses.append(PauseSpan(time.time() if now is None else now, by))
+
+    def mark_resumed(self, by: str, now: float | None = None) -> None:
+        """Running again at the request of source `by`."""
+        self._require(TaskStatus.PAUSED, TaskStatus.IN_PROGRESS)
+        self._move_to(TaskStatus.IN_PROGRESS)
+        self.pauses[-1].resumed_at = time.time() if now is None else now
+        self.pauses[-1].resumed_by = by
+
+    def paused_sec(self, now: float | None = None) -> float:
+        """Time spent paused; a pause still open counts until the end, or `now`."""
+        until = self.ended_at if self.ended_at is not None else time.time() if now is None else now
+        return sum(
+            (
+                max((span.resumed_at if span.resumed_at is not None else until) - span.paused_at, 0)
+                for span in self.pauses
+            ),
+            0.0,
+        )
 
     def mark_ended(
         self,

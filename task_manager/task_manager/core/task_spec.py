@@ -18,6 +18,7 @@ OPTIONAL_KEYS: dict[str, tuple[tuple[type, ...], Any]] = {
     'cancel_reported_as_success': ((bool,), False),
     'service_success_field': ((str,), ''),
     'cancel_timeout': ((int, float), DEFAULT_CANCEL_TIMEOUT_SEC),
+    'pause': ((str,), 'none'),
 }
 _INTERFACE_PATTERN = re.compile(r'^(?P<package>\w+)[./](?P<kind>action|srv)[./](?P<name>\w+)$')
 
@@ -29,6 +30,21 @@ class TaskKind(StrEnum):
     SERVICE = 'srv'
     SYSTEM = 'system'
     """Built into the Task Manager (system/mission, system/wait, ...)."""
+
+
+class PauseMode(StrEnum):
+    """How a task pauses (system/pause) and resumes (system/resume)."""
+
+    NONE = 'none'
+    """It cannot be paused (the default): a pause request for it fails, saying so."""
+    RESTART = 'restart'
+    """Its goal is cancelled on pause and the same goal is sent again on resume (actions)."""
+    BETWEEN_SUBTASKS = 'between_subtasks'
+    """system/mission only: the running subtask goes on, the next waits for the resume."""
+
+
+# The pause modes a task entry may declare.
+DECLARABLE_PAUSE_MODES = (PauseMode.NONE, PauseMode.RESTART)
 
 
 @dataclass(frozen=True)
@@ -56,6 +72,7 @@ class TaskSpec:
     cancel_reported_as_success: bool = False
     service_success_field: str = ''
     cancel_timeout_sec: float = DEFAULT_CANCEL_TIMEOUT_SEC
+    pause: PauseMode = PauseMode.NONE
     parameter_key: str = field(default='', compare=False)
 
     @property
@@ -106,6 +123,7 @@ def parse_task_spec(key: str, entry: Mapping[str, Any]) -> TaskSpec:
         raise ConfigurationError(f'{label}: {error}') from error
     if not options['cancel_timeout'] >= 0:  # also rejects NaN
         raise ConfigurationError(f'{label}: {key}.cancel_timeout must be >= 0')
+    pause = _pause_mode(label, key, options['pause'], interface)
     if options['service_success_field'] and interface.kind is not TaskKind.SERVICE:
         raise ConfigurationError(
             f'{label}: service_success_field is only for service tasks, '
@@ -121,8 +139,28 @@ def parse_task_spec(key: str, entry: Mapping[str, Any]) -> TaskSpec:
         cancel_reported_as_success=options['cancel_reported_as_success'],
         service_success_field=options['service_success_field'],
         cancel_timeout_sec=float(options['cancel_timeout']),
+        pause=pause,
         parameter_key=key,
     )
+
+
+def _pause_mode(label: str, key: str, text: str, interface: InterfaceName) -> PauseMode:
+    """The entry's `pause`: none or restart, and restart only for actions (a service call
+    cannot be interrupted, so it cannot be paused by cancelling it)."""
+    allowed = ', '.join(mode.value for mode in DECLARABLE_PAUSE_MODES)
+    try:
+        mode = PauseMode(text.strip().lower())
+    except ValueError:
+        mode = None
+    if mode not in DECLARABLE_PAUSE_MODES:
+        raise ConfigurationError(f'{label}: {key}.pause must be one of {allowed}, got {text!r}')
+    if mode is PauseMode.RESTART and interface.kind is not TaskKind.ACTION:
+        raise ConfigurationError(
+            f'{label}: pause: restart is only for action tasks (a service call cannot be '
+            f'cancelled and sent again), and {interface} is a service'
+        )
+    assert mode is not None
+    return mode
 
 
 def unknown_keys(entry: Mapping[str, Any]) -> list[str]:

@@ -1,4 +1,5 @@
-"""Per-task statistics over ended tasks: how many, how often DONE, how long they ran.
+"""Per-task statistics over ended tasks: how many, how often DONE, how long they ran (time
+paused excluded).
 
 Pure: computed from any records with a task name, a status and stamps (the client's
 `TaskState`s from the history), so it is tested without ROS.
@@ -28,6 +29,11 @@ class EndedTask(Protocol):
     @property
     def ended_at(self) -> datetime | None: ...
 
+    @property
+    def paused(self) -> timedelta:
+        """Time spent paused: not running time."""
+        ...
+
 
 @dataclass(frozen=True)
 class TaskStats:
@@ -39,7 +45,7 @@ class TaskStats:
     done_count: int
     """Of them, those that ended DONE."""
     started_count: int
-    """Of them, those that started: the durations are theirs."""
+    """Of them, those that started: the durations (running time) are theirs."""
     median_duration: timedelta | None
     """None when none started."""
     p95_duration: timedelta | None
@@ -72,7 +78,7 @@ def median(sorted_values: list[timedelta]) -> timedelta:
 def _duration(task: EndedTask) -> timedelta | None:
     if task.started_at is None or task.ended_at is None:
         return None
-    return max(task.ended_at - task.started_at, timedelta(0))
+    return max(task.ended_at - task.started_at - task.paused, timedelta(0))
 
 
 def task_stats(tasks: Iterable[EndedTask]) -> list[TaskStats]:

@@ -16,12 +16,12 @@ IDS_MAX = 1000
 """The most task ids in one cancel, and subtasks in one mission."""
 HISTORY_LIMIT_MAX = 10_000
 
-TaskStatusName = Literal['RECEIVED', 'IN_PROGRESS', 'DONE', 'ERROR', 'CANCELED']
+TaskStatusName = Literal['RECEIVED', 'IN_PROGRESS', 'PAUSED', 'DONE', 'ERROR', 'CANCELED']
 ErrorCodeName = Literal[
     '', 'duplicate_id', 'task_data_parsing_failed', 'task_start_failed', 'task_cancel_failed',
     'unknown_task',
 ]  # fmt: skip
-EventName = Literal['RECEIVED', 'STARTED', 'FEEDBACK', 'ENDED']
+EventName = Literal['RECEIVED', 'STARTED', 'FEEDBACK', 'PAUSED', 'RESUMED', 'ENDED']
 
 
 class _Request(BaseModel):
@@ -89,7 +89,10 @@ class Task(BaseModel):
     received: datetime | None = None
     started: datetime | None = Field(None, description='None while (or if never) started.')
     ended: datetime | None = None
-    duration_sec: float | None = Field(None, description='From its start to its end.')
+    duration_sec: float | None = Field(
+        None, description='Running time: from its start to its end, less paused_sec.'
+    )
+    paused_sec: float = Field(0, description='Time spent PAUSED (by system/pause).')
     feedback: dict[str, Any] | None = Field(None, description='The latest feedback.')
     result: dict[str, Any] | None = Field(None, description='Once ended.')
     sequence: int = Field(0, description='Once ended: its number in the history; else 0.')

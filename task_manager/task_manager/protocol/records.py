@@ -40,6 +40,7 @@ def task_json(state: TaskState) -> dict[str, Any]:
         'started': iso(state.started_at),
         'ended': iso(state.ended_at),
         'duration_sec': None if duration is None else duration.total_seconds(),
+        'paused_sec': state.paused_before_end().total_seconds(),
         'feedback': state.feedback,
         'result': state.result if state.is_final else None,
         'sequence': state.sequence,
@@ -59,6 +60,7 @@ def result_json(result: TaskResult) -> dict[str, Any]:
             started_at=result.started_at,
             ended_at=result.ended_at,
             result=result.result,
+            paused=result.paused,
         )
     )
 

@@ -29,7 +29,9 @@ from task_manager.ros.futures import (
 )
 from task_manager.ros.history_writer import HistoryWriter
 from task_manager.ros.message_json import TaskDataError
+from task_manager.ros.pause_control import PauseControl
 from task_manager.ros.task_events import TaskEventStream
+from task_manager.ros.task_run import TaskRun
 
 # How long tasks ended by force at shutdown may take to report their results.
 FORCED_END_TIMEOUT_SEC = 1.0
@@ -65,18 +67,10 @@ class TaskDispatcher:
         self.runners_by_name = runners
         self.node = node
         self._reporter = reporter
-        self._spawn = spawn
+        self.spawn = spawn
         self._log = node.get_logger()
-        # key: task id, value: completes with the task's TaskEnd (first writer wins)
-        self._finished: dict[str, Future[TaskEnd]] = {}
-        # key: task id, value: completes once the task has started on its server, or failed to
-        self._started: dict[str, Future] = {}
-        # key: task id, value: the running task on its server
-        self._executions: dict[str, Execution] = {}
-        # key: task id, value: completes with True when the cancel in flight ended the task
-        self._cancels_in_flight: dict[str, Future] = {}
-        # ids of tasks whose start on their server is in flight
-        self._starting_ids: set[str] = set()
+        # key: task id, value: the run state of the admitted task, until it ends
+        self.runs_by_id: dict[str, TaskRun] = {}
         self._closing_reason = ''
         # Tasks that ended since the last active_tasks publication: shown once more, with
         # their end status, before they leave the list.
@@ -84,6 +78,7 @@ class TaskDispatcher:
         self._publication_pending = False
         # completes once no task is active; replaced whenever a task is admitted
         self._idle: Future = completed_future()
+        self.pauses = PauseControl(self)
 
     # ---- running a request -------------------------------------------------------------
 
@@ -94,14 +89,14 @@ class TaskDispatcher:
 
         `on_admitted` is called with the record once the request is tracked, before it starts.
         """
-        record, message = self._admit(request)
-        if record.is_final:
+        record, run = self._admit(request)
+        if run is None:
             await resolved(self.node, self._publish_end(record))
             return record
         if on_admitted is not None:
             on_admitted(record)
         try:
-            end = await self._start_and_wait(record, message)
+            end = await self._start_and_wait(run)
         except TaskRequestError as error:
             self._log.warning(f'task {record.task_id} ({record.task_name}) failed: {error}')
             end = TaskEnd(TaskStatus.ERROR, {'error': str(error)}, error.error_code)
@@ -113,8 +108,8 @@ class TaskDispatcher:
                 ErrorCode.TASK_START_FAILED,
             )
         # Settled here too, so that whoever waits on this task (a cancel) sees it end.
-        self._settle(record.task_id, end)
-        await resolved(self.node, self._finish(record, result_of(self._finished[record.task_id])))
+        run.settle(end)
+        await resolved(self.node, self._finish(run))
         return record
 
     def refuse(self, request: TaskRequest, code: ErrorCode, reason: str) -> TaskRecord:
@@ -139,7 +134,8 @@ class TaskDispatcher:
         self.history.changed(record)
         return record
 
-    def _admit(self, request: TaskRequest) -> tuple[TaskRecord, Any]:
+    def _admit(self, request: TaskRequest) -> tuple[TaskRecord, TaskRun | None]:
+        """Track the request, or end it at once (its run is None then)."""
         record = self._new_record(request)
         task_id = record.task_id
         runner = self.runners_by_name.get(request.task_name)
@@ -162,9 +158,8 @@ class TaskDispatcher:
         self.registry.admit(record)
         if self._idle.done():
             self._idle = Future()
-        self._finished[task_id] = Future()
-        self._started[task_id] = Future()
-        return record, message
+        run = self.runs_by_id[task_id] = TaskRun(record, message)
+        return record, run
 
     def _reject(
         self,
@@ -181,31 +176,50 @@ class TaskDispatcher:
         record.mark_ended(TaskStatus.ERROR, {**(result or {}), 'error': reason}, code)
         return record
 
-    async def _start_and_wait(self, record: TaskRecord, message: Any) -> TaskEnd:
-        task_id = record.task_id
-        finished = self._finished[task_id]
-        await self._resolve_conflicts(record)
-        if finished.done():  # cancelled while it waited for its conflicts
-            return result_of(finished)
-        self._starting_ids.add(task_id)
-        try:
-            execution = await self.runners_by_name[record.task_name].start(message, record)
-        finally:
-            self._starting_ids.discard(task_id)
-            self._started[task_id].set_result(None)
-        self._executions[task_id] = execution
+    async def _start_and_wait(self, run: TaskRun) -> TaskEnd:
+        record = run.record
+        await self._resolve_conflicts(run)
+        if run.finished.done():  # cancelled while it waited for its conflicts
+            return result_of(run.finished)
+        execution = await self.start_on_server(run)
         record.mark_started()
         self.events.started(record)
         self.history.changed(record)
-        self._log.debug(f'task {task_id} ({record.task_name}) from {record.source!r} started')
-        self._publish_active_soon()
-        execution.outcome.add_done_callback(lambda done: self._settle(task_id, result_of(done)))
-        if record.cancel_reason is not None:  # a cancel arrived while the task was starting
-            self._cancel_future(record, record.cancel_reason)
-        await resolved(self.node, finished)
-        return result_of(finished)
+        self._log.debug(
+            f'task {record.task_id} ({record.task_name}) from {record.source!r} started'
+        )
+        self.attach(run, execution)
+        await resolved(self.node, run.finished)
+        return result_of(run.finished)
 
-    async def _resolve_conflicts(self, record: TaskRecord) -> None:
+    async def start_on_server(self, run: TaskRun) -> Execution:
+        """Start the task on its server (again, on resume); raises TaskRequestError."""
+        run.starting = True
+        run.started = Future()
+        try:
+            return await self.runners_by_name[run.record.task_name].start(run.message, run.record)
+        finally:
+            run.starting = False
+            run.started.set_result(None)
+
+    def attach(self, run: TaskRun, execution: Execution) -> None:
+        """Track the task's execution on its server; its end is the task's end."""
+        run.execution = execution
+        self.publish_active_soon()
+        execution.outcome.add_done_callback(lambda done: self._on_outcome(run, execution, done))
+        if run.record.cancel_reason is not None:  # a cancel arrived while the task was starting
+            self._cancel_future(run, run.record.cancel_reason)
+
+    def _on_outcome(self, run: TaskRun, execution: Execution, done: Future[TaskEnd]) -> None:
+        end = result_of(done)
+        if run.execution is not execution:  # a goal ended by a pause, replaced on resume
+            return
+        if run.pausing and end.status is TaskStatus.CANCELED and run.record.cancel_reason is None:
+            return  # the pause's own cancel: the task goes on, paused
+        run.settle(end)
+
+    async def _resolve_conflicts(self, run: TaskRun) -> None:
+        record = run.record
         conflicts = self.registry.conflicts_of(record.spec, record.task_id)
         if not conflicts:
             return
@@ -213,11 +227,9 @@ class TaskDispatcher:
             f'task {record.task_id} ({record.task_name}) cancels conflicting task(s) '
             + ', '.join(f'{c.task_id} ({c.task_name})' for c in conflicts)
         )
-        cancels = [self._cancel_future(c, CancelReason.CONFLICT) for c in conflicts]
-        await resolved(
-            self.node, first_completed([all_completed(cancels), self._finished[record.task_id]])
-        )
-        if self._finished[record.task_id].done():
+        cancels = [self.cancel(c.task_id, CancelReason.CONFLICT) for c in conflicts]
+        await resolved(self.node, first_completed([all_completed(cancels), run.finished]))
+        if run.finished.done():
             return
         stuck = [c for c, cancel in zip(conflicts, cancels, strict=True) if not cancel.result()]
         if stuck:
@@ -226,11 +238,6 @@ class TaskDispatcher:
                 'could not cancel conflicting task(s) within their cancel_timeout: '
                 + ', '.join(f'{c.task_id} ({c.task_name})' for c in stuck),
             )
-
-    def _settle(self, task_id: str, end: TaskEnd) -> None:
-        finished = self._finished.get(task_id)
-        if finished is not None and not finished.done():
-            finished.set_result(end)
 
     # ---- cancelling ----------------------------------------------------------------------
 
@@ -241,56 +248,46 @@ class TaskDispatcher:
         False means the task did not end within its cancel_timeout and is still running
         (e.g. a service call, which cannot be interrupted): it ends when its server says so.
         """
-        record = self.registry.get(task_id)
-        if record is None:
+        run = self.runs_by_id.get(task_id)
+        if run is None:
             return completed_future(True)
-        return self._cancel_future(record, reason)
+        return self._cancel_future(run, reason)
 
-    def _cancel_future(self, record: TaskRecord, reason: CancelReason) -> Future:
-        task_id = record.task_id
-        in_flight = self._cancels_in_flight.get(task_id)
-        if in_flight is not None:
-            return in_flight
+    def _cancel_future(self, run: TaskRun, reason: CancelReason) -> Future[bool]:
+        if run.cancel_in_flight is not None:
+            return run.cancel_in_flight
+        record = run.record
         record.request_cancel(reason)
-        if self._finished[task_id].done():
+        if run.finished.done():
             return completed_future(True)
-        if record.status is TaskStatus.RECEIVED and task_id not in self._starting_ids:
-            self._settle(task_id, TaskEnd(TaskStatus.CANCELED))  # it never started
+        if run.execution is None and not run.starting:  # not started yet, or paused by restart
+            run.settle(TaskEnd(TaskStatus.CANCELED))
             return completed_future(True)
-        cancelled: Future = Future()
-        self._cancels_in_flight[task_id] = cancelled
-        self._spawn(
-            self._cancel_started(
-                record, reason, self._started[task_id], self._finished[task_id], cancelled
-            )
-        )
+        cancelled: Future[bool] = Future()
+        run.cancel_in_flight = cancelled
+        self.spawn(self._cancel_started(run, reason, cancelled))
         return cancelled
 
     async def _cancel_started(
-        self,
-        record: TaskRecord,
-        reason: CancelReason,
-        started: Future,
-        finished: Future,
-        cancelled: Future,
+        self, run: TaskRun, reason: CancelReason, cancelled: Future[bool]
     ) -> None:
         """Cancel a task that is starting or running, within its cancel_timeout."""
-        task_id = record.task_id
+        record = run.record
         timeout_sec = record.spec.cancel_timeout_sec
         clock = self.node.get_clock()
         began = clock.now()
-        await wait_for(self.node, first_completed([started, finished]), timeout_sec)
-        execution = self._executions.get(task_id)
-        ok = finished.done()
+        await wait_for(self.node, first_completed([run.started, run.finished]), timeout_sec)
+        execution = run.execution
+        ok = run.finished.done()
         if not ok and execution is not None:
             remaining_sec = timeout_sec - (clock.now() - began).nanoseconds / 1e9
-            ok = await execution.cancel(remaining_sec) or finished.done()
+            ok = await execution.cancel(remaining_sec) or run.finished.done()
         if not ok:
             self._log.warning(
-                f'task {task_id} ({record.task_name}): cancel ({reason}) did not complete '
-                f'within cancel_timeout {timeout_sec} s; the task goes on'
+                f'task {record.task_id} ({record.task_name}): cancel ({reason}) did not '
+                f'complete within cancel_timeout {timeout_sec} s; the task goes on'
             )
-        self._cancels_in_flight.pop(task_id, None)
+        run.cancel_in_flight = None
         cancelled.set_result(ok)
 
     async def close(self, reason: str, timeout_sec: float) -> bool:
@@ -304,24 +301,25 @@ class TaskDispatcher:
             self.cancel(record.task_id, CancelReason.SHUTDOWN)
         if await wait_for(self.node, self._idle, timeout_sec):
             return True
-        for record in self.registry:
+        for run in list(self.runs_by_id.values()):
+            record = run.record
             self._log.warning(f'task {record.task_id} ({record.task_name}) did not end: {reason}')
-            self._settle(record.task_id, TaskEnd(TaskStatus.ERROR, {'error': reason}))
+            run.settle(TaskEnd(TaskStatus.ERROR, {'error': reason}))
         await wait_for(self.node, self._idle, FORCED_END_TIMEOUT_SEC)
         return False
 
     # ---- ending ----------------------------------------------------------------------------
 
-    def _finish(self, record: TaskRecord, end: TaskEnd) -> Future[None]:
+    def _finish(self, run: TaskRun) -> Future[None]:
         """End the task; the future completes once its end is stored and announced."""
-        was_active = record.status is TaskStatus.IN_PROGRESS
+        record, end = run.record, result_of(run.finished)
+        was_active = record.status.is_started
         record.mark_ended(end.status, end.result, end.error_code)
         self.registry.remove(record.task_id)
-        for table in (self._finished, self._started, self._executions):
-            table.pop(record.task_id, None)
+        del self.runs_by_id[record.task_id]
         if was_active:
             self._ended_unpublished.append(record)
-            self._publish_active_soon()
+            self.publish_active_soon()
         announced = self._publish_end(record)
         if not len(self.registry) and not self._idle.done():
             self._idle.set_result(None)
@@ -345,7 +343,7 @@ class TaskDispatcher:
         self.events.ended(record)
         self._reporter.publish_result(record)
 
-    def _publish_active_soon(self) -> None:
+    def publish_active_soon(self) -> None:
         """Publish active_tasks once the executor has handled what is ready now.
 
         The changes of one executor turn share one publication: with hundreds of tasks,
@@ -353,11 +351,11 @@ class TaskDispatcher:
         """
         if not self._publication_pending:
             self._publication_pending = True
-            self._spawn(self._publish_active())
+            self.spawn(self._publish_active())
 
     async def _publish_active(self) -> None:
         self._publication_pending = False
-        in_progress = self.registry.in_progress()
+        in_progress = self.registry.started()
         if self._ended_unpublished:
             self._reporter.publish_active(in_progress + self._ended_unpublished)
             self._ended_unpublished = []

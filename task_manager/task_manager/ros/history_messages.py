@@ -44,6 +44,8 @@ def task_state_from_row(row: HistoryRow) -> TaskState:
         ended=stamp(row.ended),
         task_result=row.result or '',
         sequence=row.sequence or 0,
+        paused_sec=row.paused_sec,
+        pauses=row.pauses,
     )
 
 

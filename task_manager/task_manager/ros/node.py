@@ -9,7 +9,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
-from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
+from task_manager_msgs.srv import GetSchedules, GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.core.history import HistoryQuery, HistoryRow
 from task_manager.core.task import TaskRecord, TaskRequest
@@ -30,8 +30,10 @@ from task_manager.ros.history_messages import (
 from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
+from task_manager.ros.scheduler import TaskScheduler
 from task_manager.ros.service_runner import ServiceTaskRunner
 from task_manager.ros.system import SYSTEM_TASK_NAMES, create_system_runners
+from task_manager.ros.system.schedules import schedule_msg
 from task_manager.ros.task_events import TaskEventStream, task_state_msg, to_json
 from task_manager.ros.task_servers import create_task_servers
 
@@ -42,6 +44,7 @@ RESULTS_TOPIC = '/task_manager/results'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
 QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
+GET_SCHEDULES_SERVICE = '/task_manager/get_schedules'
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
 SHUTDOWN_MARGIN_SEC = 1.0
 # Retention runs once a minute and deletes at most a batch, so that it never holds up dispatch.
@@ -92,7 +95,11 @@ class TaskManagerNode(Node):
             self, self.settings.publish_task_events, self.settings.feedback_rate_hz
         )
         self.dispatcher = TaskDispatcher(self, {}, self, self._spawn, self._events, self.history)
-        self._runners = [*user_runners, *create_system_runners(self, self.dispatcher)]
+        self.scheduler = TaskScheduler(self, self.dispatcher, self.history.schedule_store())
+        self._runners = [
+            *user_runners,
+            *create_system_runners(self, self.dispatcher, self.scheduler),
+        ]
         self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in self._runners})
         self._goals = GoalTaskBinding(self.dispatcher)
         self._shutting_down = False
@@ -111,6 +118,9 @@ class TaskManagerNode(Node):
         )
         self._history_service = self.create_service(
             QueryTaskHistory, QUERY_TASK_HISTORY_SERVICE, self._query_task_history
+        )
+        self._schedules_service = self.create_service(
+            GetSchedules, GET_SCHEDULES_SERVICE, self._get_schedules
         )
         self._events.open()
         self._execute_server = ActionServer(
@@ -134,6 +144,7 @@ class TaskManagerNode(Node):
         self._close_unfinished()
         self._prune_history()
         self._prune_timer = self.create_timer(PRUNE_PERIOD_SEC, self._prune_history)
+        self.scheduler.start()
         self.get_logger().info(
             f'Task Manager ready with {len(self._specs)} task(s): '
             + ', '.join(spec.task_name for spec in self._specs)
@@ -181,6 +192,7 @@ class TaskManagerNode(Node):
         if self._shutting_down:
             return
         self._shutting_down = True
+        self.scheduler.stop()
         records = list(self.dispatcher.registry)
         bound_sec = SHUTDOWN_MARGIN_SEC + max(
             (r.spec.cancel_timeout_sec for r in records), default=0.0
@@ -268,6 +280,15 @@ class TaskManagerNode(Node):
     ) -> QueryTaskHistory.Response:
         rows = self.history.query(history_query(request))
         response.tasks = [task_state_from_row(row) for row in rows]
+        return response
+
+    def _get_schedules(
+        self, request: GetSchedules.Request, response: GetSchedules.Response
+    ) -> GetSchedules.Response:
+        """Every schedule (or those asked for, in the order asked), with its runs."""
+        wanted = list(request.schedule_ids) or self.scheduler.book.ids()
+        found = (self.scheduler.book.get(schedule_id) for schedule_id in wanted)
+        response.schedules = [schedule_msg(*item) for item in found if item is not None]
         return response
 
     # ---- /task_manager/execute_task ----------------------------------------------------------

@@ -1,7 +1,8 @@
 """/task_manager/task_events: one TaskEvent per change of a task, feedback rate-limited.
 
-Every task gets RECEIVED, then STARTED (unless it ends before starting), FEEDBACK updates,
-and ENDED, in that order, each with the task's whole state. Feedback goes out at most
+Every task gets RECEIVED, then STARTED (unless it ends before starting), FEEDBACK updates
+(PAUSED and RESUMED for each pause), and ENDED, in that order, each with the task's whole
+state. Feedback goes out at most
 `feedback_rate_hz` times a second per task (see core/feedback_rate.py); a feedback held
 back when the task ends goes out just before its ENDED event.
 """
@@ -16,7 +17,7 @@ from rclpy.timer import Timer
 from task_manager_msgs.msg import TaskEvent, TaskState
 
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
-from task_manager.core.task import TaskRecord
+from task_manager.core.task import TaskRecord, pauses_to_json
 from task_manager.ros import qos
 from task_manager.ros.cleanup import destroy_timer
 from task_manager.ros.message_json import dict_to_json
@@ -52,6 +53,8 @@ def task_state_msg(record: TaskRecord) -> TaskState:
         feedback=to_json(record.latest_feedback),
         task_result=to_json(record.result) if record.is_final else '',
         sequence=record.sequence or 0,
+        paused_sec=record.paused_sec(),
+        pauses=pauses_to_json(record.pauses),
     )
 
 
@@ -84,6 +87,15 @@ class TaskEventStream:
     def started(self, record: TaskRecord) -> None:
         if self._publisher is not None:
             self._publish(TaskEvent.STARTED, record)
+
+    def paused(self, record: TaskRecord) -> None:
+        if self._publisher is not None:
+            self._release(record)  # the feedback from before the pause comes first
+            self._publish(TaskEvent.PAUSED, record)
+
+    def resumed(self, record: TaskRecord) -> None:
+        if self._publisher is not None:
+            self._publish(TaskEvent.RESUMED, record)
 
     def feedback(self, record: TaskRecord) -> None:
         if record.is_final:  # a late update after the end is not an event

@@ -57,7 +57,8 @@ def test_start_waits_and_exits_by_status(
     # why, on stderr, in one line (the same text as the result's `error`)
     why = (
         "unknown task 'no/such'; declared tasks: math/fib, system/cancel_task, "
-        'system/cancel_tasks, system/mission, system/stop, system/wait'
+        'system/cancel_tasks, system/enable_schedule, system/mission, system/pause, '
+        'system/resume, system/schedule, system/stop, system/unschedule, system/wait'
     )
     assert json.loads(unknown.stdout)['result'] == {'error': why}
     assert unknown.stderr.strip().splitlines()[-1] == f'unknown_task: {why}'

@@ -208,6 +208,26 @@ def test_a_first_version_file_is_opened_and_upgraded(tmp_path: Path) -> None:
     ]
     version = sqlite3.connect(path).execute('PRAGMA user_version').fetchone()[0]
     assert version == SCHEMA_VERSION
+    old = history.query(HistoryQuery(task_name='fib', limit=2))[-1]
+    assert (old.task_id, old.paused_sec, old.pauses) == ('old', 0.0, '[]')
+    assert history.schedule_store().load() == ([], [])  # version 2 adds the schedules
+
+
+def test_a_paused_task_is_stored_with_its_pauses_and_paused_time(tmp_path: Path) -> None:
+    history = TaskHistory(str(tmp_path / 'h.sqlite'))
+    record = TaskRecord('t1', FIB, 'CLOUD', received_at=10.0)
+    record.mark_started(now=11.0)
+    record.mark_paused('operator', now=12.0)
+    record.mark_resumed('UI', now=14.5)
+    record.mark_ended(TaskStatus.DONE, now=20.0)
+    history.write(record)
+    history.flush()
+
+    (row,) = history.query(HistoryQuery())
+    assert row.paused_sec == 2.5
+    assert json.loads(row.pauses) == [
+        {'paused': 12.0, 'paused_by': 'operator', 'resumed': 14.5, 'resumed_by': 'UI'}
+    ]
 
 
 def test_a_second_store_on_the_same_file_is_refused_until_the_first_closes(tmp_path: Path) -> None:

@@ -19,7 +19,7 @@ from task_manager.core.task import (
 )
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
 
-RECEIVED, IN_PROGRESS = TaskStatus.RECEIVED, TaskStatus.IN_PROGRESS
+RECEIVED, IN_PROGRESS, PAUSED = TaskStatus.RECEIVED, TaskStatus.IN_PROGRESS, TaskStatus.PAUSED
 DONE, ERROR, CANCELED = TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED
 FINAL = (DONE, ERROR, CANCELED)
 ALLOWED = {
@@ -29,6 +29,11 @@ ALLOWED = {
     (IN_PROGRESS, DONE),
     (IN_PROGRESS, ERROR),
     (IN_PROGRESS, CANCELED),
+    (IN_PROGRESS, PAUSED),
+    (PAUSED, IN_PROGRESS),
+    (PAUSED, DONE),
+    (PAUSED, ERROR),
+    (PAUSED, CANCELED),
 }
 ALL_PAIRS = list(itertools.product(TaskStatus, TaskStatus))
 FORBIDDEN = [pair for pair in ALL_PAIRS if pair not in ALLOWED]
@@ -50,6 +55,8 @@ def record_in(status: TaskStatus) -> TaskRecord:
     record = make_record()
     if status is not RECEIVED:
         record.mark_started(now=2.0)
+    if status is PAUSED:
+        record.mark_paused('operator', now=2.5)
     if status.is_final:
         record.mark_ended(status, {'sequence': [0, 1]}, ErrorCode.NONE, now=3.0)
     assert record.status is status
@@ -58,8 +65,12 @@ def record_in(status: TaskStatus) -> TaskRecord:
 
 def move(record: TaskRecord, status: TaskStatus, now: float) -> None:
     """Ask the record to go to `status` through its public API."""
-    if status is IN_PROGRESS:
+    if status is IN_PROGRESS and record.status is PAUSED:
+        record.mark_resumed('operator', now=now)
+    elif status is IN_PROGRESS:
         record.mark_started(now=now)
+    elif status is PAUSED:
+        record.mark_paused('operator', now=now)
     else:  # RECEIVED has no method of its own; mark_ended must refuse it like any other step
         record.mark_ended(status, {'n': 1}, ErrorCode.TASK_START_FAILED, now=now)
 
@@ -71,6 +82,7 @@ def snapshot(record: TaskRecord) -> tuple[Any, ...]:
         record.ended_at,
         dict(record.result),
         record.error_code,
+        len(record.pauses),
     )
 
 
@@ -116,12 +128,12 @@ def test_every_other_transition_is_invalid_and_changes_nothing(
 
 
 def test_forbidden_list_covers_every_other_pair() -> None:
-    assert len(ALL_PAIRS) == 25
-    assert len(FORBIDDEN) == 19
+    assert len(ALL_PAIRS) == 36
+    assert len(FORBIDDEN) == 25
 
 
-@pytest.mark.parametrize('before', [RECEIVED, IN_PROGRESS])
-@pytest.mark.parametrize('status', [RECEIVED, IN_PROGRESS])
+@pytest.mark.parametrize('before', [RECEIVED, IN_PROGRESS, PAUSED])
+@pytest.mark.parametrize('status', [RECEIVED, IN_PROGRESS, PAUSED])
 def test_mark_ended_refuses_a_status_that_is_not_an_end(
     before: TaskStatus, status: TaskStatus
 ) -> None:
@@ -258,13 +270,37 @@ def test_any_sequence_of_steps_follows_the_lifecycle(steps: list[TaskStatus]) ->
     for now, target in enumerate(steps, start=10):
         if (expected, target) in ALLOWED:
             move(record, target, now=float(now))
-            expected = target
-            if target is IN_PROGRESS:
+            if target is IN_PROGRESS and expected is RECEIVED:
                 started_at = float(now)
-            else:
+            elif target.is_final:
                 ended_at = float(now)
+            expected = target
         else:
             with pytest.raises(InvalidTransition):
                 move(record, target, now=float(now))
         assert record.status is expected
         assert (record.started_at, record.ended_at) == (started_at, ended_at)
+
+
+def test_pauses_record_who_and_when_and_paused_time_is_not_running_time() -> None:
+    record = record_in(IN_PROGRESS)
+    record.mark_paused('operator', now=4.0)
+    record.mark_resumed('CLOUD', now=6.5)
+    record.mark_paused('CLI', now=8.0)
+    assert record.paused_sec(now=9.0) == 3.5  # 2.5 s closed, 1 s open until now
+    record.mark_ended(CANCELED, now=10.0)
+    assert [(p.paused_at, p.paused_by, p.resumed_at, p.resumed_by) for p in record.pauses] == [
+        (4.0, 'operator', 6.5, 'CLOUD'),
+        (8.0, 'CLI', None, ''),
+    ]
+    assert record.paused_sec() == 4.5  # the open pause counts until the end
+
+
+def test_started_only_once_and_resumed_only_when_paused() -> None:
+    record = record_in(PAUSED)
+    with pytest.raises(InvalidTransition):
+        record.mark_started(now=5.0)
+    running = record_in(IN_PROGRESS)
+    with pytest.raises(InvalidTransition):
+        running.mark_resumed('operator', now=5.0)
+    assert (record.status, record.started_at, running.status) == (PAUSED, 2.0, IN_PROGRESS)

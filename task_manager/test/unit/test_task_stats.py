@@ -18,6 +18,7 @@ class Ended:
     status: TaskStatus
     started_at: datetime | None
     ended_at: datetime | None
+    paused: timedelta = timedelta(0)
 
 
 def _ran(name: str, seconds: float | None, status: TaskStatus = TaskStatus.DONE) -> Ended:
@@ -65,6 +66,17 @@ def test_tasks_that_never_started_have_no_durations() -> None:
         1, 0, None, None,
     )  # fmt: skip
     assert task_stats([]) == []
+
+
+def test_time_paused_is_not_running_time() -> None:
+    paused = Ended('nav', TaskStatus.DONE, T0, T0 + timedelta(seconds=10), timedelta(seconds=7))
+    long_pause = Ended('nav', TaskStatus.DONE, T0, T0 + timedelta(seconds=1), timedelta(hours=1))
+
+    (nav,) = task_stats([paused, long_pause, _ran('nav', 5)])
+
+    assert nav.started_count == 3
+    assert nav.median_duration == timedelta(seconds=3)  # of 0 s, 3 s and 5 s
+    assert nav.p95_duration == timedelta(seconds=5)
 
 
 def test_median_and_nearest_rank_percentile() -> None:

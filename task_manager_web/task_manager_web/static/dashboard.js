@@ -163,7 +163,9 @@ function onTaskEvent(event) {
     setTimeout(() => { dropEnded(task.task_id); }, ENDED_VISIBLE_MS);
     addHistoryRow(task, true);
   } else {
-    state.tasks.set(task.task_id, task);
+    // a paused task's clock stops at its PAUSED event
+    const pausedAt = event.event === 'PAUSED' ? Date.parse(event.stamp) : state.tasks.get(task.task_id)?.pausedAt;
+    state.tasks.set(task.task_id, task.status === 'PAUSED' ? { ...task, pausedAt } : task);
   }
   renderActive();
 }
@@ -193,10 +195,13 @@ async function refreshAll() {
 
 // ---- active tasks and missions -------------------------------------------------------------
 
+// Running time: time paused (paused_sec) does not count.
 function elapsed(task) {
+  if (task.duration_sec != null) return formatSeconds(task.duration_sec);
   if (!task.started) return '';
-  const end = task.ended ? Date.parse(task.ended) : Date.now();
-  return formatSeconds((end - Date.parse(task.started)) / 1000);
+  if (task.status === 'PAUSED' && !task.pausedAt) return 'paused';
+  const end = task.status === 'PAUSED' ? task.pausedAt : (task.ended ? Date.parse(task.ended) : Date.now());
+  return formatSeconds(Math.max(0, (end - Date.parse(task.started)) / 1000 - (task.paused_sec || 0)));
 }
 
 function formatSeconds(seconds) {
@@ -258,7 +263,7 @@ function rememberMission(task) {
 function stepClass(subtask) {
   if (subtask.skipped) return 'skipped';
   return {
-    DONE: 'done', IN_PROGRESS: 'running', ERROR: 'failed', CANCELED: 'canceled',
+    DONE: 'done', IN_PROGRESS: 'running', PAUSED: 'paused', ERROR: 'failed', CANCELED: 'canceled',
   }[subtask.task_status] || 'pending';
 }
 

@@ -9,6 +9,7 @@ from typing import Any, TypeAlias
 import typer
 from rich.live import Live
 from rich.table import Table
+from rich.text import Text
 
 from task_manager import (
     ActiveTaskInfo,
@@ -16,6 +17,7 @@ from task_manager import (
     TaskManagerClient,
     TaskResult,
     TaskState,
+    TaskStatus,
 )
 from task_manager.cli.common import connected, duration_text, output, time_text
 
@@ -23,7 +25,8 @@ ActiveRow: TypeAlias = ActiveTaskInfo | TaskState
 
 
 def active_table(tasks: Sequence[ActiveRow]) -> Table:
-    """The active tasks; `running for` needs their stamps (TaskState rows)."""
+    """The active tasks; `running for` needs their stamps (TaskState rows), and stops while
+    a task is PAUSED."""
     table = Table(title=f'active tasks ({len(tasks)})')
     for column in ('id', 'task', 'status', 'source', 'running for'):
         table.add_column(column)
@@ -32,7 +35,7 @@ def active_table(tasks: Sequence[ActiveRow]) -> Table:
         table.add_row(
             task.task_id,
             task.task_name,
-            str(task.status),
+            Text(str(task.status), style='yellow' if task.status is TaskStatus.PAUSED else ''),
             task.source,
             duration_text(elapsed) if elapsed is not None else '',
         )
@@ -44,7 +47,8 @@ class StampedActiveTasks:
 
     First every active task from /task_manager/get_task_states (the latest list on the
     topic may reach a new subscriber after older ones); then the topic's lists, with the
-    stamps of each task asked for once (and once more when it is shown ended).
+    stamps of each task asked for once, and again when its status changes (a start, a pause
+    or resume, its end).
     """
 
     def __init__(self, client: TaskManagerClient) -> None:
@@ -57,8 +61,7 @@ class StampedActiveTasks:
         stale = [
             t.task_id
             for t in tasks
-            if t.task_id not in self._states
-            or (t.status.is_final and not self._states[t.task_id].is_final)
+            if t.task_id not in self._states or t.status is not self._states[t.task_id].status
         ]
         if stale:
             self._states.update((s.task_id, s) for s in self._client.task_states(stale))
@@ -113,6 +116,7 @@ def result_data(result: TaskResult) -> dict[str, Any]:
         'started_at': _iso(result.started_at),
         'ended_at': _iso(result.ended_at),
         'duration_sec': None if duration is None else duration.total_seconds(),
+        'paused_sec': result.paused.total_seconds(),
     }
 
 

@@ -1,18 +1,28 @@
-"""The tasks built into the Task Manager: system/mission, cancel_task, stop and wait."""
+"""The tasks built into the Task Manager: system/mission, cancel_task, stop, wait, pause,
+resume, schedule, unschedule and enable_schedule."""
 
 from rclpy.node import Node
 
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.execution import TaskRunner
+from task_manager.ros.scheduler import TaskScheduler
 from task_manager.ros.system.cancel import CancelTasksRunner, StopTasksRunner
 from task_manager.ros.system.mission import MissionRunner
+from task_manager.ros.system.pause import PauseTasksRunner, ResumeTasksRunner
+from task_manager.ros.system.schedules import (
+    EnableSchedulesRunner,
+    ScheduleTaskRunner,
+    UnscheduleRunner,
+)
 from task_manager.ros.system.specs import SYSTEM_TASK_NAMES
 from task_manager.ros.system.wait import WaitRunner
 
 __all__ = ['SYSTEM_TASK_NAMES', 'create_system_runners']
 
 
-def create_system_runners(node: Node, dispatcher: TaskDispatcher) -> list[TaskRunner]:
+def create_system_runners(
+    node: Node, dispatcher: TaskDispatcher, scheduler: TaskScheduler
+) -> list[TaskRunner]:
     """One runner per system task name (system/cancel_tasks is an alias of cancel_task)."""
     return [
         MissionRunner(node, dispatcher),
@@ -20,4 +30,9 @@ def create_system_runners(node: Node, dispatcher: TaskDispatcher) -> list[TaskRu
         CancelTasksRunner(node, dispatcher, alias=True),
         StopTasksRunner(node, dispatcher),
         WaitRunner(node),
+        PauseTasksRunner(node, dispatcher),
+        ResumeTasksRunner(node, dispatcher),
+        ScheduleTaskRunner(node, dispatcher, scheduler),
+        UnscheduleRunner(node, scheduler),
+        EnableSchedulesRunner(node, scheduler),
     ]

@@ -3,21 +3,27 @@
 from typing import Any
 
 from rclpy.node import Node
+from rclpy.task import Future
 from task_manager_msgs.action import Mission
 from task_manager_msgs.msg import SubtaskResult
 
 from task_manager.core.mission import MISSION_SOURCE, MissionProgress, SubtaskRefusal, SubtaskRow
 from task_manager.core.status import CancelReason, ErrorCode
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
+from task_manager.core.task_spec import PauseMode
 from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.futures import wait_for
+from task_manager.ros.futures import resolved, wait_for
 from task_manager.ros.message_json import TaskDataError, message_from_json, message_to_dict
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 from task_manager.ros.system.specs import MISSION, MISSION_SPEC
 
 
 class MissionExecution(CoroutineExecution):
-    """A running mission; cancelling it cancels its running subtask."""
+    """A running mission; cancelling it cancels its running subtask.
+
+    Paused, it starts no further subtask until resumed; its running subtask goes on, unless
+    that subtask pauses by restart: then it is paused too, and resumed with the mission.
+    """
 
     def __init__(
         self,
@@ -30,11 +36,18 @@ class MissionExecution(CoroutineExecution):
         self._progress = progress
         self._mission = mission
         self._running_id = ''
+        # set while paused: completes on resume (or cancel)
+        self._resumed: Future[None] | None = None
+        # the running subtask this mission's pause paused
+        self._paused_subtask_id = ''
         super().__init__(node, self._run_subtasks())
 
     async def _run_subtasks(self) -> TaskEnd:
         """Each subtask in turn; the mission's feedback shows each start and end."""
         while (row := self._progress.next_subtask()) is not None:
+            if self._resumed is not None:
+                await resolved(self._node, self._resumed)
+                continue  # cancelled meanwhile: next_subtask() says so
             self._running_id = row.task_id
             request = subtask_request(row, self._mission.task_id)
             if row.refusal is not None:  # invalid and skippable: it fails without starting
@@ -51,8 +64,35 @@ class MissionExecution(CoroutineExecution):
     def _on_subtask_turn(self, _: TaskRecord) -> None:
         self._mission.record_feedback(self._progress.feedback(running=True))
 
+    def pause(self, source: str) -> None:
+        if self._resumed is None:
+            self._resumed = Future()
+        running = self._dispatcher.registry.get(self._running_id) if self._running_id else None
+        if running is not None and running.spec.pause is PauseMode.RESTART:
+            self._dispatcher.spawn(self._pause_subtask(running.task_id, source))
+
+    async def _pause_subtask(self, task_id: str, source: str) -> None:
+        if await self._dispatcher.pauses.pause(task_id, source):
+            return  # it could not pause (it ended meanwhile): nothing to resume
+        if self._resumed is None:  # the mission was resumed while its subtask paused
+            await self._dispatcher.pauses.resume(task_id, source)
+        else:
+            self._paused_subtask_id = task_id
+
+    def resume(self, source: str) -> None:
+        self._wake()
+        if self._paused_subtask_id:
+            task_id, self._paused_subtask_id = self._paused_subtask_id, ''
+            self._dispatcher.spawn(self._dispatcher.pauses.resume(task_id, source))
+
+    def _wake(self) -> None:
+        resumed, self._resumed = self._resumed, None
+        if resumed is not None:
+            resumed.set_result(None)
+
     async def cancel(self, timeout_sec: float) -> bool:
         self._progress.cancel(CancelReason.MISSION)
+        self._wake()
         if self._running_id:
             self._dispatcher.cancel(self._running_id, CancelReason.MISSION)
         return await wait_for(self._node, self.outcome, timeout_sec)

@@ -2,14 +2,32 @@
 
 from typing import Any
 
-from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+from task_manager.core.task_spec import InterfaceName, PauseMode, TaskKind, TaskSpec
 
 MISSION = 'system/mission'
 CANCEL_TASK = 'system/cancel_task'
 CANCEL_TASK_ALIAS = 'system/cancel_tasks'
 STOP = 'system/stop'
 WAIT = 'system/wait'
-SYSTEM_TASK_NAMES = frozenset({MISSION, CANCEL_TASK, CANCEL_TASK_ALIAS, STOP, WAIT})
+PAUSE = 'system/pause'
+RESUME = 'system/resume'
+SCHEDULE = 'system/schedule'
+UNSCHEDULE = 'system/unschedule'
+ENABLE_SCHEDULE = 'system/enable_schedule'
+SYSTEM_TASK_NAMES = frozenset(
+    {
+        MISSION,
+        CANCEL_TASK,
+        CANCEL_TASK_ALIAS,
+        STOP,
+        WAIT,
+        PAUSE,
+        RESUME,
+        SCHEDULE,
+        UNSCHEDULE,
+        ENABLE_SCHEDULE,
+    }
+)
 
 
 def _system_spec(name: str, kind: TaskKind, interface: str, **properties: Any) -> TaskSpec:
@@ -21,7 +39,9 @@ def _system_spec(name: str, kind: TaskKind, interface: str, **properties: Any) -
     )
 
 
-MISSION_SPEC = _system_spec(MISSION, TaskKind.ACTION, 'Mission', cancel_on_stop=True)
+MISSION_SPEC = _system_spec(
+    MISSION, TaskKind.ACTION, 'Mission', cancel_on_stop=True, pause=PauseMode.BETWEEN_SUBTASKS
+)
 # Several cancels or stops may run at once; `success: false` makes their status ERROR.
 CANCEL_TASK_SPEC = _system_spec(
     CANCEL_TASK, TaskKind.SERVICE, 'CancelTasks', reentrant=True, service_success_field='success'
@@ -37,5 +57,35 @@ STOP_SPEC = _system_spec(
     STOP, TaskKind.SERVICE, 'StopTasks', reentrant=True, service_success_field='success'
 )
 WAIT_SPEC = _system_spec(WAIT, TaskKind.ACTION, 'Wait', blocking=True, cancel_on_stop=True)
+PAUSE_SPEC = _system_spec(
+    PAUSE, TaskKind.SERVICE, 'PauseTasks', reentrant=True, service_success_field='success'
+)
+RESUME_SPEC = _system_spec(
+    RESUME, TaskKind.SERVICE, 'ResumeTasks', reentrant=True, service_success_field='success'
+)
+SCHEDULE_SPEC = _system_spec(
+    SCHEDULE, TaskKind.SERVICE, 'ScheduleTask', reentrant=True, service_success_field='success'
+)
+UNSCHEDULE_SPEC = _system_spec(
+    UNSCHEDULE, TaskKind.SERVICE, 'Unschedule', reentrant=True, service_success_field='success'
+)
+ENABLE_SCHEDULE_SPEC = _system_spec(
+    ENABLE_SCHEDULE,
+    TaskKind.SERVICE,
+    'EnableSchedules',
+    reentrant=True,
+    service_success_field='success',
+)
 
-SYSTEM_SPECS = (MISSION_SPEC, CANCEL_TASK_SPEC, CANCEL_TASK_ALIAS_SPEC, STOP_SPEC, WAIT_SPEC)
+SYSTEM_SPECS = (
+    MISSION_SPEC,
+    CANCEL_TASK_SPEC,
+    CANCEL_TASK_ALIAS_SPEC,
+    STOP_SPEC,
+    WAIT_SPEC,
+    PAUSE_SPEC,
+    RESUME_SPEC,
+    SCHEDULE_SPEC,
+    UNSCHEDULE_SPEC,
+    ENABLE_SCHEDULE_SPEC,
+)

@@ -1,0 +1,25 @@
+"""taskctl pause ID... and taskctl resume ID...: system/pause and system/resume."""
+
+import typer
+
+from task_manager.cli.common import connected, report_each
+
+
+def pause(
+    ctx: typer.Context,
+    task_ids: list[str] = typer.Argument(..., help='Ids of the active tasks to pause'),
+    source: str = typer.Option('CLI', '--source'),
+) -> None:
+    """Pause tasks by id (system/pause): one line per id. Exit 0 when every one is paused."""
+    with connected(ctx) as client:
+        report_each(client.pause(task_ids, source=source), 'successful_pauses', 'paused')
+
+
+def resume(
+    ctx: typer.Context,
+    task_ids: list[str] = typer.Argument(..., help='Ids of the paused tasks to resume'),
+    source: str = typer.Option('CLI', '--source'),
+) -> None:
+    """Resume paused tasks by id (system/resume): one line per id. Exit 0 when all run again."""
+    with connected(ctx) as client:
+        report_each(client.resume(task_ids, source=source), 'successful_resumes', 'resumed')

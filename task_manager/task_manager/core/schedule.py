@@ -1,0 +1,494 @@
+"""What a schedule is and when it fires: once at a time, every period, or on a cron expression.
+
+A schedule starts a task (or mission) with its data at its fire times, within an optional
+start..end window. Every time is an epoch float; cron times are computed in the schedule's
+IANA time zone. Pure: the caller passes `now`, so everything is tested with a clock it sets.
+"""
+
+import dataclasses
+import json
+import math
+import re
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
+from datetime import datetime
+from enum import StrEnum
+from typing import Any
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
+
+from croniter import CroniterBadDateError, CroniterError, croniter  # type: ignore[import-untyped]
+
+# A robot reboot plus ROS bring-up takes a few minutes: a nightly 02:00 mission that starts at
+# 02:10 is still the night's mission, while one that starts hours late, when people are around,
+# must not. 15 minutes covers the first and refuses the second.
+DEFAULT_MISFIRE_GRACE_SEC = 900.0
+
+# Counting the cron times missed over a long downtime walks them one by one (croniter has no
+# arithmetic); past this many the count is a lower bound, so a catch-up never stalls the node.
+CRON_COUNT_LIMIT = 10_000
+
+# Below this, period times would step by less than a float's resolution of an epoch time.
+MIN_PERIOD_SEC = 0.001
+
+_ID_PATTERN = re.compile(r'[A-Za-z0-9_.:-]{1,64}')
+_WHEN_FIELDS = ('at', 'delay_sec', 'period_sec', 'cron')
+_CRON_HELP = "5 fields: minute hour day-of-month month day-of-week, e.g. '0 2 * * *'"
+# Steps past local times that a fixed-hour cron skips on a DST fall-back night (at most hours).
+_CRON_STEP_LIMIT = 1_000
+
+
+class ScheduleError(ValueError):
+    """A schedule request that cannot be accepted; `field` names the request field at fault.
+
+    For "give exactly one of at, delay_sec, period_sec, cron", `field` lists the fields given
+    (or all four when none was), joined by ','.
+    """
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(message)
+        self.field = field
+
+
+class OverlapPolicy(StrEnum):
+    """What a firing does while the previous run of the same schedule is still active.
+
+    Named after Temporal's schedule overlap policies.
+    """
+
+    SKIP = 'SKIP'
+    """The firing is skipped (counted); the default."""
+    BUFFER_ONE = 'BUFFER_ONE'
+    """The firing runs right after the previous run ends; more firings meanwhile are skipped."""
+    CANCEL_OTHER = 'CANCEL_OTHER'
+    """The previous run is cancelled, then the firing starts."""
+    ALLOW_ALL = 'ALLOW_ALL'
+    """The firing starts regardless; only for reentrant tasks."""
+
+
+class ScheduleKind(StrEnum):
+    """How a schedule's fire times are given."""
+
+    AT = 'at'
+    PERIOD = 'period'
+    CRON = 'cron'
+
+
+@dataclass(frozen=True)
+class ScheduleSpec:
+    """A schedule as requested; never changes (its run state is a ScheduleState)."""
+
+    schedule_id: str
+    task_name: str
+    task_data: str
+    """JSON object text, kept as given (the caller checks it against the task)."""
+    created_by: str
+    """The source of the request."""
+    created: float
+    at: float | None = None
+    """A one-shot's time (from `at`, or created + delay_sec)."""
+    period_sec: float = 0.0
+    """0: not periodic."""
+    cron: str = ''
+    time_zone: str = 'UTC'
+    """IANA name; the zone of cron times (and of describe())."""
+    start: float | None = None
+    end: float | None = None
+    max_runs: int = 0
+    """0: unlimited."""
+    overlap: OverlapPolicy = OverlapPolicy.SKIP
+    misfire_grace_sec: float = DEFAULT_MISFIRE_GRACE_SEC
+
+    def __post_init__(self) -> None:
+        given = (self.at is not None) + (self.period_sec > 0) + bool(self.cron)
+        if given != 1:
+            raise ValueError(f'a schedule has exactly one of at, period_sec, cron; got {given}')
+
+    @property
+    def kind(self) -> ScheduleKind:
+        if self.at is not None:
+            return ScheduleKind.AT
+        return ScheduleKind.PERIOD if self.period_sec > 0 else ScheduleKind.CRON
+
+    def describe(self) -> str:
+        """A human description of when it fires, e.g. "cron '0 2 * * *' (Europe/Paris)"."""
+        zone = ZoneInfo(self.time_zone)
+        if self.at is not None:
+            text = f'once at {_iso(self.at, zone)}'
+        elif self.period_sec > 0:
+            text = f'every {_number(self.period_sec)} s'
+        else:
+            text = f"cron '{self.cron}' ({self.time_zone})"
+        if self.start is not None:
+            text += f', from {_iso(self.start, zone)}'
+        if self.end is not None:
+            text += f', until {_iso(self.end, zone)}'
+        if self.max_runs:
+            text += f', at most {self.max_runs} runs'
+        return text
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self), separators=(',', ':'))
+
+    @classmethod
+    def from_json(cls, text: str) -> 'ScheduleSpec':
+        """The spec stored by to_json; ValueError if it is not one this version can run."""
+        values = load_fields(text, _SPEC_TYPES)
+        values['overlap'] = OverlapPolicy(values['overlap'])
+        spec = cls(**values)
+        _zone('time_zone', spec.time_zone)
+        if spec.cron:
+            _check_cron(spec.cron)
+        return spec
+
+
+_NUMBER = (float, int)
+_OPTIONAL_NUMBER = (float, int, type(None))
+# key: field, value: the JSON types it may hold (json.loads gives int for a float written as 1)
+_SPEC_TYPES: dict[str, tuple[type, ...]] = {
+    'schedule_id': (str,), 'task_name': (str,), 'task_data': (str,), 'created_by': (str,),
+    'created': _NUMBER, 'at': _OPTIONAL_NUMBER, 'period_sec': _NUMBER, 'cron': (str,),
+    'time_zone': (str,), 'start': _OPTIONAL_NUMBER, 'end': _OPTIONAL_NUMBER, 'max_runs': (int,),
+    'overlap': (str,), 'misfire_grace_sec': _NUMBER,
+}  # fmt: skip
+
+
+def load_fields(text: str, types: Mapping[str, tuple[type, ...]]) -> dict[str, Any]:
+    """The fields of a stored JSON object, exactly those of `types` and of those types.
+
+    Raises ValueError otherwise (corrupt text, or a field from another version).
+    """
+    data = json.loads(text)
+    if not isinstance(data, dict):
+        raise ValueError(f'not a JSON object: {text[:80]}')
+    if set(data) != set(types):
+        unknown, missing = sorted(set(data) - set(types)), sorted(set(types) - set(data))
+        raise ValueError(f'unexpected fields {unknown}, missing fields {missing}')
+    for name, value in data.items():
+        allowed = types[name]
+        # bool is an int to isinstance, but never a number here
+        if (isinstance(value, bool) and bool not in allowed) or not isinstance(value, allowed):
+            raise ValueError(f'{name} has a value of the wrong type: {value!r}')
+        if isinstance(value, float | int) and not isinstance(value, bool):
+            if not math.isfinite(value):
+                raise ValueError(f'{name} is not a finite number: {value!r}')
+            if float in types[name]:
+                data[name] = float(value)
+    return data
+
+
+def _iso(t: float, zone: ZoneInfo) -> str:
+    return datetime.fromtimestamp(t, zone).isoformat()
+
+
+def _number(value: float) -> str:
+    return str(int(value)) if value.is_integer() else str(value)
+
+
+# ---- fire times --------------------------------------------------------------------------
+
+
+def first_fire_time(spec: ScheduleSpec) -> float | None:
+    """The first due time, or None when the window holds none.
+
+    A periodic schedule whose start is before its creation does not owe the runs from before
+    it existed: it starts at the first period time after its creation.
+    """
+    if spec.kind is ScheduleKind.AT:
+        assert spec.at is not None
+        return spec.at if _in_window(spec, spec.at) else None
+    if spec.kind is ScheduleKind.PERIOD and _anchor(spec) >= spec.created:
+        return _anchor(spec) if _in_window(spec, _anchor(spec)) else None
+    return next_fire_after(spec, spec.created)
+
+
+def next_fire_after(spec: ScheduleSpec, after: float) -> float | None:
+    """The first fire time strictly after `after` within the window; None when there is none."""
+    if spec.kind is ScheduleKind.AT:
+        assert spec.at is not None
+        return spec.at if spec.at > after and _in_window(spec, spec.at) else None
+    t: float | None
+    if spec.kind is ScheduleKind.PERIOD:
+        t = _anchor(spec) + _index_after(spec, after) * spec.period_sec
+    else:
+        t = _cron_after(spec, after)
+    return None if t is None or (spec.end is not None and t > spec.end) else t
+
+
+def latest_fire_at_or_before(spec: ScheduleSpec, due: float, now: float) -> tuple[float, int]:
+    """For a fire time `due <= now`: the latest fire time L in [due, now] and how many lie there.
+
+    Periodic: arithmetic, exact. Cron: the count is exact up to CRON_COUNT_LIMIT and a lower
+    bound beyond it. Times after the window's end are not counted.
+    """
+    upper = now if spec.end is None else min(now, spec.end)
+    if spec.kind is ScheduleKind.AT or upper <= due:
+        return due, 1
+    if spec.kind is ScheduleKind.PERIOD:
+        first, last = _index_at_or_after(spec, due), _index_at(spec, upper)
+        return max(_anchor(spec) + last * spec.period_sec, due), max(last - first + 1, 1)
+    latest, count = due, 1
+    for t in _cron_times(spec, due):
+        if t > upper:
+            break
+        if count == CRON_COUNT_LIMIT:
+            return max(_cron_at_or_before(spec, upper), latest), count
+        latest, count = t, count + 1
+    return latest, count
+
+
+def _in_window(spec: ScheduleSpec, t: float) -> bool:
+    return (spec.start is None or t >= spec.start) and (spec.end is None or t <= spec.end)
+
+
+def _anchor(spec: ScheduleSpec) -> float:
+    """Periodic times are anchor + k * period_sec, k >= 0."""
+    return spec.start if spec.start is not None else spec.created + spec.period_sec
+
+
+def _index_after(spec: ScheduleSpec, after: float) -> int:
+    """The smallest k >= 0 whose periodic time is strictly after `after`."""
+    anchor, period = _anchor(spec), spec.period_sec
+    if after < anchor:
+        return 0
+    k = math.floor((after - anchor) / period) + 1
+    # the division rounds: correct k by one step either way
+    while anchor + k * period <= after:
+        k += 1
+    while k > 0 and anchor + (k - 1) * period > after:
+        k -= 1
+    return k
+
+
+def _index_at_or_after(spec: ScheduleSpec, t: float) -> int:
+    """The smallest k >= 0 whose periodic time is at or after `t`."""
+    k = _index_after(spec, t)
+    return k - 1 if k > 0 and _anchor(spec) + (k - 1) * spec.period_sec >= t else k
+
+
+def _index_at(spec: ScheduleSpec, t: float) -> int:
+    """The largest k >= 0 whose periodic time is at or before `t` (0 when none is)."""
+    return max(_index_after(spec, t) - 1, 0)
+
+
+def _cron_iterator(spec: ScheduleSpec, base: float) -> Any:
+    return croniter(spec.cron, datetime.fromtimestamp(base, ZoneInfo(spec.time_zone)))
+
+
+def _repeats_in_fall_back(expression: str) -> bool:
+    """Whether a cron job runs in both passes of a local hour repeated by a DST fall-back.
+
+    As in Vixie cron: jobs with '*' in the minute or hour field run by the elapsed time (both
+    passes); fixed-time jobs run once per local time, so '0 2 * * *' runs once that night.
+    """
+    minute, hour = expression.split()[:2]
+    return minute.startswith('*') or hour.startswith('*')
+
+
+def _cron_times(spec: ScheduleSpec, after: float) -> Iterator[float]:
+    """The cron times strictly after `after` (no window), in order; ends if none is left."""
+    iterator = _cron_iterator(spec, after)
+    zone, repeats = ZoneInfo(spec.time_zone), _repeats_in_fall_back(spec.cron)
+    skipped = 0
+    while skipped < _CRON_STEP_LIMIT:
+        try:
+            t = float(iterator.get_next(float))
+        except CroniterBadDateError:  # no time in the next 50 years (e.g. 30 February)
+            return
+        if repeats or not datetime.fromtimestamp(t, zone).fold:
+            skipped = 0
+            yield t
+        else:
+            skipped += 1
+
+
+def _cron_after(spec: ScheduleSpec, after: float) -> float | None:
+    # start itself may be a fire time: search from just before it (cron times are minutes)
+    base = after if spec.start is None or spec.start <= after else spec.start - 1.0
+    for t in _cron_times(spec, base):
+        if spec.start is None or t >= spec.start:
+            return t
+    return None
+
+
+def _cron_at_or_before(spec: ScheduleSpec, t: float) -> float:
+    """The latest cron time at or before `t` (-inf if none), walking back from `t`."""
+    iterator = _cron_iterator(spec, math.floor(t) + 1.0)
+    zone, repeats = ZoneInfo(spec.time_zone), _repeats_in_fall_back(spec.cron)
+    for _ in range(_CRON_STEP_LIMIT):
+        try:
+            previous = float(iterator.get_prev(float))
+        except CroniterBadDateError:
+            break
+        if previous <= t and (repeats or not datetime.fromtimestamp(previous, zone).fold):
+            return previous
+    return -math.inf
+
+
+# ---- requests ----------------------------------------------------------------------------
+
+
+def parse_schedule_request(
+    fields: Mapping[str, Any], created_by: str, now: float, new_id: Callable[[], str]
+) -> ScheduleSpec:
+    """The schedule a request asks for; ScheduleError says what is wrong and what is allowed.
+
+    Missing fields take their defaults; `new_id` names a schedule requested without an id.
+    """
+    schedule_id = _text(fields, 'schedule_id') or new_id()
+    if not _ID_PATTERN.fullmatch(schedule_id):
+        raise ScheduleError(
+            'schedule_id',
+            f"schedule_id '{schedule_id}' is not allowed: use 1 to 64 characters among "
+            'A-Z a-z 0-9 _ . : - (it becomes part of task ids and topic names)',
+        )
+    task_name = _text(fields, 'task_name')
+    if not task_name.strip():
+        raise ScheduleError('task_name', 'task_name is required: the task or mission to run')
+    time_zone = _text(fields, 'time_zone') or 'UTC'
+    zone = _zone('time_zone', time_zone)
+    grace = _number_field(fields, 'misfire_grace_sec', DEFAULT_MISFIRE_GRACE_SEC)
+    spec = ScheduleSpec(
+        schedule_id=schedule_id,
+        task_name=task_name,
+        task_data=_text(fields, 'task_data'),
+        created_by=created_by,
+        created=now,
+        **_when(fields, now),
+        time_zone=time_zone,
+        start=_instant(fields, 'start'),
+        end=_instant(fields, 'end'),
+        max_runs=_max_runs(fields),
+        overlap=_overlap(_text(fields, 'overlap')),
+        misfire_grace_sec=grace if grace >= 0 else DEFAULT_MISFIRE_GRACE_SEC,
+    )
+    _check_window(spec, now, zone)
+    return spec
+
+
+def _when(fields: Mapping[str, Any], now: float) -> dict[str, Any]:
+    """The at / period_sec / cron fields of the spec; exactly one of the four must be given."""
+    at_text, cron = _text(fields, 'at').strip(), _text(fields, 'cron').strip()
+    delay, period = _number_field(fields, 'delay_sec', 0), _number_field(fields, 'period_sec', 0)
+    values = (at_text, delay, period, cron)
+    given = [name for name, value in zip(_WHEN_FIELDS, values, strict=True) if value]
+    if len(given) != 1:
+        got = ' and '.join(given) if given else 'none'
+        raise ScheduleError(
+            ','.join(given or _WHEN_FIELDS),
+            f'give exactly one of at, delay_sec, period_sec, cron; got {got}',
+        )
+    if delay < 0:
+        raise ScheduleError('delay_sec', f'delay_sec must be more than 0 s, got {_number(delay)}')
+    if period and period < MIN_PERIOD_SEC:
+        raise ScheduleError(
+            'period_sec', f'period_sec must be at least {MIN_PERIOD_SEC} s, got {_number(period)}'
+        )
+    if at_text:
+        return {'at': _instant(fields, 'at')}
+    if delay:
+        return {'at': now + delay}
+    if period:
+        return {'period_sec': period}
+    _check_cron(cron)
+    return {'cron': ' '.join(cron.split())}
+
+
+def _check_window(spec: ScheduleSpec, now: float, zone: ZoneInfo) -> None:
+    """Refuse a window that is empty or a schedule that can never run."""
+    if spec.start is not None and spec.end is not None and spec.end <= spec.start:
+        raise ScheduleError(
+            'end', f'end {_iso(spec.end, zone)} must be after start {_iso(spec.start, zone)}'
+        )
+    if spec.at is not None:
+        if not _in_window(spec, spec.at):
+            start, end = (_iso(t, zone) if t is not None else '-' for t in (spec.start, spec.end))
+            raise ScheduleError(
+                'at', f'at {_iso(spec.at, zone)} is outside the window from start {start} to '
+                f'end {end}: give an at within it'
+            )  # fmt: skip
+        if spec.at < now - spec.misfire_grace_sec:
+            raise ScheduleError(
+                'at', f'at {_iso(spec.at, zone)} is in the past (more than misfire_grace_sec '
+                f'{_number(spec.misfire_grace_sec)} s ago); give a future time'
+            )  # fmt: skip
+    elif first_fire_time(spec) is None:
+        field = 'cron' if spec.end is None else 'end'
+        until = '' if spec.end is None else f' before end {_iso(spec.end, zone)}'
+        raise ScheduleError(field, f'the schedule has no fire time{until}: it would never run')
+
+
+def _check_cron(expression: str) -> None:
+    reason = ''
+    if len(expression.split()) != 5:
+        reason = f'it has {len(expression.split())} fields'
+    else:
+        try:
+            croniter(expression, 0.0)
+        except CroniterError as error:
+            reason = str(error)
+    if reason:
+        raise ScheduleError(
+            'cron', f"cron '{expression}' is not a cron expression ({_CRON_HELP}): {reason}"
+        )
+
+
+def _zone(field: str, name: str) -> ZoneInfo:
+    try:
+        return ZoneInfo(name)
+    except (ZoneInfoNotFoundError, ValueError):  # ValueError: not a zone key ('../x', '/etc')
+        raise ScheduleError(
+            field, f"{field} '{name}' is not a known time zone; use an IANA name such as "
+            "'UTC' or 'Europe/Paris'"
+        ) from None  # fmt: skip
+
+
+def _overlap(text: str) -> OverlapPolicy:
+    try:
+        return OverlapPolicy(text.upper()) if text else OverlapPolicy.SKIP
+    except ValueError:
+        names = ', '.join(OverlapPolicy)
+        raise ScheduleError(
+            'overlap', f"overlap '{text}' is not an overlap policy; use one of {names} "
+            "('' is SKIP)"
+        ) from None  # fmt: skip
+
+
+def _max_runs(fields: Mapping[str, Any]) -> int:
+    value = fields.get('max_runs', 0)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ScheduleError('max_runs', f'max_runs must be 0 (unlimited) or more, got {value!r}')
+    return value
+
+
+def _instant(fields: Mapping[str, Any], field: str) -> float | None:
+    """An ISO 8601 time with a zone as epoch seconds; None for ''."""
+    text = _text(fields, field).strip()
+    if not text:
+        return None
+    try:
+        moment = datetime.fromisoformat(text)
+    except ValueError:
+        raise ScheduleError(
+            field, f"{field} '{text}' is not an ISO 8601 time; use e.g. "
+            "'2026-11-25T02:00:00+01:00' or '2026-11-25T01:00:00Z'"
+        ) from None  # fmt: skip
+    if moment.tzinfo is None:
+        raise ScheduleError(
+            field, f"{field} '{text}' has no zone; a zone offset is required, e.g. "
+            f"'{text}+01:00' or '{text}Z'"
+        )  # fmt: skip
+    return moment.timestamp()
+
+
+def _text(fields: Mapping[str, Any], field: str) -> str:
+    value = fields.get(field, '')
+    if not isinstance(value, str):
+        raise ScheduleError(field, f'{field} must be text, got {type(value).__name__}')
+    return value
+
+
+def _number_field(fields: Mapping[str, Any], field: str, default: float) -> float:
+    value = fields.get(field, default)
+    if isinstance(value, bool) or not isinstance(value, float | int) or not math.isfinite(value):
+        raise ScheduleError(field, f'{field} must be a finite number of seconds, got {value!r}')
+    return float(value)

@@ -1,0 +1,196 @@
+"""system/schedule, system/unschedule and system/enable_schedule (see ros/scheduler.py)."""
+
+import dataclasses
+import time
+import uuid
+from typing import Any
+
+from rclpy.node import Node
+from task_manager_msgs.msg import Schedule
+from task_manager_msgs.srv import EnableSchedules, ScheduleTask, Unschedule
+
+from task_manager.core.schedule import (
+    OverlapPolicy,
+    ScheduleError,
+    ScheduleSpec,
+    parse_schedule_request,
+)
+from task_manager.core.schedule_book import ScheduleState
+from task_manager.core.status import TaskStatus
+from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.ros.dispatcher import TaskDispatcher
+from task_manager.ros.message_json import TaskDataError, message_from_json
+from task_manager.ros.scheduler import TaskScheduler
+from task_manager.ros.system.coroutine_execution import CoroutineExecution
+from task_manager.ros.system.specs import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
+from task_manager.ros.task_events import stamp
+
+# key: field of ScheduleTask.Request, value: its name in core/schedule.py's requests
+_RENAMED_FIELDS = {'window_start': 'start', 'window_end': 'end'}
+
+
+def new_schedule_id() -> str:
+    return f'schedule-{uuid.uuid4().hex[:8]}'
+
+
+def schedule_msg(spec: ScheduleSpec, state: ScheduleState) -> Schedule:
+    """A schedule and its state as task_manager_msgs/Schedule."""
+    return Schedule(
+        schedule_id=spec.schedule_id,
+        task_name=spec.task_name,
+        task_data=spec.task_data,
+        created_by=spec.created_by,
+        description=spec.describe(),
+        at=stamp(spec.at),
+        period_sec=spec.period_sec,
+        cron=spec.cron,
+        time_zone=spec.time_zone,
+        window_start=stamp(spec.start),
+        window_end=stamp(spec.end),
+        max_runs=spec.max_runs,
+        overlap=str(spec.overlap),
+        misfire_grace_sec=spec.misfire_grace_sec,
+        enabled=state.enabled,
+        created=stamp(spec.created),
+        next_run=stamp(state.next_run if state.enabled else None),
+        last_run=stamp(state.last_run),
+        last_task_id=state.last_task_id,
+        last_status=state.last_status,
+        run_count=state.run_count,
+        missed_count=state.missed_count,
+        skipped_count=state.skipped_count,
+    )
+
+
+def _instant_end(body: TaskEnd) -> Any:
+    async def end() -> TaskEnd:
+        return body
+
+    return end()
+
+
+class ScheduleTaskRunner:
+    """system/schedule: checks the schedule and its task's data now; runs come later."""
+
+    spec = SCHEDULE_SPEC
+
+    def __init__(self, node: Node, dispatcher: TaskDispatcher, scheduler: TaskScheduler) -> None:
+        self._node = node
+        self._dispatcher = dispatcher
+        self._scheduler = scheduler
+
+    def parse(self, task_data: str, task_id: str) -> ScheduleSpec:
+        request = message_from_json(ScheduleTask.Request, task_data)
+        fields = {
+            _RENAMED_FIELDS.get(name, name): getattr(request, name)
+            for name in request.get_fields_and_field_types()
+        }
+        try:
+            spec = parse_schedule_request(fields, '', time.time(), new_schedule_id)
+        except ScheduleError as error:
+            raise TaskDataError(_field_name(error.field), str(error)) from None
+        self._check_task(spec)
+        return spec
+
+    def _check_task(self, spec: ScheduleSpec) -> None:
+        """The scheduled task must exist and take its task_data, and the id must be free."""
+        if spec.schedule_id in self._scheduler.book:
+            raise TaskDataError(
+                'schedule_id',
+                f'schedule {spec.schedule_id!r} exists; remove it first (system/unschedule) '
+                'or give another id',
+            )
+        runner = self._dispatcher.runners_by_name.get(spec.task_name)
+        if runner is None:
+            raise TaskDataError('task_name', self._dispatcher.unknown_task_reason(spec.task_name))
+        try:
+            runner.parse(spec.task_data, '')
+        except TaskDataError as error:
+            reason = f'not a valid goal of {spec.task_name}: {error}'
+            raise TaskDataError('task_data', reason) from None
+        if spec.overlap is OverlapPolicy.ALLOW_ALL and not runner.spec.reentrant:
+            raise TaskDataError(
+                'overlap',
+                f'ALLOW_ALL runs overlap, and {spec.task_name} is not reentrant (a new goal '
+                'replaces the running one); use SKIP, BUFFER_ONE or CANCEL_OTHER',
+            )
+
+    async def start(self, message: ScheduleSpec, record: TaskRecord) -> CoroutineExecution:
+        spec = dataclasses.replace(message, created_by=record.source)
+        try:
+            state = self._scheduler.add(spec)
+        except ValueError as error:  # the id was taken since parse
+            end = TaskEnd(TaskStatus.ERROR, _schedule_result(False, spec, None, str(error)))
+        else:
+            end = TaskEnd(TaskStatus.DONE, _schedule_result(True, spec, state.next_run, ''))
+        return CoroutineExecution(self._node, _instant_end(end))
+
+
+def _field_name(field: str) -> str:
+    """The request's name of a field core/schedule.py names (first of a list of them)."""
+    first = field.split(',')[0]
+    return {core: msg for msg, core in _RENAMED_FIELDS.items()}.get(first, first)
+
+
+def _schedule_result(
+    success: bool, spec: ScheduleSpec, next_run: float | None, message: str
+) -> dict[str, Any]:
+    run = stamp(next_run)
+    return {
+        'success': success,
+        'schedule_id': spec.schedule_id,
+        'next_run': {'sec': run.sec, 'nanosec': run.nanosec},
+        'message': message or f'{spec.task_name}, {spec.describe()}',
+    }
+
+
+class _ScheduleIdsRunner:
+    """Applies a change to schedules by id; unknown ids fail with a line each."""
+
+    spec: Any
+    _request_type: Any
+
+    def __init__(self, node: Node, scheduler: TaskScheduler) -> None:
+        self._node = node
+        self._scheduler = scheduler
+
+    def parse(self, task_data: str, task_id: str) -> Any:
+        return message_from_json(self._request_type, task_data)
+
+    def _apply(self, message: Any) -> tuple[str, list[str]]:
+        """The result's field of the ids changed, and those ids."""
+        raise NotImplementedError
+
+    async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
+        field, done = self._apply(message)
+        errors = [
+            f'no schedule {schedule_id!r}'
+            for schedule_id in message.schedule_ids
+            if schedule_id not in done
+        ]
+        success = not errors
+        status = TaskStatus.DONE if success else TaskStatus.ERROR
+        end = TaskEnd(status, {'success': success, field: done, 'errors': errors})
+        return CoroutineExecution(self._node, _instant_end(end))
+
+
+class UnscheduleRunner(_ScheduleIdsRunner):
+    """system/unschedule: removes schedules; their runs already started go on."""
+
+    spec = UNSCHEDULE_SPEC
+    _request_type = Unschedule.Request
+
+    def _apply(self, message: Any) -> tuple[str, list[str]]:
+        return 'removed', self._scheduler.remove(list(message.schedule_ids))
+
+
+class EnableSchedulesRunner(_ScheduleIdsRunner):
+    """system/enable_schedule: disables schedules (state kept) or enables them again."""
+
+    spec = ENABLE_SCHEDULE_SPEC
+    _request_type = EnableSchedules.Request
+
+    def _apply(self, message: Any) -> tuple[str, list[str]]:
+        return 'changed', self._scheduler.set_enabled(
+            list(message.schedule_ids), bool(message.enabled)
+        )

@@ -1,0 +1,43 @@
+"""One admitted task's run state, held by the dispatcher from admission until the task ends."""
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from rclpy.task import Future
+
+from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.ros.execution import Execution
+
+
+@dataclass(eq=False)
+class TaskRun:
+    """A task's futures, its execution on its server, and its cancel and pause in flight.
+
+    One object per task (not a table per attribute), so that a task's state cannot drift
+    apart across maps as features add to it.
+    """
+
+    record: TaskRecord
+    message: Any
+    """The parsed goal/request: sent again when a `pause: restart` task resumes."""
+    finished: Future[TaskEnd] = field(default_factory=Future)
+    """Completes with the task's end (the first writer wins)."""
+    started: Future[None] = field(default_factory=Future)
+    """Completes once the current start on the server has succeeded or failed."""
+    execution: Execution | None = None
+    """The task on its server; None before it starts and while it is paused by restart."""
+    starting: bool = False
+    """A start (or a restart on resume) on the server is in flight."""
+    cancel_in_flight: Future[bool] | None = None
+    """Completes with True when the cancel in flight ended the task in time."""
+    pausing: bool = False
+    """A pause is cancelling the server's goal: that goal's CANCELED end is not the task's."""
+
+    @property
+    def task_id(self) -> str:
+        return self.record.task_id
+
+    def settle(self, end: TaskEnd) -> None:
+        """End the task with `end`, unless it has already ended."""
+        if not self.finished.done():
+            self.finished.set_result(end)

@@ -1,0 +1,352 @@
+"""Schedules: tasks and missions the Task Manager starts at set times.
+
+`ScheduleMethods` gives TaskManagerClient system/schedule, system/unschedule,
+system/enable_schedule and /task_manager/get_schedules; `ScheduleInfo` is one schedule as
+the latter reports it. Each run of a schedule is an ordinary task with id
+`<schedule_id>-run-<n>` and source `schedule:<schedule_id>`.
+"""
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from typing import TYPE_CHECKING, Any, TypeAlias
+
+from task_manager_msgs.srv import GetSchedules
+
+from task_manager.core.schedule import OverlapPolicy
+from task_manager.core.status import TaskStatus
+from task_manager.message_values import datetime_of, datetime_of_json, json_object, json_text
+from task_manager.missions import MISSION_TASK, Subtask, mission_task_data
+
+if TYPE_CHECKING:
+    from task_manager.client import TaskResult
+
+SCHEDULE_TASK = 'system/schedule'
+UNSCHEDULE_TASK = 'system/unschedule'
+ENABLE_SCHEDULE_TASK = 'system/enable_schedule'
+GET_SCHEDULES_SERVICE = '/task_manager/get_schedules'
+RUN_SOURCE_PREFIX = 'schedule:'
+"""The source of a schedule's runs: this and the schedule id."""
+
+Moment: TypeAlias = datetime | str
+"""A timezone-aware datetime, or ISO 8601 text with its zone (checked by the Task Manager)."""
+Span: TypeAlias = timedelta | float
+"""A timedelta, or seconds."""
+
+
+def iso_8601(moment: Moment, name: str) -> str:
+    """`moment` as ISO 8601 with its zone; ValueError for a naive datetime."""
+    if isinstance(moment, str):
+        return moment.strip()
+    if moment.tzinfo is None or moment.utcoffset() is None:
+        raise ValueError(
+            f'{name} {moment.isoformat()} has no time zone; give an aware datetime, e.g. '
+            'datetime(2026, 11, 25, 2, tzinfo=ZoneInfo("Europe/Paris")), or ISO 8601 text '
+            'with its zone'
+        )
+    return moment.isoformat()
+
+
+def _seconds(span: Span, name: str, *, zero_allowed: bool = False) -> float:
+    seconds = span.total_seconds() if isinstance(span, timedelta) else float(span)
+    if not math.isfinite(seconds) or seconds < 0 or (seconds == 0 and not zero_allowed):
+        least = '0 s or more' if zero_allowed else 'more than 0 s'
+        raise ValueError(f'{name} must be {least}, got {seconds:g} s')
+    return seconds
+
+
+def _overlap(text: str) -> str:
+    if not text:
+        return ''
+    try:
+        return OverlapPolicy(text.strip().upper()).value
+    except ValueError:
+        names = ', '.join(OverlapPolicy)
+        raise ValueError(
+            f"overlap {text!r} is not an overlap policy; use one of {names} ('' is SKIP)"
+        ) from None
+
+
+def schedule_request(
+    task_name: str,
+    task_data: dict[str, Any] | str | None,
+    *,
+    at: Moment | None = None,
+    delay: Span | None = None,
+    period: Span | None = None,
+    cron: str = '',
+    time_zone: str = '',
+    window_start: Moment | None = None,
+    window_end: Moment | None = None,
+    max_runs: int = 0,
+    overlap: str = '',
+    misfire_grace: Span | None = None,
+    schedule_id: str = '',
+) -> dict[str, Any]:
+    """The task data of system/schedule (a ScheduleTask request); ValueError if it is not one.
+
+    Exactly one of `at`, `delay`, `period` and `cron` says when.
+    """
+    when = {'at': at, 'delay': delay, 'period': period, 'cron': cron or None}
+    given = [name for name, value in when.items() if value is not None]
+    if len(given) != 1:
+        got = ' and '.join(given) if given else 'none'
+        raise ValueError(f'give exactly one of at, delay, period, cron; got {got}')
+    if max_runs < 0:
+        raise ValueError(f'max_runs must be 0 (no limit) or more, got {max_runs}')
+    return {
+        'schedule_id': schedule_id,
+        'task_name': task_name,
+        'task_data': json_text(task_data),
+        'at': '' if at is None else iso_8601(at, 'at'),
+        'delay_sec': 0.0 if delay is None else _seconds(delay, 'delay'),
+        'period_sec': 0.0 if period is None else _seconds(period, 'period'),
+        'cron': cron.strip(),
+        'time_zone': time_zone,
+        'window_start': '' if window_start is None else iso_8601(window_start, 'window_start'),
+        'window_end': '' if window_end is None else iso_8601(window_end, 'window_end'),
+        'max_runs': max_runs,
+        'overlap': _overlap(overlap),
+        'misfire_grace_sec': (
+            -1.0
+            if misfire_grace is None
+            else _seconds(misfire_grace, 'misfire_grace', zero_allowed=True)
+        ),
+    }
+
+
+def scheduled_next_run(result: 'TaskResult') -> datetime | None:
+    """The first run of the schedule a system/schedule result created; None when none."""
+    return datetime_of_json(result.result.get('next_run'))
+
+
+@dataclass(frozen=True)
+class ScheduleInfo:
+    """One schedule as /task_manager/get_schedules reports it (msg/Schedule), with datetimes.
+
+    A stamp is None where the message has zero (none, or not yet).
+    """
+
+    schedule_id: str
+    task_name: str
+    """The task each run starts (system/mission for a mission)."""
+    task_data: dict[str, Any]
+    created_by: str
+    """The source of the system/schedule task that created it."""
+    description: str
+    """When it runs, in words: "every 7200 s", "cron '0 2 * * *' (Europe/Paris)", ..."""
+    at: datetime | None
+    """The time of a schedule that runs once."""
+    period: timedelta | None
+    """Of a periodic schedule; None for the others."""
+    cron: str
+    time_zone: str
+    window_start: datetime | None
+    window_end: datetime | None
+    max_runs: int
+    """0: no limit."""
+    overlap: OverlapPolicy
+    misfire_grace: timedelta
+    """A run due while the Task Manager was down runs at its start if at most this late."""
+    enabled: bool
+    created: datetime | None
+    next_run: datetime | None
+    """None: no more runs."""
+    last_run: datetime | None
+    """When the last run started; None before the first."""
+    last_task_id: str
+    last_status: TaskStatus | None
+    """The last run's status (IN_PROGRESS while it runs); None before the first run."""
+    run_count: int
+    missed_count: int
+    """Due times not run: too late (the Task Manager was down), or coalesced into one run."""
+    skipped_count: int
+    """Due times skipped by the overlap policy."""
+
+    @property
+    def run_source(self) -> str:
+        """The source of its runs."""
+        return f'{RUN_SOURCE_PREFIX}{self.schedule_id}'
+
+    @classmethod
+    def from_message(cls, message: Any) -> 'ScheduleInfo':
+        """From a task_manager_msgs/msg/Schedule."""
+        return cls(
+            schedule_id=message.schedule_id,
+            task_name=message.task_name,
+            task_data=json_object(message.task_data),
+            created_by=message.created_by,
+            description=message.description,
+            at=datetime_of(message.at),
+            period=timedelta(seconds=message.period_sec) if message.period_sec > 0 else None,
+            cron=message.cron,
+            time_zone=message.time_zone,
+            window_start=datetime_of(message.window_start),
+            window_end=datetime_of(message.window_end),
+            max_runs=message.max_runs,
+            overlap=OverlapPolicy(message.overlap or OverlapPolicy.SKIP),
+            misfire_grace=timedelta(seconds=max(message.misfire_grace_sec, 0.0)),
+            enabled=message.enabled,
+            created=datetime_of(message.created),
+            next_run=datetime_of(message.next_run),
+            last_run=datetime_of(message.last_run),
+            last_task_id=message.last_task_id,
+            last_status=TaskStatus(message.last_status) if message.last_status else None,
+            run_count=message.run_count,
+            missed_count=message.missed_count,
+            skipped_count=message.skipped_count,
+        )
+
+
+class ScheduleMethods:
+    """The schedule methods of TaskManagerClient."""
+
+    if TYPE_CHECKING:
+
+        def run_task(
+            self,
+            task_name: str,
+            task_data: dict[str, Any] | str | None = None,
+            *,
+            timeout_sec: float | None = None,
+            **options: Any,
+        ) -> TaskResult: ...
+
+        def _call(
+            self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
+        ) -> Any: ...
+
+    def schedule_task(
+        self,
+        task_name: str,
+        task_data: dict[str, Any] | str | None = None,
+        *,
+        at: Moment | None = None,
+        delay: Span | None = None,
+        period: Span | None = None,
+        cron: str = '',
+        time_zone: str = '',
+        window_start: Moment | None = None,
+        window_end: Moment | None = None,
+        max_runs: int = 0,
+        overlap: str = '',
+        misfire_grace: Span | None = None,
+        schedule_id: str = '',
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> 'TaskResult':
+        """Schedule a task through system/schedule; its result has `schedule_id` and
+        `next_run` (see scheduled_next_run), or `message` saying why it was refused.
+
+        Exactly one of: `at` (once), `delay` (once, this long from now), `period` (every
+        period, from `window_start` or one period from now), `cron` (5 fields, in
+        `time_zone`, an IANA name; '': UTC). Runs happen only within the window, at most
+        `max_runs` (0: no limit). `overlap`: SKIP (''), BUFFER_ONE, CANCEL_OTHER or ALLOW_ALL,
+        what a run due while the previous one is active does. `misfire_grace`: how late a
+        run missed while the Task Manager was down may still run (None: its default).
+        Datetimes must be timezone-aware; ValueError says what is wrong before sending.
+        """
+        data = schedule_request(
+            task_name,
+            task_data,
+            at=at,
+            delay=delay,
+            period=period,
+            cron=cron,
+            time_zone=time_zone,
+            window_start=window_start,
+            window_end=window_end,
+            max_runs=max_runs,
+            overlap=overlap,
+            misfire_grace=misfire_grace,
+            schedule_id=schedule_id,
+        )
+        return self.run_task(SCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def schedule_mission(
+        self,
+        subtasks: Sequence[Subtask],
+        *,
+        at: Moment | None = None,
+        delay: Span | None = None,
+        period: Span | None = None,
+        cron: str = '',
+        time_zone: str = '',
+        window_start: Moment | None = None,
+        window_end: Moment | None = None,
+        max_runs: int = 0,
+        overlap: str = '',
+        misfire_grace: Span | None = None,
+        schedule_id: str = '',
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> 'TaskResult':
+        """Schedule system/mission with these subtasks, as schedule_task does.
+
+        Each run makes its own subtask ids; a subtask id given is refused for a schedule that
+        may run more than once, since two runs cannot share task ids.
+        """
+        once = at is not None or delay is not None or max_runs == 1
+        fixed = [s.task_id for s in subtasks if s.task_id]
+        if fixed and not once:
+            raise ValueError(
+                f'subtask ids {", ".join(fixed)} would repeat in every run; leave task_id '
+                'empty in a repeating schedule (each run makes its own)'
+            )
+        data = mission_task_data(subtasks, [s.task_id for s in subtasks])
+        return self.schedule_task(
+            MISSION_TASK,
+            data,
+            at=at,
+            delay=delay,
+            period=period,
+            cron=cron,
+            time_zone=time_zone,
+            window_start=window_start,
+            window_end=window_end,
+            max_runs=max_runs,
+            overlap=overlap,
+            misfire_grace=misfire_grace,
+            schedule_id=schedule_id,
+            source=source,
+            timeout_sec=timeout_sec,
+        )
+
+    def unschedule(
+        self,
+        schedule_ids: Sequence[str],
+        *,
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> 'TaskResult':
+        """Remove schedules through system/unschedule (their runs already started go on).
+
+        Its result has `removed` and `errors` (one line per id that is not a schedule).
+        """
+        data = {'schedule_ids': list(schedule_ids)}
+        return self.run_task(UNSCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def enable_schedules(
+        self,
+        schedule_ids: Sequence[str],
+        enabled: bool,
+        *,
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> 'TaskResult':
+        """Disable schedules (no runs; state and counts kept) or enable them again (from the
+        next due time after now) through system/enable_schedule.
+
+        Its result has `changed` and `errors` (one line per id that is not a schedule).
+        """
+        data = {'schedule_ids': list(schedule_ids), 'enabled': enabled}
+        return self.run_task(ENABLE_SCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def schedules(
+        self, schedule_ids: Sequence[str] | None = None, timeout_sec: float | None = None
+    ) -> list[ScheduleInfo]:
+        """These schedules (ids that are not schedules are left out), or every one (None)."""
+        request = GetSchedules.Request(schedule_ids=list(schedule_ids or []))
+        response = self._call(GetSchedules, GET_SCHEDULES_SERVICE, request, timeout_sec)
+        return [ScheduleInfo.from_message(m) for m in response.schedules]
