@@ -124,6 +124,11 @@ def parse_task_spec(key: str, entry: Mapping[str, Any]) -> TaskSpec:
     if not options['cancel_timeout'] >= 0:  # also rejects NaN
         raise ConfigurationError(f'{label}: {key}.cancel_timeout must be >= 0')
     pause = _pause_mode(label, key, options['pause'], interface)
+    if pause is PauseMode.RESTART and options['cancel_reported_as_success']:
+        raise ConfigurationError(
+            f'{label}: pause: restart cancels the goal to pause it, which '
+            'cancel_reported_as_success would report as the task succeeding; use one of them'
+        )
     if options['service_success_field'] and interface.kind is not TaskKind.SERVICE:
         raise ConfigurationError(
             f'{label}: service_success_field is only for service tasks, '

@@ -18,6 +18,7 @@ from task_manager.core.registry import TaskRegistry
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+from task_manager.ros.active_tasks import ActiveTasksPublication
 from task_manager.ros.execution import Execution, TaskRunner
 from task_manager.ros.futures import (
     all_completed,
@@ -72,10 +73,7 @@ class TaskDispatcher:
         # key: task id, value: the run state of the admitted task, until it ends
         self.runs_by_id: dict[str, TaskRun] = {}
         self._closing_reason = ''
-        # Tasks that ended since the last active_tasks publication: shown once more, with
-        # their end status, before they leave the list.
-        self._ended_unpublished: list[TaskRecord] = []
-        self._publication_pending = False
+        self._active = ActiveTasksPublication(node, self.registry, reporter, spawn)
         # completes once no task is active; replaced whenever a task is admitted
         self._idle: Future = completed_future()
         self.pauses = PauseControl(self)
@@ -318,8 +316,7 @@ class TaskDispatcher:
         self.registry.remove(record.task_id)
         del self.runs_by_id[record.task_id]
         if was_active:
-            self._ended_unpublished.append(record)
-            self.publish_active_soon()
+            self._active.ended(record)
         announced = self._publish_end(record)
         if not len(self.registry) and not self._idle.done():
             self._idle.set_result(None)
@@ -344,19 +341,5 @@ class TaskDispatcher:
         self._reporter.publish_result(record)
 
     def publish_active_soon(self) -> None:
-        """Publish active_tasks once the executor has handled what is ready now.
-
-        The changes of one executor turn share one publication: with hundreds of tasks,
-        a list per change would cost more than the tasks themselves.
-        """
-        if not self._publication_pending:
-            self._publication_pending = True
-            self.spawn(self._publish_active())
-
-    async def _publish_active(self) -> None:
-        self._publication_pending = False
-        in_progress = self.registry.started()
-        if self._ended_unpublished:
-            self._reporter.publish_active(in_progress + self._ended_unpublished)
-            self._ended_unpublished = []
-        self._reporter.publish_active(in_progress)
+        """Publish active_tasks soon (see active_tasks.py for when)."""
+        self._active.changed()

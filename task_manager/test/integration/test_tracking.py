@@ -1,16 +1,20 @@
 """/task_manager/active_tasks and /task_manager/results (BEHAVIOUR.md, What everyone can see)."""
 
+import time
+
 from rclpy.client import Client
 from task_manager_msgs.msg import ActiveTaskArray
 from task_manager_msgs.srv import GetTaskResults
 from test_msgs.action import Fibonacci
 
 from task_manager.ros import qos
+from task_manager.ros.active_tasks import LARGE_LIST, LARGE_LIST_RATE_HZ
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task
-from task_manager.testing.servers import ScriptedActionServer
+from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
 
 TIMEOUT_SEC = 15.0
+HOLD = 50  # Fibonacci orders at or above it are held by the server
 
 
 def _ids(message: ActiveTaskArray) -> list[tuple[str, str]]:
@@ -114,3 +118,45 @@ def test_kept_results_can_be_fetched_after_the_fact(
     ]
     assert [r.task_id for r in newest.results] == ['r4', 'r5']
     ros.node.destroy_client(client)
+
+
+LARGE = LARGE_LIST + 10
+QUICK_TASKS = 40
+
+
+def test_a_large_list_goes_out_at_a_bounded_rate_and_shows_every_end_once(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    def decide(goal: ScriptedGoal) -> None:
+        if goal.request.order < HOLD:
+            goal.succeed(Fibonacci.Result())
+
+    server = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=decide)
+    tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib', reentrant=True)})
+    for n in range(LARGE):
+        tm.send('fib', {'order': HOLD}, task_id=f'held-{n}')
+    tm.wait_active(lambda tasks: len(tasks) == LARGE, f'{LARGE} tasks active')
+    before = len(tm.active.snapshot())
+
+    began = time.monotonic()
+    for n in range(QUICK_TASKS):
+        tm.run('fib', {'order': 1}, task_id=f'quick-{n}')
+    elapsed_sec = time.monotonic() - began
+    last = f'quick-{QUICK_TASKS - 1}'
+
+    def after_the_last_end(messages: list[ActiveTaskArray]) -> list[list[tuple[str, str]]] | None:
+        lists = [_ids(m) for m in messages[before:]]
+        shown = [i for i, tasks in enumerate(lists) if (last, 'DONE') in tasks]
+        return lists if shown and len(lists) > shown[-1] + 1 else None
+
+    lists = tm.active.wait_until(after_the_last_end, TIMEOUT_SEC, f'{last} shown ended, then gone')
+    for goal in server.goals.items:
+        goal.succeed(Fibonacci.Result())
+
+    # each publication is one list, or two when tasks ended (with their end, then without)
+    assert len(lists) <= 2 * (LARGE_LIST_RATE_HZ * elapsed_sec + 2)
+    for n in range(QUICK_TASKS):
+        shown = [i for i, tasks in enumerate(lists) if (f'quick-{n}', 'DONE') in tasks]
+        assert len(shown) == 1, f'quick-{n} shown DONE in {len(shown)} lists'
+        assert all(f'quick-{n}' not in dict(tasks) for tasks in lists[shown[0] + 1 :])
+    assert all(len(tasks) >= LARGE for tasks in lists)

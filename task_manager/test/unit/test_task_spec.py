@@ -211,6 +211,37 @@ def test_service_success_field_is_rejected_on_an_action_task(msg_interface: str)
     assert 'is an action' in message
 
 
+@pytest.mark.parametrize(
+    ('value', 'mode'), [('none', 'none'), ('restart', 'restart'), (' Restart ', 'restart')]
+)
+def test_pause_is_none_by_default_or_restart(value: str, mode: str) -> None:
+    assert parse().pause == 'none'
+    assert parse(pause=value).pause == mode
+
+
+@pytest.mark.parametrize(
+    ('overrides', 'words'),
+    [
+        (
+            {'pause': 'between_subtasks'},
+            "fib_key.pause must be one of none, restart, got 'between_subtasks'",
+        ),
+        ({'pause': 'later'}, "fib_key.pause must be one of none, restart, got 'later'"),
+        ({'pause': True}, 'fib_key.pause must be str, got True'),
+        ({'pause': 'restart', 'cancel_reported_as_success': True}, 'use one of them'),
+    ],
+)
+def test_unusable_pause_settings_are_named(overrides: dict[str, Any], words: str) -> None:
+    with pytest.raises(ConfigurationError, match=r"^task 'fib': ") as raised:
+        parse(**overrides)
+    assert words in str(raised.value)
+
+
+def test_pause_restart_is_refused_for_a_service_task() -> None:
+    with pytest.raises(ConfigurationError, match='pause: restart is only for action tasks'):
+        parse_task_spec('trigger', service_entry(pause='restart'))
+
+
 # ---- required keys ---------------------------------------------------------------------------
 
 

@@ -1,0 +1,84 @@
+"""When /task_manager/active_tasks goes out: once per executor turn, and for a large list at
+most LARGE_LIST_RATE_HZ times a second.
+
+Every list holds every started task (IN_PROGRESS or PAUSED). A task that ends is shown once
+more with its final status, then left out, as the original does: those two lists go out
+together. The changes of one executor turn share one publication; with more than LARGE_LIST
+entries the changes of up to 1 / LARGE_LIST_RATE_HZ seconds do, so that the cost of a change
+does not grow with the number of tasks. Each change still goes out on its own on
+/task_manager/task_events.
+"""
+
+import time
+from collections.abc import Callable, Coroutine
+from typing import Any, Protocol
+
+from rclpy.node import Node
+from rclpy.timer import Timer
+
+from task_manager.core.registry import TaskRegistry
+from task_manager.core.task import TaskRecord
+from task_manager.ros.cleanup import destroy_timer
+
+LARGE_LIST = 100
+"""Entries above which the list's publication rate is bounded."""
+LARGE_LIST_RATE_HZ = 10.0
+
+
+class ActiveTasksSink(Protocol):
+    """Where the lists go (the node's publisher)."""
+
+    def publish_active(self, records: list[TaskRecord]) -> None: ...
+
+
+class ActiveTasksPublication:
+    """Gathers changes and publishes active_tasks within the bounds above."""
+
+    def __init__(
+        self,
+        node: Node,
+        registry: TaskRegistry,
+        sink: ActiveTasksSink,
+        spawn: Callable[[Coroutine[Any, Any, Any]], Any],
+    ) -> None:
+        self._node = node
+        self._registry = registry
+        self._sink = sink
+        self._spawn = spawn
+        self._ended_unpublished: list[TaskRecord] = []
+        self._pending = False
+        self._last_published = -float('inf')
+        self._timer: Timer | None = None
+
+    def ended(self, record: TaskRecord) -> None:
+        """A started task ended: shown once with its final status, then left out."""
+        self._ended_unpublished.append(record)
+        self.changed()
+
+    def changed(self) -> None:
+        """The list changed: publish it once this executor turn is done (or later, if large)."""
+        if not self._pending:
+            self._pending = True
+            self._spawn(self._after_turn())
+
+    async def _after_turn(self) -> None:
+        started = self._registry.started()
+        wait_sec = self._last_published + 1.0 / LARGE_LIST_RATE_HZ - time.monotonic()
+        if len(started) + len(self._ended_unpublished) > LARGE_LIST and wait_sec > 0:
+            self._timer = self._node.create_timer(wait_sec, self._on_timer)
+            return  # still pending: changes meanwhile join this publication
+        self._publish(started)
+
+    def _on_timer(self) -> None:
+        if self._timer is not None:
+            destroy_timer(self._node, self._timer)
+            self._timer = None
+        self._publish(self._registry.started())
+
+    def _publish(self, started: list[TaskRecord]) -> None:
+        self._pending = False
+        self._last_published = time.monotonic()
+        if self._ended_unpublished:
+            self._sink.publish_active(started + self._ended_unpublished)
+            self._ended_unpublished = []
+        self._sink.publish_active(started)
