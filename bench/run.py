@@ -25,6 +25,7 @@ from bench import (
     leak,
     mission,
     mqtt,
+    schedules,
     startup,
     throughput,
     web,
@@ -50,6 +51,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     # last: they restart the node for each phase, then once more with the default parameters
     'events': events.run,
     'history': history.run,
+    'schedules': schedules.run,
     'leak': leak.run,
     'startup': startup.run,
 }

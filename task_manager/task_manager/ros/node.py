@@ -3,8 +3,6 @@
 import sqlite3
 from typing import Any
 
-from rclpy.action import ActionServer, GoalResponse
-from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask
@@ -16,6 +14,7 @@ from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.ros import qos
 from task_manager.ros.action_runner import ActionTaskRunner
+from task_manager.ros.action_services_server import ActionServicesServer
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.execution import RunnerTimeouts, TaskRunner
@@ -123,17 +122,12 @@ class TaskManagerNode(Node):
             GetSchedules, GET_SCHEDULES_SERVICE, self._get_schedules
         )
         self._events.open()
-        self._execute_server = ActionServer(
+        self._execute_server = ActionServicesServer(
             self,
             ExecuteTask,
             EXECUTE_TASK_ACTION,
-            execute_callback=self._execute_task,
-            goal_callback=lambda _: GoalResponse.ACCEPT,
-            cancel_callback=self._goals.cancel_callback,
-            goal_service_qos_profile=qos.DEEP_RELIABLE,
-            result_service_qos_profile=qos.DEEP_RELIABLE,
-            cancel_service_qos_profile=qos.DEEP_RELIABLE,
-            callback_group=ReentrantCallbackGroup(),
+            execute=self._execute_task,
+            cancel=self._goals.cancel_callback,
         )
         self._task_servers = (
             create_task_servers(self, self.dispatcher, [r.spec for r in self._runners])
