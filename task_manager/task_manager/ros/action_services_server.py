@@ -132,28 +132,20 @@ class ActionServicesServer:
         self._result_timeout_sec = result_timeout_sec
         self._log = node.get_logger().get_child('execute_task')
         group = ReentrantCallbackGroup()  # get_result answers wait: they must not hold a group
+        handlers: list[tuple[Any, str, Callable[[Any, Any], Any]]] = [
+            (self._impl.SendGoalService, 'send_goal', self._on_goal),
+            (self._impl.GetResultService, 'get_result', self._on_get_result),
+            (self._impl.CancelGoalService, 'cancel_goal', self._on_cancel),
+        ]
         self._services = [
             node.create_service(
-                self._impl.SendGoalService,
-                action_service_name(action_name, 'send_goal'),
-                self._on_goal,
+                service_type,
+                action_service_name(action_name, service),
+                handler,
                 qos_profile=DEEP_RELIABLE,
                 callback_group=group,
-            ),
-            node.create_service(
-                self._impl.GetResultService,
-                action_service_name(action_name, 'get_result'),
-                self._on_get_result,
-                qos_profile=DEEP_RELIABLE,
-                callback_group=group,
-            ),
-            node.create_service(
-                self._impl.CancelGoalService,
-                action_service_name(action_name, 'cancel_goal'),
-                self._on_cancel,
-                qos_profile=DEEP_RELIABLE,
-                callback_group=group,
-            ),
+            )
+            for service_type, service, handler in handlers
         ]
         name = action_name.rstrip('/')
         self._feedback = node.create_publisher(

@@ -7,6 +7,9 @@ is *parked*: taken out of the executor's task list until that future completes, 
 put back and the executor woken. A task suspended on anything else is resumed at each
 wake-up, as before.
 
+Coroutine tasks made with `create_task` and the handlers rclpy makes for ready entities (an
+async service callback) both park.
+
 How the awaited future is known: `Future.__await__` is replaced (in this process, by
 `install()`) by one that notes the future on a thread-local just before it yields; the task
 reads the note after each step. Nothing else about futures changes.
@@ -14,7 +17,7 @@ reads the note after each step. Nothing else about futures changes.
 
 import threading
 from collections.abc import Callable, Generator
-from typing import Any
+from typing import Any, cast
 
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.task import Future, Task
@@ -41,6 +44,15 @@ class _ParkingTask(Task[Any]):
         self._parking = executor
         self.parked = False
 
+    @classmethod
+    def adopt(cls, task: Task[Any], executor: 'ParkingExecutor') -> '_ParkingTask':
+        """Make a Task that rclpy created a parking one (same object, same state)."""
+        task.__class__ = cls
+        adopted = cast(_ParkingTask, task)
+        adopted._parking = executor
+        adopted.parked = False
+        return adopted
+
     def __call__(self) -> None:
         _noted.future = None
         super().__call__()
@@ -56,6 +68,12 @@ class ParkingExecutor(SingleThreadedExecutor):
         task = _ParkingTask(self, callback, args, kwargs)
         self._resume(task)
         return task
+
+    def _make_handler(self, *args: Any, **kwargs: Any) -> Task[None]:
+        """rclpy's handler of a ready entity (a service request, a message), made to park too:
+        an async callback awaiting a future (ExecuteTask's get_result answers, one per task in
+        flight) then waits off the list like any coroutine here."""
+        return _ParkingTask.adopt(super()._make_handler(*args, **kwargs), self)
 
     def park(self, task: _ParkingTask, awaited: Future[Any]) -> None:
         """Take `task` off the list until `awaited` completes (or is cancelled)."""

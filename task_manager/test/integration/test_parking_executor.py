@@ -1,9 +1,14 @@
 """ParkingExecutor: a coroutine waiting on a future is not stepped until the future completes."""
 
+import os
 import threading
+import time
 
 import pytest
+import rclpy
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.task import Future
+from std_srvs.srv import Trigger
 
 from task_manager.ros import parking_executor
 from task_manager.ros.parking_executor import ParkingExecutor
@@ -60,3 +65,38 @@ def test_a_coroutine_awaiting_a_future_already_done_goes_on_at_once(ros_context:
     executor.spin_until_future_complete(task, timeout_sec=5.0)
     assert task.result() == 6
     executor.shutdown()
+
+
+def test_an_async_service_callback_waiting_on_a_future_is_parked_too(ros_context: None) -> None:
+    parking_executor.install()
+    executor = ParkingExecutor()
+    node = rclpy.create_node(f'parking_{os.getpid()}')
+    executor.add_node(node)
+    future = CountingFuture()
+    entered = threading.Event()
+
+    async def answer(_: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        entered.set()
+        response.success = bool(await future)
+        return response
+
+    name = f'/parking_{os.getpid()}/answer'
+    node.create_service(Trigger, name, answer, callback_group=ReentrantCallbackGroup())
+    client = node.create_client(Trigger, name)
+    assert client.wait_for_service(timeout_sec=5.0)
+    reply = client.call_async(Trigger.Request())
+    deadline = time.monotonic() + 5.0
+    while not entered.is_set() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=0.1)
+    assert entered.is_set()
+    checks_at_the_await = future.checks
+    for _ in range(UNRELATED_WAKE_UPS):
+        executor.create_task(lambda: None)
+        executor.spin_once(timeout_sec=0.0)
+    assert future.checks == checks_at_the_await  # rclpy's handler task steps it at each wake-up
+
+    future.set_result(1)
+    executor.spin_until_future_complete(reply, timeout_sec=5.0)
+    assert reply.done() and reply.result().success
+    executor.shutdown()
+    node.destroy_node()
