@@ -18,6 +18,7 @@ from task_manager.core.registry import TaskRegistry
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+from task_manager.ros import task_log
 from task_manager.ros.active_tasks import ActiveTasksPublication
 from task_manager.ros.execution import Execution, TaskRunner
 from task_manager.ros.futures import (
@@ -167,9 +168,10 @@ class TaskDispatcher:
         result: dict[str, Any] | None = None,
     ) -> TaskRecord:
         """End a request that will not run: ERROR, its result `{"error": reason}` (and `result`)."""
-        self._log.warning(
+        task_log.warning(
+            self._log,
             f'task {record.task_id} ({record.task_name}) from {record.source!r} '
-            f'rejected, {code}: {reason}'
+            f'rejected, {code}: {reason}',
         )
         record.mark_ended(TaskStatus.ERROR, {**(result or {}), 'error': reason}, code)
         return record
@@ -325,9 +327,10 @@ class TaskDispatcher:
             if record.started_at is not None and record.ended_at is not None
             else ''
         )
-        self._log.info(
+        task_log.info(
+            self._log,
             f'task {record.task_id} ({record.task_name}) from {record.source!r} ended '
-            f'{record.status}{ran_sec}' + (f' ({record.error_code})' if record.error_code else '')
+            f'{record.status}{ran_sec}' + (f' ({record.error_code})' if record.error_code else ''),
         )
         return announced
 

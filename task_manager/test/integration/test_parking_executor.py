@@ -7,6 +7,7 @@ import time
 import pytest
 import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.client import Client
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
@@ -82,7 +83,7 @@ def test_an_async_service_callback_waiting_on_a_future_is_parked_too(ros_context
 
     name = f'/parking_{os.getpid()}/answer'
     node.create_service(Trigger, name, answer, callback_group=ReentrantCallbackGroup())
-    client = node.create_client(Trigger, name)
+    client: Client[Trigger.Request, Trigger.Response] = node.create_client(Trigger, name)
     assert client.wait_for_service(timeout_sec=5.0)
     reply = client.call_async(Trigger.Request())
     deadline = time.monotonic() + 5.0
@@ -97,6 +98,7 @@ def test_an_async_service_callback_waiting_on_a_future_is_parked_too(ros_context
 
     future.set_result(1)
     executor.spin_until_future_complete(reply, timeout_sec=5.0)
-    assert reply.done() and reply.result().success
+    response = reply.result()
+    assert reply.done() and response is not None and response.success
     executor.shutdown()
     node.destroy_node()
