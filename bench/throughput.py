@@ -11,7 +11,7 @@ from bench.replies import BenchError
 from bench.report import Row
 from bench.stats import burst, ratio
 
-TARGET_SHARE = 0.40
+TARGET_SHARE = 0.50
 
 
 def manager_burst(ctx: BenchContext, count: int, round_index: int) -> float:
