@@ -203,6 +203,18 @@ def test_bad_schedules_are_refused_with_the_field_and_what_is_allowed(
     kept = _schedule(tm, 'twice', 'work', 1, period_sec=60.0)
     again = _schedule(tm, 'twice', 'work', 1, period_sec=60.0)
     missing = tm.run('system/unschedule', {'schedule_ids': ['twice', 'nothing']})
+    ghost = {'task_id': 'ghost', 'task_name': 'no/such', 'task_data': '{}'}
+    bad_mission = tm.run(
+        'system/schedule',
+        {
+            'task_name': 'system/mission',
+            'task_data': json.dumps({'subtasks': [ghost]}),
+            'period_sec': 10.0,
+        },
+        task_id='bad-mission',
+    )
+    # results come in order: a refusal of the subtask would be before the schedule's own
+    tm.wait_result_message('bad-mission')
 
     for refused in (two_whens, naive, bad_cron, unknown, bad_data, again):
         assert (refused.task_status, refused.error_code) == ('ERROR', 'task_data_parsing_failed')
@@ -218,6 +230,9 @@ def test_bad_schedules_are_refused_with_the_field_and_what_is_allowed(
         'removed': ['twice'],
         'errors': ["no schedule 'nothing'"],
     }
+    assert bad_mission.error_code == 'task_data_parsing_failed'
+    assert 'subtasks[0].task_name' in bad_mission.task_result
+    assert tm.results_for('ghost') == []  # scheduling a mission starts none of its subtasks
     assert _schedules(ros) == {}
 
 

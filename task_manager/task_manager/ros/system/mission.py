@@ -114,6 +114,23 @@ class MissionRunner:
         self._dispatcher = dispatcher
 
     def parse(self, task_data: str, task_id: str) -> MissionProgress:
+        progress, problems = self._plan(task_data)
+        if problems:
+            self._refuse(progress, task_id)
+            raise _invalid_mission(progress, problems)
+        return progress
+
+    def validate(self, task_data: str) -> None:
+        """Raise TaskDataError as parse does, but refuse (publish) nothing: a mission that
+        is only being scheduled has no subtask requests yet."""
+        progress, problems = self._plan(task_data)
+        if problems:
+            progress.fail_before_start()
+            raise _invalid_mission(progress, problems)
+
+    def _plan(self, task_data: str) -> tuple[MissionProgress, dict[str, str]]:
+        """The mission's rows, each checked, and the unskippable problems (key: the field at
+        fault, value: why)."""
         goal = message_from_json(Mission.Goal, task_data)
         for index, subtask in enumerate(goal.subtasks):
             if not subtask.task_name.strip():
@@ -123,18 +140,12 @@ class MissionRunner:
         )
         if duplicates := progress.duplicate_ids():
             raise TaskDataError('subtasks', f'subtask ids given more than once: {duplicates}')
-        problems: dict[str, str] = {}  # key: the field at fault, value: why
+        problems: dict[str, str] = {}
         for index, row in enumerate(progress.rows):
             field, row.refusal = self._check(index, row)
             if row.refusal is not None and not row.allow_skipping:
                 problems[field] = row.refusal.reason
-        if problems:
-            self._refuse(progress, task_id)
-            field, reason = next(iter(problems.items()))
-            if len(problems) > 1:
-                reason += f' (and {len(problems) - 1} more invalid subtask(s))'
-            raise TaskDataError(field, reason, mission_results(progress))
-        return progress
+        return progress, problems
 
     def _check(self, index: int, row: SubtaskRow) -> tuple[str, SubtaskRefusal | None]:
         """The field that is wrong and why the subtask cannot run; ('', None) if it can."""
@@ -164,6 +175,13 @@ class MissionRunner:
 
     async def start(self, message: MissionProgress, record: TaskRecord) -> MissionExecution:
         return MissionExecution(self._node, self._dispatcher, message, record)
+
+
+def _invalid_mission(progress: MissionProgress, problems: dict[str, str]) -> TaskDataError:
+    field, reason = next(iter(problems.items()))
+    if len(problems) > 1:
+        reason += f' (and {len(problems) - 1} more invalid subtask(s))'
+    return TaskDataError(field, reason, mission_results(progress))
 
 
 def subtask_request(row: SubtaskRow, mission_id: str) -> TaskRequest:

@@ -22,6 +22,7 @@ from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.scheduler import TaskScheduler
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
+from task_manager.ros.system.mission import MissionRunner
 from task_manager.ros.system.specs import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.ros.task_events import stamp
 
@@ -104,7 +105,10 @@ class ScheduleTaskRunner:
         if runner is None:
             raise TaskDataError('task_name', self._dispatcher.unknown_task_reason(spec.task_name))
         try:
-            runner.parse(spec.task_data, '')
+            if isinstance(runner, MissionRunner):
+                runner.validate(spec.task_data)
+            else:
+                runner.parse(spec.task_data, '')
         except TaskDataError as error:
             reason = f'not a valid goal of {spec.task_name}: {error}'
             raise TaskDataError('task_data', reason) from None
