@@ -9,8 +9,7 @@ import dataclasses
 import functools
 import json
 import math
-import re
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from datetime import datetime
 from enum import StrEnum
@@ -31,8 +30,6 @@ CRON_COUNT_LIMIT = 10_000
 # Below this, period times would step by less than a float's resolution of an epoch time.
 MIN_PERIOD_SEC = 0.001
 
-_ID_PATTERN = re.compile(r'[A-Za-z0-9_.:-]{1,64}')
-_WHEN_FIELDS = ('at', 'delay_sec', 'period_sec', 'cron')
 _CRON_HELP = "5 fields: minute hour day-of-month month day-of-week, e.g. '0 2 * * *'"
 # Steps past local times that a fixed-hour cron skips on a DST fall-back night (at most hours).
 _CRON_STEP_LIMIT = 1_000
@@ -114,15 +111,15 @@ class ScheduleSpec:
         """A human description of when it fires, e.g. "cron '0 2 * * *' (Europe/Paris)"."""
         zone = ZoneInfo(self.time_zone)
         if self.at is not None:
-            text = f'once at {_iso(self.at, zone)}'
+            text = f'once at {iso_text(self.at, zone)}'
         elif self.period_sec > 0:
-            text = f'every {_number(self.period_sec)} s'
+            text = f'every {number_text(self.period_sec)} s'
         else:
             text = f"cron '{self.cron}' ({self.time_zone})"
         if self.start is not None:
-            text += f', from {_iso(self.start, zone)}'
+            text += f', from {iso_text(self.start, zone)}'
         if self.end is not None:
-            text += f', until {_iso(self.end, zone)}'
+            text += f', until {iso_text(self.end, zone)}'
         if self.max_runs:
             text += f', at most {self.max_runs} runs'
         return text
@@ -136,9 +133,9 @@ class ScheduleSpec:
         values = load_fields(text, _SPEC_TYPES)
         values['overlap'] = OverlapPolicy(values['overlap'])
         spec = cls(**values)
-        _zone('time_zone', spec.time_zone)
+        zone_of('time_zone', spec.time_zone)
         if spec.cron:
-            _check_cron(spec.cron)
+            check_cron(spec.cron)
         return spec
 
 
@@ -177,11 +174,11 @@ def load_fields(text: str, types: Mapping[str, tuple[type, ...]]) -> dict[str, A
     return data
 
 
-def _iso(t: float, zone: ZoneInfo) -> str:
+def iso_text(t: float, zone: ZoneInfo) -> str:
     return datetime.fromtimestamp(t, zone).isoformat()
 
 
-def _number(value: float) -> str:
+def number_text(value: float) -> str:
     return str(int(value)) if value.is_integer() else str(value)
 
 
@@ -196,9 +193,9 @@ def first_fire_time(spec: ScheduleSpec) -> float | None:
     """
     if spec.kind is ScheduleKind.AT:
         assert spec.at is not None
-        return spec.at if _in_window(spec, spec.at) else None
+        return spec.at if in_window(spec, spec.at) else None
     if spec.kind is ScheduleKind.PERIOD and _anchor(spec) >= spec.created:
-        return _anchor(spec) if _in_window(spec, _anchor(spec)) else None
+        return _anchor(spec) if in_window(spec, _anchor(spec)) else None
     return next_fire_after(spec, spec.created)
 
 
@@ -206,7 +203,7 @@ def next_fire_after(spec: ScheduleSpec, after: float) -> float | None:
     """The first fire time strictly after `after` within the window; None when there is none."""
     if spec.kind is ScheduleKind.AT:
         assert spec.at is not None
-        return spec.at if spec.at > after and _in_window(spec, spec.at) else None
+        return spec.at if spec.at > after and in_window(spec, spec.at) else None
     t: float | None
     if spec.kind is ScheduleKind.PERIOD:
         t = _anchor(spec) + _index_after(spec, after) * spec.period_sec
@@ -237,7 +234,7 @@ def latest_fire_at_or_before(spec: ScheduleSpec, due: float, now: float) -> tupl
     return latest, count
 
 
-def _in_window(spec: ScheduleSpec, t: float) -> bool:
+def in_window(spec: ScheduleSpec, t: float) -> bool:
     return (spec.start is None or t >= spec.start) and (spec.end is None or t <= spec.end)
 
 
@@ -328,97 +325,7 @@ def _cron_at_or_before(spec: ScheduleSpec, t: float) -> float:
 # ---- requests ----------------------------------------------------------------------------
 
 
-def parse_schedule_request(
-    fields: Mapping[str, Any], created_by: str, now: float, new_id: Callable[[], str]
-) -> ScheduleSpec:
-    """The schedule a request asks for; ScheduleError says what is wrong and what is allowed.
-
-    Missing fields take their defaults; `new_id` names a schedule requested without an id.
-    """
-    schedule_id = _text(fields, 'schedule_id') or new_id()
-    if not _ID_PATTERN.fullmatch(schedule_id):
-        raise ScheduleError(
-            'schedule_id',
-            f"schedule_id '{schedule_id}' is not allowed: use 1 to 64 characters among "
-            'A-Z a-z 0-9 _ . : - (it becomes part of task ids and topic names)',
-        )
-    task_name = _text(fields, 'task_name')
-    if not task_name.strip():
-        raise ScheduleError('task_name', 'task_name is required: the task or mission to run')
-    time_zone = _text(fields, 'time_zone') or 'UTC'
-    zone = _zone('time_zone', time_zone)
-    grace = _number_field(fields, 'misfire_grace_sec', DEFAULT_MISFIRE_GRACE_SEC)
-    spec = ScheduleSpec(
-        schedule_id=schedule_id,
-        task_name=task_name,
-        task_data=_text(fields, 'task_data'),
-        created_by=created_by,
-        created=now,
-        **_when(fields, now),
-        time_zone=time_zone,
-        start=_instant(fields, 'start'),
-        end=_instant(fields, 'end'),
-        max_runs=_max_runs(fields),
-        overlap=_overlap(_text(fields, 'overlap')),
-        misfire_grace_sec=grace if grace >= 0 else DEFAULT_MISFIRE_GRACE_SEC,
-    )
-    _check_window(spec, now, zone)
-    return spec
-
-
-def _when(fields: Mapping[str, Any], now: float) -> dict[str, Any]:
-    """The at / period_sec / cron fields of the spec; exactly one of the four must be given."""
-    at_text, cron = _text(fields, 'at').strip(), _text(fields, 'cron').strip()
-    delay, period = _number_field(fields, 'delay_sec', 0), _number_field(fields, 'period_sec', 0)
-    values = (at_text, delay, period, cron)
-    given = [name for name, value in zip(_WHEN_FIELDS, values, strict=True) if value]
-    if len(given) != 1:
-        got = ' and '.join(given) if given else 'none'
-        raise ScheduleError(
-            ','.join(given or _WHEN_FIELDS),
-            f'give exactly one of at, delay_sec, period_sec, cron; got {got}',
-        )
-    if delay < 0:
-        raise ScheduleError('delay_sec', f'delay_sec must be more than 0 s, got {_number(delay)}')
-    if period and period < MIN_PERIOD_SEC:
-        raise ScheduleError(
-            'period_sec', f'period_sec must be at least {MIN_PERIOD_SEC} s, got {_number(period)}'
-        )
-    if at_text:
-        return {'at': _instant(fields, 'at')}
-    if delay:
-        return {'at': now + delay}
-    if period:
-        return {'period_sec': period}
-    _check_cron(cron)
-    return {'cron': ' '.join(cron.split())}
-
-
-def _check_window(spec: ScheduleSpec, now: float, zone: ZoneInfo) -> None:
-    """Refuse a window that is empty or a schedule that can never run."""
-    if spec.start is not None and spec.end is not None and spec.end <= spec.start:
-        raise ScheduleError(
-            'end', f'end {_iso(spec.end, zone)} must be after start {_iso(spec.start, zone)}'
-        )
-    if spec.at is not None:
-        if not _in_window(spec, spec.at):
-            start, end = (_iso(t, zone) if t is not None else '-' for t in (spec.start, spec.end))
-            raise ScheduleError(
-                'at', f'at {_iso(spec.at, zone)} is outside the window from start {start} to '
-                f'end {end}: give an at within it'
-            )  # fmt: skip
-        if spec.at < now - spec.misfire_grace_sec:
-            raise ScheduleError(
-                'at', f'at {_iso(spec.at, zone)} is in the past (more than misfire_grace_sec '
-                f'{_number(spec.misfire_grace_sec)} s ago); give a future time'
-            )  # fmt: skip
-    elif first_fire_time(spec) is None:
-        field = 'cron' if spec.end is None else 'end'
-        until = '' if spec.end is None else f' before end {_iso(spec.end, zone)}'
-        raise ScheduleError(field, f'the schedule has no fire time{until}: it would never run')
-
-
-def _check_cron(expression: str) -> None:
+def check_cron(expression: str) -> None:
     reason = _cron_problem(expression)
     if reason:
         raise ScheduleError(
@@ -439,7 +346,7 @@ def _cron_problem(expression: str) -> str:
     return ''
 
 
-def _zone(field: str, name: str) -> ZoneInfo:
+def zone_of(field: str, name: str) -> ZoneInfo:
     try:
         return ZoneInfo(name)
     except (ZoneInfoNotFoundError, ValueError):  # ValueError: not a zone key ('../x', '/etc')
@@ -447,55 +354,3 @@ def _zone(field: str, name: str) -> ZoneInfo:
             field, f"{field} '{name}' is not a known time zone; use an IANA name such as "
             "'UTC' or 'Europe/Paris'"
         ) from None  # fmt: skip
-
-
-def _overlap(text: str) -> OverlapPolicy:
-    try:
-        return OverlapPolicy(text.upper()) if text else OverlapPolicy.SKIP
-    except ValueError:
-        names = ', '.join(OverlapPolicy)
-        raise ScheduleError(
-            'overlap', f"overlap '{text}' is not an overlap policy; use one of {names} "
-            "('' is SKIP)"
-        ) from None  # fmt: skip
-
-
-def _max_runs(fields: Mapping[str, Any]) -> int:
-    value = fields.get('max_runs', 0)
-    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-        raise ScheduleError('max_runs', f'max_runs must be 0 (unlimited) or more, got {value!r}')
-    return value
-
-
-def _instant(fields: Mapping[str, Any], field: str) -> float | None:
-    """An ISO 8601 time with a zone as epoch seconds; None for ''."""
-    text = _text(fields, field).strip()
-    if not text:
-        return None
-    try:
-        moment = datetime.fromisoformat(text)
-    except ValueError:
-        raise ScheduleError(
-            field, f"{field} '{text}' is not an ISO 8601 time; use e.g. "
-            "'2026-11-25T02:00:00+01:00' or '2026-11-25T01:00:00Z'"
-        ) from None  # fmt: skip
-    if moment.tzinfo is None:
-        raise ScheduleError(
-            field, f"{field} '{text}' has no zone; a zone offset is required, e.g. "
-            f"'{text}+01:00' or '{text}Z'"
-        )  # fmt: skip
-    return moment.timestamp()
-
-
-def _text(fields: Mapping[str, Any], field: str) -> str:
-    value = fields.get(field, '')
-    if not isinstance(value, str):
-        raise ScheduleError(field, f'{field} must be text, got {type(value).__name__}')
-    return value
-
-
-def _number_field(fields: Mapping[str, Any], field: str, default: float) -> float:
-    value = fields.get(field, default)
-    if isinstance(value, bool) or not isinstance(value, float | int) or not math.isfinite(value):
-        raise ScheduleError(field, f'{field} must be a finite number of seconds, got {value!r}')
-    return float(value)

@@ -22,8 +22,8 @@ from task_manager.core.schedule import (
     first_fire_time,
     latest_fire_at_or_before,
     next_fire_after,
-    parse_schedule_request,
 )
+from task_manager.core.schedule_request import parse_schedule_request
 
 PARIS, BERLIN = ZoneInfo('Europe/Paris'), ZoneInfo('Europe/Berlin')
 T0 = datetime(2026, 1, 1, tzinfo=UTC).timestamp()  # a Thursday, 00:00 UTC

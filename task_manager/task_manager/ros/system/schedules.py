@@ -13,9 +13,9 @@ from task_manager.core.schedule import (
     OverlapPolicy,
     ScheduleError,
     ScheduleSpec,
-    parse_schedule_request,
 )
 from task_manager.core.schedule_book import ScheduleState
+from task_manager.core.schedule_request import parse_schedule_request
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.ros.dispatcher import TaskDispatcher
