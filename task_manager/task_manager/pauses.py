@@ -81,8 +81,8 @@ def running_time(
     return max(until - started_at - paused_time(pauses, paused, until), timedelta(0))
 
 
-class PauseMethods:
-    """The pause and resume methods of TaskManagerClient."""
+class RunsTasks:
+    """What the client's method mixins use of TaskManagerClient (for the type checker)."""
 
     if TYPE_CHECKING:
 
@@ -94,6 +94,10 @@ class PauseMethods:
             timeout_sec: float | None = None,
             **options: Any,
         ) -> TaskResult: ...
+
+
+class PauseMethods(RunsTasks):
+    """The pause and resume methods of TaskManagerClient."""
 
     def pause(
         self, task_ids: Sequence[str], *, source: str = 'python', timeout_sec: float | None = None

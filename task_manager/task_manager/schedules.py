@@ -18,6 +18,7 @@ from task_manager.core.schedule import OverlapPolicy
 from task_manager.core.status import TaskStatus
 from task_manager.message_values import datetime_of, datetime_of_json, json_object, json_text
 from task_manager.missions import MISSION_TASK, Subtask, mission_task_data
+from task_manager.pauses import RunsTasks
 
 if TYPE_CHECKING:
     from task_manager.client import TaskResult
@@ -199,19 +200,10 @@ class ScheduleInfo:
         )
 
 
-class ScheduleMethods:
+class ScheduleMethods(RunsTasks):
     """The schedule methods of TaskManagerClient."""
 
     if TYPE_CHECKING:
-
-        def run_task(
-            self,
-            task_name: str,
-            task_data: dict[str, Any] | str | None = None,
-            *,
-            timeout_sec: float | None = None,
-            **options: Any,
-        ) -> TaskResult: ...
 
         def _call(
             self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None

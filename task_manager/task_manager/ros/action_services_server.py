@@ -36,6 +36,7 @@ from task_manager.ros.action_services import action_service_name
 from task_manager.ros.cleanup import destroy_timer
 from task_manager.ros.futures import resolved
 from task_manager.ros.qos import DEEP_RELIABLE
+from task_manager.ros.turn_publication import TurnPublication
 
 RESULT_TIMEOUT_SEC = 10.0
 LARGE_STATUS = 100
@@ -159,9 +160,13 @@ class ActionServicesServer:
         # (when it expires, goal id) of ended goals, oldest first
         self._expiries: deque[tuple[float, bytes]] = deque()
         self._expiry_timer: Timer | None = None
-        self._status_pending = False
-        self._status_timer: Timer | None = None
-        self._last_status = -float('inf')
+        self._status_publication = TurnPublication(
+            node,
+            self._spawn,
+            self._publish_status,
+            lambda: len(self._goals) > LARGE_STATUS,
+            STATUS_RATE_HZ,
+        )
 
     # ---- the three services ------------------------------------------------------------------
 
@@ -242,26 +247,9 @@ class ActionServicesServer:
 
     def status_changed(self) -> None:
         """Publish the status array after this executor turn (bounded when it is large)."""
-        if not self._status_pending:
-            self._status_pending = True
-            self._spawn(self._after_turn())
-
-    async def _after_turn(self) -> None:
-        wait_sec = self._last_status + 1.0 / STATUS_RATE_HZ - time.monotonic()
-        if len(self._goals) > LARGE_STATUS and wait_sec > 0:
-            self._status_timer = self._node.create_timer(wait_sec, self._on_status_timer)
-            return
-        self._publish_status()
-
-    def _on_status_timer(self) -> None:
-        if self._status_timer is not None:
-            destroy_timer(self._node, self._status_timer)
-            self._status_timer = None
-        self._publish_status()
+        self._status_publication.changed()
 
     def _publish_status(self) -> None:
-        self._status_pending = False
-        self._last_status = time.monotonic()
         statuses = [goal.status_msg for goal in self._goals.values()]
         self._status.publish(GoalStatusArray(status_list=statuses))
 

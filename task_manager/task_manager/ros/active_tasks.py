@@ -9,16 +9,14 @@ does not grow with the number of tasks. Each change still goes out on its own on
 /task_manager/task_events.
 """
 
-import time
 from collections.abc import Callable, Coroutine
 from typing import Any, Protocol
 
 from rclpy.node import Node
-from rclpy.timer import Timer
 
 from task_manager.core.registry import TaskRegistry
 from task_manager.core.task import TaskRecord
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.ros.turn_publication import TurnPublication
 
 LARGE_LIST = 100
 """Entries above which the list's publication rate is bounded."""
@@ -41,14 +39,12 @@ class ActiveTasksPublication:
         sink: ActiveTasksSink,
         spawn: Callable[[Coroutine[Any, Any, Any]], Any],
     ) -> None:
-        self._node = node
         self._registry = registry
         self._sink = sink
-        self._spawn = spawn
         self._ended_unpublished: list[TaskRecord] = []
-        self._pending = False
-        self._last_published = -float('inf')
-        self._timer: Timer | None = None
+        self._publication = TurnPublication(
+            node, spawn, self._publish, self._is_large, LARGE_LIST_RATE_HZ
+        )
 
     def ended(self, record: TaskRecord) -> None:
         """A started task ended: shown once with its final status, then left out."""
@@ -57,27 +53,13 @@ class ActiveTasksPublication:
 
     def changed(self) -> None:
         """The list changed: publish it once this executor turn is done (or later, if large)."""
-        if not self._pending:
-            self._pending = True
-            self._spawn(self._after_turn())
+        self._publication.changed()
 
-    async def _after_turn(self) -> None:
+    def _is_large(self) -> bool:
+        return len(self._registry.started()) + len(self._ended_unpublished) > LARGE_LIST
+
+    def _publish(self) -> None:
         started = self._registry.started()
-        wait_sec = self._last_published + 1.0 / LARGE_LIST_RATE_HZ - time.monotonic()
-        if len(started) + len(self._ended_unpublished) > LARGE_LIST and wait_sec > 0:
-            self._timer = self._node.create_timer(wait_sec, self._on_timer)
-            return  # still pending: changes meanwhile join this publication
-        self._publish(started)
-
-    def _on_timer(self) -> None:
-        if self._timer is not None:
-            destroy_timer(self._node, self._timer)
-            self._timer = None
-        self._publish(self._registry.started())
-
-    def _publish(self, started: list[TaskRecord]) -> None:
-        self._pending = False
-        self._last_published = time.monotonic()
         if self._ended_unpublished:
             self._sink.publish_active(started + self._ended_unpublished)
             self._ended_unpublished = []
