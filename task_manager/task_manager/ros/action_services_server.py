@@ -185,7 +185,8 @@ class ActionServicesServer:
         return response
 
     async def _run(self, goal: ServedGoal) -> None:
-        goal._move_to(GoalStatus.STATUS_EXECUTING)
+        if goal.status == GoalStatus.STATUS_ACCEPTED:  # not when cancelled since its acceptance
+            goal._move_to(GoalStatus.STATUS_EXECUTING)
         try:
             result = await self._execute(goal)
         except Exception as error:  # the callback boundary: the goal still gets its answer

@@ -178,10 +178,18 @@ class TaskDispatcher:
 
     async def _start_and_wait(self, run: TaskRun) -> TaskEnd:
         record = run.record
-        await self._resolve_conflicts(run)
-        if run.finished.done():  # cancelled while it waited for its conflicts
+        if not run.finished.done():  # not cancelled as it was admitted
+            await self._resolve_conflicts(run)
+        if run.finished.done():  # cancelled before it started: it pre-empts nothing
             return result_of(run.finished)
-        execution = await self.start_on_server(run)
+        try:
+            execution = await self.start_on_server(run)
+        except TaskRequestError as error:
+            if record.cancel_reason is None:
+                raise
+            # Cancelled before its server accepted it: it did not run, as its canceller asked;
+            # why it could not have started is kept in its result.
+            return TaskEnd(TaskStatus.CANCELED, {'error': str(error)})
         record.mark_started()
         self.events.started(record)
         self.history.changed(record)

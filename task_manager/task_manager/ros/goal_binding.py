@@ -51,6 +51,8 @@ class GoalTaskBinding:
                 record.feedback_listeners.append(
                     lambda task: _forward_feedback(goal_handle, feedback_type, task.latest_feedback)
                 )
+            if goal_handle.is_cancel_requested:  # cancelled before its task was admitted
+                self._cancel_task(bound)
 
         node = self._dispatcher.node
         assert node.executor is not None
@@ -67,13 +69,22 @@ class GoalTaskBinding:
         return record
 
     def cancel_callback(self, goal_handle: Any) -> CancelResponse:
-        """Accept a client's cancel and start cancelling the goal's task."""
-        bound = self._bound_goals.get(bytes(goal_handle.goal_id.uuid))
-        if bound is None:
+        """Accept a client's cancel of an active goal and start cancelling the goal's task.
+
+        A goal whose task is not admitted yet (its coroutine has not run since the goal was
+        accepted) is accepted too: its goal is then CANCELING, and `run` cancels the task as
+        it admits it. A cancel is never lost.
+        """
+        if not goal_handle.is_active:
             return CancelResponse.REJECT
+        bound = self._bound_goals.get(bytes(goal_handle.goal_id.uuid))
+        if bound is not None:
+            self._cancel_task(bound)
+        return CancelResponse.ACCEPT
+
+    def _cancel_task(self, bound: _BoundGoal) -> None:
         cancelled = self._dispatcher.cancel(bound.task_id, CancelReason.CLIENT)
         cancelled.add_done_callback(lambda done: self._on_cancel_done(bound, done))
-        return CancelResponse.ACCEPT
 
     def _on_cancel_done(self, bound: _BoundGoal, cancelled: Future) -> None:
         record = self._dispatcher.registry.get(bound.task_id)

@@ -115,8 +115,31 @@ def publish_feedback_until(
     raise WaitTimeoutError(f'feedback {feedback} not seen within {timeout_sec} s')
 
 
+class HeldGoalRequest:
+    """A goal request whose answer (accept or reject) the server holds until the test decides."""
+
+    def __init__(self, request: Any, hop: _ExecutorHop) -> None:
+        self.request = request
+        self._answer: Future[GoalResponse] = Future()
+        self._hop = hop
+
+    def accept(self) -> None:
+        self._hop.call(lambda: self._decide(GoalResponse.ACCEPT))
+
+    def reject(self) -> None:
+        self._hop.call(lambda: self._decide(GoalResponse.REJECT))
+
+    def _decide(self, answer: GoalResponse) -> None:
+        if not self._answer.done():
+            self._answer.set_result(answer)
+
+
 class ScriptedActionServer:
-    """An action server whose goals end when the test says so."""
+    """An action server whose goals end when the test says so.
+
+    With `hold_goal_requests`, each goal request waits in `held` until the test accepts or
+    rejects it (the moment a client's goal is sent but not yet accepted by the server).
+    """
 
     def __init__(
         self,
@@ -127,9 +150,12 @@ class ScriptedActionServer:
         accept_goals: bool = True,
         cancel_policy: CancelPolicy = CancelPolicy.END,
         on_goal: Callable[[ScriptedGoal], None] | None = None,
+        hold_goal_requests: bool = False,
     ) -> None:
         self.action_type = action_type
         self.accept_goals = accept_goals
+        self.hold_goal_requests = hold_goal_requests
+        self.held = _Arrivals()
         self.cancel_policy = cancel_policy
         self.goals = _Arrivals()
         self.rejected = _Arrivals()
@@ -141,10 +167,17 @@ class ScriptedActionServer:
             action_type,
             topic,
             execute_callback=self._execute,
-            goal_callback=self._goal,
+            # rclpy awaits a coroutine goal callback; its types name plain callables only
+            goal_callback=self._hold_goal if hold_goal_requests else self._goal,  # type: ignore[arg-type]
             cancel_callback=self._cancel,
             callback_group=ReentrantCallbackGroup(),
         )
+
+    async def _hold_goal(self, request: Any) -> GoalResponse:
+        held = HeldGoalRequest(request, self._hop)
+        self.held.add(held)
+        await held._answer
+        return result_of(held._answer)
 
     def _goal(self, request: Any) -> GoalResponse:
         if self.accept_goals:
@@ -180,6 +213,9 @@ class ScriptedActionServer:
 
     def wait_for_goals(self, count: int, timeout_sec: float) -> list[ScriptedGoal]:
         return self.goals.wait_for(count, timeout_sec, 'goals')
+
+    def wait_for_held(self, count: int, timeout_sec: float) -> list[HeldGoalRequest]:
+        return self.held.wait_for(count, timeout_sec, 'held goal requests')
 
     def destroy(self) -> None:
         self.server.destroy()
