@@ -115,9 +115,10 @@ lint: install
 # The simulated robot, the Task Manager with the demo's tasks and its dashboard; Ctrl-C stops all.
 # `make run PARAMS=file.yaml` gives the Task Manager another parameters file; the dashboard
 # (the web gateway) listens on WEB_PORT.
-# ROS_HOME inside the repository (git-ignored): the task history and the ROS logs stay here.
+# ROS_HOME inside the repository (git-ignored): the task history and the ROS logs stay here;
+# the history file is the Task Manager's default one for its ROS domain (README, Task history).
 run: install
-	@echo "task history: $(CURDIR)/.ros/task_manager/history.sqlite (ROS_HOME=$(CURDIR)/.ros)"
+	@echo "task history: $(CURDIR)/.ros/task_manager/domain$(or $(ROS_DOMAIN_ID),0)/task_manager/history.sqlite (ROS_HOME=$(CURDIR)/.ros)"
 	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
 
 # A local mosquitto and three simulated robots (each its own ROS domain, Task Manager and MQTT

@@ -67,7 +67,7 @@ class HistoryInUseError(Exception):
     """Another running Task Manager writes this history file (it holds `<file>.lock`)."""
 
 
-def _lock(path: str) -> IO[str]:
+def lock_history(path: str) -> IO[str]:
     """Hold an exclusive lock on `<path>.lock` while the store is open (our pid in it).
 
     Two nodes writing one file would both number results; the lock goes with the process, so
@@ -188,7 +188,7 @@ class TaskHistory:
         self._lock: IO[str] | None = None
         if self.path != MEMORY:
             Path(self.path).parent.mkdir(parents=True, exist_ok=True)
-            self._lock = _lock(self.path)
+            self._lock = lock_history(self.path)
         self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
         try:
             self._prepare()

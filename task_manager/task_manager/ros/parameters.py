@@ -1,12 +1,13 @@
 """Reading the node's parameters into task declarations and settings."""
 
-import os
 from dataclasses import dataclass
 from typing import Any
 
 from rclpy.node import Node
 
+from task_manager.core import history_location
 from task_manager.core.errors import ConfigurationError
+from task_manager.core.history import HistoryInUseError
 from task_manager.core.task_spec import TaskSpec, checked_value, parse_task_specs, unknown_keys
 from task_manager.ros.execution import RunnerTimeouts
 
@@ -55,10 +56,27 @@ class NodeSettings:
     history_max_age_days: float
 
 
-def default_history_path() -> str:
-    """`$ROS_HOME/task_manager/history.sqlite`; ROS_HOME defaults to ~/.ros, as for ROS logs."""
-    ros_home = os.environ.get('ROS_HOME') or os.path.join(os.path.expanduser('~'), '.ros')
-    return os.path.join(ros_home, 'task_manager', 'history.sqlite')
+def default_history_path(node: Node) -> str:
+    """The node's own history file under ROS_HOME (see history_location); the one file of
+    the versions before is moved there first if the node has none yet."""
+    home = history_location.ros_home()
+    path = history_location.default_history_path(
+        home, node.context.get_domain_id(), node.get_fully_qualified_name()
+    )
+    legacy = history_location.legacy_history_path(home)
+    try:
+        if history_location.adopt_legacy_history(legacy, path):
+            node.get_logger().info(
+                f'moved the task history of an earlier version from {legacy} to {path}: '
+                'each ROS domain and node has its own history file now'
+            )
+    except HistoryInUseError as error:
+        node.get_logger().warning(f'left the task history {legacy} where it is: {error}')
+    except OSError as error:
+        raise ConfigurationError(
+            f'cannot move the task history {legacy} to {path}: {error}'
+        ) from None
+    return path
 
 
 def read_settings(node: Node) -> NodeSettings:
@@ -87,7 +105,9 @@ def read_settings(node: Node) -> NodeSettings:
         instance_check_timeout_sec=float(values['instance_check_timeout']),
         publish_task_events=values['publish_task_events'],
         feedback_rate_hz=float(values['feedback_rate_hz']),
-        history_path=values.get('history_path', default_history_path()),
+        history_path=(
+            values['history_path'] if 'history_path' in values else default_history_path(node)
+        ),
         history_max_results=values['history_max_results'],
         history_max_age_days=float(values['history_max_age_days']),
         timeouts=RunnerTimeouts(

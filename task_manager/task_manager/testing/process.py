@@ -58,10 +58,12 @@ class NodeProcess:
         extra_args: list[str] | None = None,
         wrapper: list[str] | None = None,
         command: list[str] | None = None,
+        env: dict[str, str] | None = None,
     ) -> None:
         """`wrapper`: a command that runs the node, e.g. `prlimit --fsize=N --`.
 
         `command`: another program to run and read the same way (then the rest is unused).
+        `env`: adds to the environment (e.g. another ROS_DOMAIN_ID).
         """
         if command is None:
             command = [*(wrapper or []), task_manager_executable()]
@@ -74,13 +76,14 @@ class NodeProcess:
         self.killed = False
         self._output_ended = False
         self._changed = threading.Condition()
-        env = dict(os.environ, RCUTILS_LOGGING_BUFFERED_STREAM='0', PYTHONUNBUFFERED='1')
         self.process = subprocess.Popen(
             command,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
-            env=env,
+            env=dict(
+                os.environ, RCUTILS_LOGGING_BUFFERED_STREAM='0', PYTHONUNBUFFERED='1', **(env or {})
+            ),
         )
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
