@@ -13,6 +13,9 @@ PARAMS ?= task_manager/params/task_manager_defaults.yaml
 WEB_PORT ?= 8080
 # The broker's port for `make fleet`; 0: any free one (a system mosquitto may hold 1883).
 FLEET_PORT ?= 0
+# ROS_HOME of `make run` and `make fleet`: inside the repository (git-ignored), where their
+# task histories and ROS logs stay; the test of `make run` gives one of its own.
+DEMO_ROS_HOME ?= $(CURDIR)/.ros
 
 .PHONY: help install test run fleet bench lint clean
 
@@ -115,16 +118,16 @@ lint: install
 # The simulated robot, the Task Manager with the demo's tasks and its dashboard; Ctrl-C stops all.
 # `make run PARAMS=file.yaml` gives the Task Manager another parameters file; the dashboard
 # (the web gateway) listens on WEB_PORT.
-# ROS_HOME inside the repository (git-ignored): the task history and the ROS logs stay here;
-# the history file is the Task Manager's default one for its ROS domain (README, Task history).
+# ROS_HOME is DEMO_ROS_HOME; the history file is the Task Manager's default one for its ROS
+# domain (README, Task history).
 run: install
-	@echo "task history: $(CURDIR)/.ros/task_manager/domain$(or $(ROS_DOMAIN_ID),0)/task_manager/history.sqlite (ROS_HOME=$(CURDIR)/.ros)"
-	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
+	@echo "task history: $(DEMO_ROS_HOME)/task_manager/domain$(or $(ROS_DOMAIN_ID),0)/task_manager/history.sqlite (ROS_HOME=$(DEMO_ROS_HOME))"
+	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
 
 # A local mosquitto and three simulated robots (each its own ROS domain, Task Manager and MQTT
 # bridge); prints the broker URL and the example to run. Ctrl-C stops all.
 fleet: install
-	ROS_HOME=$(CURDIR)/.ros $(VENV)/bin/task-manager-fleet --broker-port $(FLEET_PORT)
+	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-fleet --broker-port $(FLEET_PORT)
 
 bench: install
 	$(PIP) install --quiet -r requirements/bench.txt

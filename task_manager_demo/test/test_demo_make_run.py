@@ -1,7 +1,13 @@
-"""`make run`: the robot, the Task Manager and the dashboard come up, run a task, stop on Ctrl-C."""
+"""`make run`: the robot, the Task Manager and the dashboard come up, run a task, stop on Ctrl-C.
 
+The test gives `make run` a ROS_HOME of its own: nothing it does lands in the user's history.
+"""
+
+import contextlib
+import os
 import re
 import signal
+import sqlite3
 from pathlib import Path
 
 import httpx
@@ -31,12 +37,38 @@ def still_running(processes: list[psutil.Process]) -> list[psutil.Process]:
     return [p for p in processes if p.is_running() and p.status() != psutil.STATUS_ZOMBIE]
 
 
+def history_file(ros_home: Path) -> Path:
+    """The demo Task Manager's default history file on this test's ROS domain."""
+    domain = os.environ['ROS_DOMAIN_ID']
+    return ros_home / 'task_manager' / f'domain{domain}' / 'task_manager' / 'history.sqlite'
+
+
+def users_history_files() -> dict[Path, int]:
+    """The files of the repository's `.ros` that a `make run` on this domain would write: its
+    history and the one of earlier versions, which it would take over.
+
+    key: the file, value: when it last changed (ns).
+    """
+    folder = REPO / '.ros' / 'task_manager'
+    paths = [*history_file(REPO / '.ros').parent.rglob('*'), *folder.glob('history.sqlite*')]
+    return {path: path.stat().st_mtime_ns for path in paths if path.is_file()}
+
+
+def task_names(history: Path) -> list[str]:
+    """Every request stored in a history file, ended or not."""
+    with contextlib.closing(sqlite3.connect(f'file:{history}?mode=ro', uri=True)) as db:
+        return [name for (name,) in db.execute('SELECT task_name FROM tasks ORDER BY entry')]
+
+
 @pytest.mark.ros
-def test_make_run_serves_tasks_and_stops_cleanly_on_ctrl_c(ros: RosHarness) -> None:
+def test_make_run_serves_tasks_and_stops_cleanly_on_ctrl_c(ros: RosHarness, tmp_path: Path) -> None:
+    users_files = users_history_files()
     # any free port for the dashboard: the machine may run a `make run` of its own
-    make = DemoProcess('make run', ['make', '--no-print-directory', 'run', 'WEB_PORT=0'], cwd=REPO)
+    command = ['make', '--no-print-directory', 'run', 'WEB_PORT=0', f'DEMO_ROS_HOME={tmp_path}']
+    make = DemoProcess('make run', command, cwd=REPO)
     try:
         make.wait_for_line(r'^Ctrl-C stops', READY_TIMEOUT_SEC)
+        assert f'task history: {history_file(tmp_path)} (ROS_HOME={tmp_path})' in make.output
         assert 'Task Manager ready' in make.output
         assert '/task_manager/active_tasks' in make.output
         descendants = psutil.Process(make.pid).children(recursive=True)
@@ -64,3 +96,6 @@ def test_make_run_serves_tasks_and_stops_cleanly_on_ctrl_c(ros: RosHarness) -> N
             make.stop()
     assert 'the robot and the Task Manager have stopped' in make.output, make.output
     assert still_running(descendants) == []
+    # the test's own task only: the probe's warm-up leaves none, the user's history is untouched
+    assert task_names(history_file(tmp_path)) == ['navigation/navigate_to_pose']
+    assert users_history_files() == users_files

@@ -1,10 +1,14 @@
 """A test client of a running Task Manager that uses only its public ROS interfaces."""
 
 import json
+import uuid
 from typing import Any
 
+from action_msgs.msg import GoalStatus
+from rclpy.action.client import ClientGoalHandle
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
+from unique_identifier_msgs.msg import UUID
 
 from task_manager.ros import qos
 from task_manager.testing.harness import (
@@ -15,8 +19,8 @@ from task_manager.testing.harness import (
 )
 
 EXECUTE_TASK_ACTION = '/task_manager/execute_task'
+SendGoalResponse = ExecuteTask.Impl.SendGoalService.Response
 DEFAULT_TIMEOUT_SEC = 15.0
-WARM_UP_TASK = '__probe_warm_up__'
 WARM_UP_ATTEMPTS = 5
 WARM_UP_TIMEOUT_SEC = 2.0
 
@@ -32,24 +36,27 @@ def execute_task_client(ros: RosHarness) -> Any:
     )
 
 
-def warm_up(client: Any, task_name: str, id_prefix: str) -> None:
-    """Retry a goal for an unknown task until one ExecuteTask round trip succeeds.
+def warm_up(client: Any) -> None:
+    """Ask for the result of a goal the server never had until one such round trip succeeds.
 
-    Seeing the server is not enough: DDS may match the server's reply path to a new
-    client a moment later, and a reply sent before that is lost. A goal for an unknown
-    task is answered at once and touches no task.
+    Seeing the server is not enough: DDS may match the server's reply path to a new client a
+    moment later, and a reply sent before that is lost. This request is answered at once
+    (status UNKNOWN) and creates no task, so nothing lands in any history. The server learns
+    of the client's goal, cancel and result services in the order rcl_action creates them,
+    so once a result reply arrives, goal replies do too.
     """
-    for attempt in range(WARM_UP_ATTEMPTS):
-        goal = ExecuteTask.Goal(task_id=f'{id_prefix}-{attempt}', task_name=task_name)
+    for _ in range(WARM_UP_ATTEMPTS):
+        goal_id = UUID(uuid=list(uuid.uuid4().bytes))
+        unknown = ClientGoalHandle(client, goal_id, SendGoalResponse(accepted=True))
         try:
-            handle = wait_for_future(
-                client.send_goal_async(goal), WARM_UP_TIMEOUT_SEC, 'warm-up goal'
+            response = wait_for_future(
+                unknown.get_result_async(), WARM_UP_TIMEOUT_SEC, 'warm-up result'
             )
-            wait_for_future(handle.get_result_async(), WARM_UP_TIMEOUT_SEC, 'warm-up result')
-            return
         except WaitTimeoutError:
             continue
-    raise WaitTimeoutError(f'{id_prefix}: no ExecuteTask round trip in {WARM_UP_ATTEMPTS} tries')
+        assert response.status == GoalStatus.STATUS_UNKNOWN, response
+        return
+    raise WaitTimeoutError(f'no ExecuteTask round trip in {WARM_UP_ATTEMPTS} tries')
 
 
 class TaskManagerProbe:
@@ -71,7 +78,7 @@ class TaskManagerProbe:
         assert self.client.wait_for_server(timeout_sec=self.timeout_sec), 'no execute_task server'
         self.results.wait_matched(self.timeout_sec)
         self.active.wait_matched(self.timeout_sec)
-        warm_up(self.client, WARM_UP_TASK, 'probe-warm-up')
+        warm_up(self.client)
 
     def send(
         self, task_name: str, task_data: Any = None, task_id: str = '', source: str = 'test'

@@ -165,12 +165,11 @@ def test_the_history_is_queried_by_filters_and_kept_within_its_limits(
     ).tasks
     after = ids(after_sequence=all_rows[1].sequence, oldest_first=True)
 
-    # (the probes' warm-up requests are stored too; only ours are compared)
     assert newest == ['q-unknown', 'q4', 'q3', 'q2']
     assert set(by_source) <= {'q1', 'q3'} and 'q3' in by_source
     assert failed == ['q-unknown']
     assert [t.sequence for t in all_rows] == sorted(t.sequence for t in all_rows)
-    # pruned at start to the 4 newest of the first run (the second probe's warm-up came after)
+    # pruned at start to the 4 newest of the first run
     assert [t.task_id for t in all_rows if t.task_id.startswith('q')] == [
         'q2',
         'q3',

@@ -31,7 +31,6 @@ from task_manager.testing.harness import (
     WaitTimeoutError,
     wait_for_future,
 )
-from task_manager.testing.probe import WARM_UP_TASK as PROBE_WARM_UP_TASK
 from task_manager.testing.probe import execute_task_client, warm_up
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import CancelPolicy, ScriptedActionServer, ScriptedGoal
@@ -59,7 +58,6 @@ MAX_THREADS = 30
 IGNORED_CANCEL_TIMEOUT_SEC = 0.3
 SEND_TIMEOUT_SEC = 10.0
 END_TIMEOUT_SEC = 20.0
-WARM_UP_TASK = '__warm_up__'
 BARRIER_ID = 'stress-barrier'
 BARRIER_TASK = '__barrier__'
 
@@ -270,7 +268,7 @@ class StressClient:
     def warm_up(self) -> None:
         """One round trip, so that DDS has matched this client's reply paths before the stream."""
         assert self.client.wait_for_server(timeout_sec=SEND_TIMEOUT_SEC), 'no execute_task'
-        warm_up(self.client, WARM_UP_TASK, f'warm-up-c{self.number}')
+        warm_up(self.client)
 
     def start(self) -> None:
         self._thread.start()
@@ -469,8 +467,7 @@ def test_concurrent_mixed_requests_are_each_answered_once_and_consistently(
     assert any(r.result.error_code == 'duplicate_id' for r in replies)
 
     # one /results message per request, agreeing with its ExecuteTask result
-    not_counted = {WARM_UP_TASK, PROBE_WARM_UP_TASK, BARRIER_TASK}
-    results = [m for m in tm.results.snapshot() if m.task_name not in not_counted]
+    results = [m for m in tm.results.snapshot() if m.task_name != BARRIER_TASK]
     replies_by_id: dict[str, list[Reply]] = {}
     for reply in replies:
         replies_by_id.setdefault(reply.result.task_id, []).append(reply)

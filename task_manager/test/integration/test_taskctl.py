@@ -153,6 +153,7 @@ def test_active_and_results_show_how_long_tasks_run_and_when_they_ended(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     tm = _launch(ros, launch_task_manager, topic_prefix)
+    tm.run('no/such', {}, task_id='refused')
     tm.run('math/fib', {'order': 4}, task_id='finished')
     tm.send('math/fib', {'order': 50}, task_id='held')
     tm.wait_in_progress('held')
@@ -171,7 +172,7 @@ def test_active_and_results_show_how_long_tasks_run_and_when_they_ended(
         r'\{"sequence": \[4\]\}',
         _line_with('finished', results.stdout),
     )
-    assert 'never started' in _line_with('probe-warm-up', results.stdout)  # refused
+    assert 'never started' in _line_with('refused', results.stdout)
     (row,) = [json.loads(line) for line in as_json.stdout.splitlines()]
     assert row['task_id'] == 'finished' and 0 <= row['duration_sec'] < TASKCTL_TIMEOUT_SEC
     assert row['received_at'] <= row['started_at'] <= row['ended_at']  # ISO 8601, one zone
@@ -235,6 +236,7 @@ def test_watch_and_follow_show_changes_until_ctrl_c(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     tm = _launch(ros, launch_task_manager, topic_prefix)
+    tm.run('math/fib', {'order': 1}, task_id='kept')
     watching = subprocess.Popen(
         [TASKCTL, 'active', '--watch'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
@@ -246,7 +248,7 @@ def test_watch_and_follow_show_changes_until_ctrl_c(
     )
     try:
         _until_line(watching, 'active tasks (0)')  # connected: the table is drawn
-        _until_line(following, 'probe-warm-up')  # connected: the kept results are printed
+        _until_line(following, '"kept"')  # connected: the kept results are printed
 
         tm.send('math/fib', {'order': 50}, task_id='watched')
         seen_active = _until_line(watching, 'watched')

@@ -16,7 +16,7 @@ import pytest
 
 from task_manager.testing import process
 from task_manager.testing.harness import RosHarness
-from task_manager.testing.probe import execute_task_client, warm_up
+from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import NodeProcess
 
 REPO = Path(__file__).resolve().parents[3]
@@ -183,11 +183,13 @@ def test_installed_task_manager_serves_execute_task(
     node = NodeProcess(params_file)
     try:
         node.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
-        client = execute_task_client(ros)
-        assert client.wait_for_server(timeout_sec=START_TIMEOUT_SEC), 'no execute_task server'
-        # One goal answered end to end: a goal for an unknown task is answered at once.
-        warm_up(client, '__colcon_build_check__', 'colcon-build')
+        probe = TaskManagerProbe(ros, START_TIMEOUT_SEC)
+        probe.wait_until_connected()
+        # One task end to end: a system task, which needs no server.
+        result = probe.run('system/wait', {'duration': 0.01})
+        probe.destroy()
     finally:
         code = node.stop()
         print('\n'.join(node.log_lines))
+    assert (result.task_status, result.error_code) == ('DONE', '')
     assert code == 0
