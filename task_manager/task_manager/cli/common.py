@@ -34,6 +34,11 @@ progress = Console(stderr=True)
 """Spinners and notes: stderr."""
 
 
+def source_option() -> Any:
+    """`--source`: who asks, as every verb that sends the Task Manager a request takes it."""
+    return typer.Option('CLI', '--source', help='Who asks (the source recorded): CLI, CLOUD, ...')
+
+
 @contextmanager
 def connected(ctx: typer.Context, events: bool = False) -> Iterator[TaskManagerClient]:
     """A client connected to the Task Manager, or TaskManagerUnavailable within the timeout.

@@ -131,15 +131,43 @@ def test_active_results_and_tasks(
     tm.wait_in_progress('running-now')
 
     active = taskctl('active')
+    active_json = taskctl('active', '--json')
     results = taskctl('results', '--json')
     tasks = taskctl('tasks')
+    tasks_json = taskctl('tasks', '--json')
 
     assert active.returncode == 0 and 'running-now' in active.stdout
+    assert active_json.returncode == 0, active_json.stderr
+    (running,) = [json.loads(line) for line in active_json.stdout.splitlines()]
+    stamps = {key: running.pop(key) for key in ('received_at', 'started_at', 'duration_sec')}
+    assert running == {
+        'task_id': 'running-now',
+        'task_name': 'math/fib',
+        'status': 'IN_PROGRESS',
+        'source': 'test',
+        'mission_id': '',
+        'paused_sec': 0.0,
+        'pauses': [],
+    }
+    assert stamps['received_at'] <= stamps['started_at'] and stamps['duration_sec'] >= 0
     lines = [json.loads(line) for line in results.stdout.splitlines()]
     assert {'task_id': 'finished-earlier', 'status': 'DONE'}.items() <= lines[-1].items()
     assert tasks.returncode == 0
     for name in ('math/fib', 'system/mission', 'system/wait', 'system/stop'):
         assert name in tasks.stdout
+    assert tasks_json.returncode == 0, tasks_json.stderr
+    declared = [json.loads(line) for line in tasks_json.stdout.splitlines()]
+    assert declared[0] == {
+        'task_name': 'math/fib',
+        'msg_interface': 'test_msgs.action.Fibonacci',
+        'topic': f'{topic_prefix}/fib',
+        'blocking': False,
+        'cancel_on_stop': True,
+        'reentrant': True,
+        'cancel_reported_as_success': False,
+        'cancel_timeout_sec': 5.0,
+    }
+    assert {'system/mission', 'system/wait', 'system/stop'} <= {d['task_name'] for d in declared}
 
 
 DURATION = r'\d+\.\d s'  # how taskctl shows a time under a minute
@@ -159,8 +187,8 @@ def test_active_and_results_show_how_long_tasks_run_and_when_they_ended(
     tm.wait_in_progress('held')
 
     active = taskctl('active')
-    results = taskctl('results', '--last', '2')
-    as_json = taskctl('results', '--last', '1', '--json')
+    results = taskctl('results', '--limit', '2')
+    as_json = taskctl('results', '--last', '1', '--json')  # --limit's old name still works
 
     assert active.returncode == 0, active.stderr
     assert 'running for' in active.stdout
@@ -241,7 +269,7 @@ def test_watch_and_follow_show_changes_until_ctrl_c(
         [TASKCTL, 'active', '--watch'], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
     following = subprocess.Popen(
-        [TASKCTL, 'results', '--follow', '--last', '0', '--json'],
+        [TASKCTL, 'results', '--follow', '--limit', '0', '--json'],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,

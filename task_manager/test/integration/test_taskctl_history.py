@@ -17,6 +17,11 @@ from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
 
 FAIL = 99  # the Fibonacci order the scripted server aborts
 DURATION = r'\d+\.\d s'  # how taskctl shows a time under a minute
+# The fields of `taskctl history --json` (docs/taskctl.md)
+HISTORY_FIELDS = {
+    'task_id', 'task_name', 'status', 'error_code', 'source', 'result', 'received_at',
+    'started_at', 'ended_at', 'duration_sec', 'paused_sec', 'mission_id', 'sequence', 'pauses',
+}  # fmt: skip
 
 
 def _decide(goal: ScriptedGoal) -> None:
@@ -69,7 +74,16 @@ def test_history_filters_by_task_status_source_mission_and_limit(
     sequences = [r['sequence'] for r in rows]
     assert sequences == sorted(sequences, reverse=True) and len(set(sequences)) == len(rows)
     h3 = next(r for r in rows if r['task_id'] == 'h3')
-    expected = {'status': 'DONE', 'source': 'CLOUD', 'mission_id': '', 'result': {'sequence': [3]}}
+    assert set(h3) == HISTORY_FIELDS
+    expected = {
+        'status': 'DONE',
+        'error_code': '',
+        'source': 'CLOUD',
+        'mission_id': '',
+        'result': {'sequence': [3]},
+        'paused_sec': 0.0,
+        'pauses': [],
+    }
     assert expected.items() <= h3.items()
     assert h3['received_at'] <= h3['started_at'] <= h3['ended_at'] and h3['duration_sec'] >= 0
     assert [r['task_id'] for r in _rows(done_cloud.stdout)] == ['h3', 'h2']

@@ -29,6 +29,10 @@ PAUSED_FOR_SEC = 0.1
 ONE_MS = timedelta(milliseconds=1)
 # A pause's length from its two stamps (each rounded to a microsecond) vs its paused_sec
 ROUNDING = timedelta(microseconds=1)
+ACTIVE_FIELDS = {
+    'task_id', 'task_name', 'status', 'source', 'mission_id', 'received_at', 'started_at',
+    'duration_sec', 'paused_sec', 'pauses',
+}  # fmt: skip
 CANNOT_PAUSE = (
     'task snap (photo) cannot be paused: its entry declares pause: none (the default); '
     'pause: restart pauses an action task by cancelling its goal and sending it again on resume'
@@ -69,6 +73,10 @@ def _rows(output: str) -> list[dict[str, Any]]:
     return [json.loads(line) for line in output.splitlines()]
 
 
+def _moment(text: str) -> datetime:
+    return datetime.fromisoformat(text)
+
+
 def test_taskctl_pauses_and_resumes_by_id_with_a_line_per_id(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
@@ -78,15 +86,17 @@ def test_taskctl_pauses_and_resumes_by_id_with_a_line_per_id(
     first, shot = nav.wait_for_goals(1, TIMEOUT_SEC)[0], photo.wait_for_goals(1, TIMEOUT_SEC)[0]
     tm.wait_active(lambda tasks: {('drive', 'IN_PROGRESS'), ('snap', 'IN_PROGRESS')} <= set(tasks))
 
-    paused = taskctl('pause', 'drive', 'snap', 'nosuch')
+    paused = taskctl('pause', 'drive', 'snap', 'nosuch', '--source', 'operator')
     tm.wait_active(lambda tasks: ('drive', 'PAUSED') in tasks, 'drive PAUSED')
     active = taskctl('active')
+    active_json = taskctl('active', '--json')
     resumed = taskctl('resume', 'drive')
     second = nav.wait_for_goals(2, TIMEOUT_SEC)[1]
     not_paused = taskctl('resume', 'drive')
     second.succeed(Fibonacci.Result(sequence=[7]))
     shot.succeed(Fibonacci.Result(sequence=[1]))
     drive_end, snap_end = tm.result_of(drive), tm.result_of(snap)
+    history = taskctl('history', '--task', 'navigate', '--json')
 
     assert paused.returncode == 1
     assert paused.stdout == 'drive  paused\n'
@@ -102,6 +112,16 @@ def test_taskctl_pauses_and_resumes_by_id_with_a_line_per_id(
     assert re.search(
         rf'snap\W+photo\W+IN_PROGRESS\W+test\W+{DURATION}', _line_with(' snap ', active.stdout)
     )
+    assert active_json.returncode == 0, active_json.stderr
+    as_json = {row['task_id']: row for row in _rows(active_json.stdout)}
+    assert set(as_json) == {'drive', 'snap'}
+    assert set(as_json['drive']) == ACTIVE_FIELDS
+    assert (as_json['drive']['status'], as_json['snap']['status']) == ('PAUSED', 'IN_PROGRESS')
+    (open_pause,) = as_json['drive']['pauses']
+    assert (open_pause['paused_by'], open_pause['resumed_at'], open_pause['resumed_by']) == (
+        'operator', None, '',
+    )  # fmt: skip
+    assert as_json['snap']['pauses'] == [] and as_json['snap']['paused_sec'] == 0.0
     assert (resumed.returncode, resumed.stdout, resumed.stderr) == (0, 'drive  resumed\n', '')
     assert second.request.order == 7  # the same goal, sent again
     assert not_paused.returncode == 1 and not_paused.stdout == ''
@@ -111,6 +131,14 @@ def test_taskctl_pauses_and_resumes_by_id_with_a_line_per_id(
     ]
     assert (drive_end.result.task_status, snap_end.result.task_status) == ('DONE', 'DONE')
     assert json.loads(drive_end.result.task_result) == {'sequence': [7]}
+    assert history.returncode == 0, history.stderr
+    (stored,) = _rows(history.stdout)
+    (pause,) = stored['pauses']
+    assert set(pause) == {'paused_at', 'paused_by', 'resumed_at', 'resumed_by'}
+    assert (pause['paused_at'], pause['paused_by']) == (open_pause['paused_at'], 'operator')
+    assert pause['resumed_by'] == 'CLI' and pause['paused_at'] < pause['resumed_at']
+    paused_for = _moment(pause['resumed_at']) - _moment(pause['paused_at'])
+    assert abs(timedelta(seconds=stored['paused_sec']) - paused_for) <= 2 * ROUNDING
 
 
 class EventLog:

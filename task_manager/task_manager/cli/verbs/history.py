@@ -1,8 +1,6 @@
 """taskctl history and taskctl stats: the Task Manager's durable task history."""
 
-import json
 from datetime import timedelta
-from typing import Any
 
 import typer
 from rich.table import Table
@@ -10,7 +8,8 @@ from rich.table import Table
 from task_manager import TaskState
 from task_manager.cli.common import connected, duration_text, output
 from task_manager.cli.durations import parse_span
-from task_manager.cli.verbs.watch import result_data, result_line
+from task_manager.cli.records import history_data, json_line
+from task_manager.cli.verbs.watch import result_line
 from task_manager.client import FINAL_STATUSES, HISTORY_LIMIT_MAX
 
 
@@ -31,15 +30,9 @@ def _status(text: str) -> str:
 
 
 def history_line(state: TaskState, as_json: bool) -> str:
-    """Like `taskctl results` prints a result; the JSON adds `mission_id` and `sequence`."""
-    if not as_json:
-        return result_line(state.to_result(), as_json=False)
-    data: dict[str, Any] = {
-        **result_data(state.to_result()),
-        'mission_id': state.mission_id,
-        'sequence': state.sequence,
-    }
-    return json.dumps(data, ensure_ascii=False)
+    """Like `taskctl results` prints a result; the JSON adds `mission_id`, `sequence` and
+    `pauses`."""
+    return json_line(history_data(state)) if as_json else result_line(state.to_result(), False)
 
 
 def history(
@@ -59,7 +52,7 @@ def history(
     oldest_first: bool = typer.Option(
         False, '--oldest-first', help='By sequence number, oldest first (default: newest first)'
     ),
-    as_json: bool = typer.Option(False, '--json', help='One JSON object per line'),
+    as_json: bool = typer.Option(False, '--json', help='One JSON object per task and line'),
 ) -> None:
     """Print ended tasks from the Task Manager's history (kept across restarts), newest first."""
     span, status = None if since is None else _span(since, '--since'), _status(status)
@@ -105,7 +98,7 @@ def stats(
                 'median_duration_sec': _seconds(row.median_duration),
                 'p95_duration_sec': _seconds(row.p95_duration),
             }
-            print(json.dumps(data, ensure_ascii=False), flush=True)
+            print(json_line(data), flush=True)
         return
     table = Table(title=f'tasks ended in the last {since}')
     for column in ('task', 'count', 'success %', 'median', 'p95'):

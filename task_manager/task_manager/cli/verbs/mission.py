@@ -19,6 +19,7 @@ from task_manager.cli.common import (
     finish,
     output,
     progress,
+    source_option,
 )
 
 FEEDBACK_WIDTH = 48
@@ -110,7 +111,7 @@ def mission(
     ctx: typer.Context,
     path: Path = typer.Argument(..., help='YAML or JSON: a list of subtasks'),
     task_id: str = typer.Option('', '--id', help='Mission id; generated when empty'),
-    source: str = typer.Option('CLI', '--source'),
+    source: str = source_option(),
     no_wait: bool = typer.Option(False, '--no-wait', help='Print the mission id and exit'),
 ) -> None:
     """Run system/mission; show each subtask's progress. Exit 0 only when it ends DONE."""

@@ -1,6 +1,5 @@
 """taskctl schedule add|list|remove|enable|disable: tasks and missions started at set times."""
 
-import json
 from datetime import datetime
 from pathlib import Path
 from typing import Any
@@ -16,15 +15,18 @@ from task_manager.cli.common import (
     parse_json_object,
     progress,
     report_each,
+    source_option,
     time_text,
 )
 from task_manager.cli.durations import parse_span
+from task_manager.cli.records import iso, json_line
 from task_manager.cli.verbs.mission import load_subtasks
 from task_manager.schedules import schedule_request
 
 schedule_app = typer.Typer(
     name='schedule',
-    help='Start tasks or missions at set times: once, every period, or on a cron expression.',
+    help='Start tasks or missions at set times: once, every period, or on a cron expression '
+    '(add, list, remove, disable, enable).',
     no_args_is_help=True,
 )
 
@@ -159,7 +161,7 @@ def add(
     mission: Path | None = typer.Option(
         None, '--mission', help='Schedule a mission: a YAML or JSON file as taskctl mission reads'
     ),
-    source: str = typer.Option('CLI', '--source'),
+    source: str = source_option(),
 ) -> None:
     """Schedule a task (or --mission): print its schedule id and next run. Exit 1 if refused."""
     options = schedule_options(
@@ -195,10 +197,6 @@ def add(
         raise typer.BadParameter('give a TASK_NAME or --mission FILE (one of them)')
 
 
-def _iso(moment: datetime | None) -> str | None:
-    return None if moment is None else moment.isoformat()
-
-
 def schedule_data(info: ScheduleInfo) -> dict[str, Any]:
     """A schedule as `taskctl schedule list --json` prints it: stamps in ISO 8601."""
     return {
@@ -207,19 +205,19 @@ def schedule_data(info: ScheduleInfo) -> dict[str, Any]:
         'task_data': info.task_data,
         'created_by': info.created_by,
         'description': info.description,
-        'at': _iso(info.at),
+        'at': iso(info.at),
         'period_sec': None if info.period is None else info.period.total_seconds(),
         'cron': info.cron,
         'time_zone': info.time_zone,
-        'window_start': _iso(info.window_start),
-        'window_end': _iso(info.window_end),
+        'window_start': iso(info.window_start),
+        'window_end': iso(info.window_end),
         'max_runs': info.max_runs,
         'overlap': str(info.overlap),
         'misfire_grace_sec': info.misfire_grace.total_seconds(),
         'enabled': info.enabled,
-        'created': _iso(info.created),
-        'next_run': _iso(info.next_run),
-        'last_run': _iso(info.last_run),
+        'created': iso(info.created),
+        'next_run': iso(info.next_run),
+        'last_run': iso(info.last_run),
         'last_task_id': info.last_task_id,
         'last_status': None if info.last_status is None else str(info.last_status),
         'run_count': info.run_count,
@@ -259,7 +257,7 @@ def list_schedules(
         schedules = client.schedules(schedule_ids or None)
     if as_json:
         for info in schedules:
-            print(json.dumps(schedule_data(info), ensure_ascii=False), flush=True)
+            print(json_line(schedule_data(info)), flush=True)
         return
     output.print(schedules_table(schedules))
 
@@ -268,7 +266,7 @@ def list_schedules(
 def remove(
     ctx: typer.Context,
     schedule_ids: list[str] = typer.Argument(..., help='Ids of the schedules to remove'),
-    source: str = typer.Option('CLI', '--source'),
+    source: str = source_option(),
 ) -> None:
     """Remove schedules (system/unschedule); runs already started go on. Exit 1 if one fails."""
     with connected(ctx) as client:
@@ -279,7 +277,7 @@ def remove(
 def disable(
     ctx: typer.Context,
     schedule_ids: list[str] = typer.Argument(..., help='Ids of the schedules to disable'),
-    source: str = typer.Option('CLI', '--source'),
+    source: str = source_option(),
 ) -> None:
     """Disable schedules: no runs until enabled; their state and counts are kept."""
     with connected(ctx) as client:
@@ -291,7 +289,7 @@ def disable(
 def enable(
     ctx: typer.Context,
     schedule_ids: list[str] = typer.Argument(..., help='Ids of the schedules to enable'),
-    source: str = typer.Option('CLI', '--source'),
+    source: str = source_option(),
 ) -> None:
     """Enable schedules again, from their next due time after now."""
     with connected(ctx) as client:

@@ -19,6 +19,7 @@ from task_manager.cli.common import (
     output,
     parse_json_object,
     progress,
+    source_option,
 )
 
 LIVE_REFRESH_PER_SEC = 10
@@ -29,7 +30,7 @@ def start(
     task_name: str = typer.Argument(..., help='A declared task, e.g. navigation/navigate_to_pose'),
     task_data: str = typer.Argument('{}', help='The goal or request as a JSON object'),
     task_id: str = typer.Option('', '--id', help='Task id; generated when empty'),
-    source: str = typer.Option('CLI', '--source', help='Who asks: CLI, CLOUD, ...'),
+    source: str = source_option(),
     no_wait: bool = typer.Option(False, '--no-wait', help='Print the id once started, and exit'),
 ) -> None:
     """Start a task; print its result JSON. Exit 0 only when it ends DONE.

@@ -4,24 +4,29 @@ import typer
 from rich.table import Table
 
 from task_manager.cli.common import connected, output
+from task_manager.cli.records import DECLARED_FLAGS, declared_data, json_line
 
-PROPERTIES = ('blocking', 'cancel_on_stop', 'reentrant', 'cancel_reported_as_success')
 
-
-def tasks(ctx: typer.Context) -> None:
+def tasks(
+    ctx: typer.Context,
+    as_json: bool = typer.Option(False, '--json', help='One JSON object per task and line'),
+) -> None:
     """List the tasks the Task Manager declares (from its parameters), system tasks included."""
     with connected(ctx) as client:
-        declared = client.declared_tasks()
+        declared = [declared_data(entry) for entry in client.declared_tasks()]
+    if as_json:
+        for task in declared:
+            print(json_line(task), flush=True)
+        return
     table = Table(title=f'tasks ({len(declared)})')
-    for column in ('task', 'interface', 'topic', *PROPERTIES, 'cancel_timeout'):
+    for column in ('task', 'interface', 'topic', *DECLARED_FLAGS, 'cancel_timeout'):
         table.add_column(column)
     for task in declared:
-        flags = ['yes' if task.get(name) else '' for name in PROPERTIES]
         table.add_row(
-            task.get('task_name', ''),
-            task.get('msg_interface', ''),
-            task.get('topic', ''),
-            *flags,
-            f'{float(task.get("cancel_timeout", 5.0)):g} s',
+            task['task_name'],
+            task['msg_interface'],
+            task['topic'],
+            *['yes' if task[name] else '' for name in DECLARED_FLAGS],
+            f'{task["cancel_timeout_sec"]:g} s',
         )
     output.print(table)

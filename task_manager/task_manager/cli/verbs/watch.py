@@ -3,8 +3,8 @@
 import json
 from collections.abc import Iterator, Sequence
 from dataclasses import replace
-from datetime import datetime
-from typing import Any, TypeAlias
+from datetime import UTC, datetime
+from typing import TypeAlias
 
 import typer
 from rich.live import Live
@@ -20,8 +20,12 @@ from task_manager import (
     TaskStatus,
 )
 from task_manager.cli.common import connected, duration_text, output, time_text
+from task_manager.cli.records import active_data, json_line, result_data
 
 ActiveRow: TypeAlias = ActiveTaskInfo | TaskState
+ACTIVE_JSON_HELP = (
+    'One JSON object per task and line; with --watch, one JSON list of them per line and change'
+)
 
 
 def active_table(tasks: Sequence[ActiveRow]) -> Table:
@@ -77,12 +81,18 @@ class StampedActiveTasks:
 def active(
     ctx: typer.Context,
     watch: bool = typer.Option(False, '--watch', help='Keep the table up to date until Ctrl-C'),
+    as_json: bool = typer.Option(False, '--json', help=ACTIVE_JSON_HELP),
 ) -> None:
     """Show the tasks in progress."""
     try:
         with connected(ctx) as client:
             tasks = StampedActiveTasks(client)
-            if not watch:
+            if as_json:
+                print_active_json(tasks.rows, as_list=watch)
+                if watch:
+                    for update in client.active_task_updates():
+                        print_active_json(tasks.update(update), as_list=True)
+            elif not watch:
                 output.print(active_table(tasks.rows))
             elif output.is_terminal:  # redrawn as time passes, too
                 with Live(get_renderable=lambda: active_table(tasks.rows), console=output) as live:
@@ -98,32 +108,18 @@ def active(
         pass
 
 
-def _iso(moment: datetime | None) -> str | None:
-    return None if moment is None else moment.isoformat()
-
-
-def result_data(result: TaskResult) -> dict[str, Any]:
-    """A result's fields as `--json` prints them: stamps in ISO 8601, `duration_sec`."""
-    duration = result.duration
-    return {
-        'task_id': result.task_id,
-        'task_name': result.task_name,
-        'status': str(result.status),
-        'error_code': str(result.error_code),
-        'source': result.source,
-        'result': result.result,
-        'received_at': _iso(result.received_at),
-        'started_at': _iso(result.started_at),
-        'ended_at': _iso(result.ended_at),
-        'duration_sec': None if duration is None else duration.total_seconds(),
-        'paused_sec': result.paused.total_seconds(),
-    }
+def print_active_json(rows: Sequence[ActiveRow], as_list: bool) -> None:
+    """The active tasks as JSON: one object per line, or (`as_list`) one list of them."""
+    now = datetime.now(UTC)
+    data = [active_data(row, now) for row in rows]
+    for line in [json_line(data)] if as_list else [json_line(item) for item in data]:
+        print(line, flush=True)
 
 
 def result_line(result: TaskResult, as_json: bool) -> str:
     duration = result.duration
     if as_json:
-        return json.dumps(result_data(result), ensure_ascii=False)
+        return json_line(result_data(result))
     error = f' ({result.error_code})' if result.error_code else ''
     when = ''
     if result.ended_at is not None:
@@ -150,13 +146,16 @@ def results(
     follow: bool = typer.Option(
         False, '--follow', '-f', help='Then print new results as they come'
     ),
-    last: int = typer.Option(20, '--last', help='How many kept results to print first (0: all)'),
-    as_json: bool = typer.Option(False, '--json', help='One JSON object per line'),
+    limit: int = typer.Option(
+        20, '--limit', min=0, help='At most this many kept results first, the latest (0: all)'
+    ),
+    last: int | None = typer.Option(None, '--last', min=0, hidden=True),  # --limit's old name
+    as_json: bool = typer.Option(False, '--json', help='One JSON object per result and line'),
 ) -> None:
     """Print the latest task results the Task Manager kept, oldest first: when each ended."""
     try:
         with connected(ctx, events=follow) as client:
-            for result in client.recent_results(last):
+            for result in client.recent_results(limit if last is None else last):
                 print(result_line(result, as_json), flush=True)
             if follow:
                 for result in new_results(client):

@@ -1,0 +1,261 @@
+"""taskctl's listings without a node: one vocabulary (`--limit`), every listing as JSON of the
+shapes docs/taskctl.md documents (exact output), every verb in `taskctl --help`."""
+
+import importlib
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from datetime import UTC, datetime, timedelta
+from types import ModuleType, SimpleNamespace
+from typing import Any
+
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from task_manager.client import ActiveTaskInfo, Pause, TaskResult, TaskState
+from task_manager.core.status import ErrorCode, TaskStatus
+
+T0 = datetime(2026, 11, 25, 8, 0, tzinfo=UTC)
+VERBS = (
+    'start', 'mission', 'cancel', 'stop', 'pause', 'resume', 'active', 'results', 'history',
+    'stats', 'tasks', 'schedule',
+)  # fmt: skip
+SCHEDULE_VERBS = ('add', 'list', 'remove', 'disable', 'enable')
+
+
+def _at(seconds: float) -> datetime:
+    return T0 + timedelta(seconds=seconds)
+
+
+# A drive paused once by the operator and resumed from the UI, then DONE: 10 s from start to
+# end, 2.5 s of them paused.
+DRIVE = TaskState(
+    'drive',
+    'navigate',
+    TaskStatus.DONE,
+    'CLI',
+    mission_id='tour',
+    received_at=_at(0),
+    started_at=_at(0.5),
+    ended_at=_at(10.5),
+    result={'x': 1.0},
+    sequence=7,
+    paused=timedelta(seconds=2.5),
+    pauses=[Pause(_at(2), 'operator', _at(4.5), 'UI')],
+)
+DRIVE_RESULT = {
+    'task_id': 'drive',
+    'task_name': 'navigate',
+    'status': 'DONE',
+    'error_code': '',
+    'source': 'CLI',
+    'result': {'x': 1.0},
+    'received_at': '2026-11-25T08:00:00+00:00',
+    'started_at': '2026-11-25T08:00:00.500000+00:00',
+    'ended_at': '2026-11-25T08:00:10.500000+00:00',
+    'duration_sec': 7.5,
+    'paused_sec': 2.5,
+}
+DRIVE_PAUSES = [
+    {
+        'paused_at': '2026-11-25T08:00:02+00:00',
+        'paused_by': 'operator',
+        'resumed_at': '2026-11-25T08:00:04.500000+00:00',
+        'resumed_by': 'UI',
+    }
+]
+
+
+class FakeClient:
+    """Stands for TaskManagerClient: answers with what the test gives, records the calls."""
+
+    def __init__(self, **answers: Any) -> None:
+        self.answers = answers
+        self.calls: list[tuple[str, tuple[Any, ...], dict[str, Any]]] = []
+        self.events_connected = False
+
+    def __getattr__(self, method: str) -> Any:
+        def record(*args: Any, **kwargs: Any) -> Any:
+            self.calls.append((method, args, kwargs))
+            return self.answers[method]
+
+        return record
+
+    def active_task_updates(self) -> Iterator[list[ActiveTaskInfo]]:
+        yield from self.answers['active_task_updates']
+
+
+@pytest.fixture(scope='module')
+def cli(package_root: ModuleType) -> SimpleNamespace:
+    """taskctl's modules (they import the package root: see the package_root fixture)."""
+    return SimpleNamespace(
+        main=importlib.import_module('task_manager.cli.main'),
+        records=importlib.import_module('task_manager.cli.records'),
+        verbs=[
+            importlib.import_module(f'task_manager.cli.verbs.{name}')
+            for name in ('watch', 'history', 'tasks')
+        ],
+    )
+
+
+@pytest.fixture
+def run(cli: SimpleNamespace, monkeypatch: pytest.MonkeyPatch) -> Any:
+    """`run(client, *args)`: taskctl with a fake client; the CliRunner result."""
+
+    def invoke(client: FakeClient, *args: str) -> Any:
+        @contextmanager
+        def connected(ctx: typer.Context, events: bool = False) -> Iterator[FakeClient]:
+            yield client
+
+        for module in cli.verbs:
+            monkeypatch.setattr(module, 'connected', connected)
+        return CliRunner().invoke(cli.main.app, list(args))
+
+    return invoke
+
+
+def _lines(output: str) -> list[Any]:
+    return [json.loads(line) for line in output.splitlines()]
+
+
+def test_help_lists_every_verb(cli: SimpleNamespace) -> None:
+    runner = CliRunner()
+    top = runner.invoke(cli.main.app, ['--help'], env={'COLUMNS': '200'})
+    results = runner.invoke(cli.main.app, ['results', '--help'], env={'COLUMNS': '200'})
+
+    listed = [line.split()[1] for line in top.stdout.splitlines() if line.startswith('│ ')]
+    assert [verb for verb in listed if verb in VERBS] == list(VERBS)
+    assert f'({", ".join(SCHEDULE_VERBS)})' in top.stdout
+    assert '--limit' in results.stdout and '--last' not in results.stdout  # an old name
+
+
+@pytest.mark.parametrize('how_many', [['--limit', '2'], ['--last', '2']])
+def test_results_limit_and_its_old_name_last(run: Any, how_many: list[str]) -> None:
+    client = FakeClient(recent_results=[DRIVE.to_result()])
+
+    result = run(client, 'results', *how_many, '--json')
+
+    assert (result.exit_code, result.stderr) == (0, '')
+    assert client.calls == [('recent_results', (2,), {})]
+    assert _lines(result.stdout) == [DRIVE_RESULT]
+
+
+def test_results_default_to_the_latest_20(run: Any) -> None:
+    client = FakeClient(recent_results=[])
+
+    assert run(client, 'results').exit_code == 0
+    assert client.calls == [('recent_results', (20,), {})]
+
+
+def test_history_json_has_the_mission_the_sequence_and_the_pauses(run: Any) -> None:
+    client = FakeClient(history=[DRIVE])
+
+    result = run(client, 'history', '--limit', '5', '--json')
+
+    assert (result.exit_code, result.stderr) == (0, '')
+    assert client.calls[0][2]['limit'] == 5
+    assert _lines(result.stdout) == [
+        {**DRIVE_RESULT, 'mission_id': 'tour', 'sequence': 7, 'pauses': DRIVE_PAUSES}
+    ]
+
+
+def test_active_json_a_line_per_task_and_a_list_per_change_with_watch(run: Any) -> None:
+    queued = TaskState('queued', 'navigate', TaskStatus.RECEIVED, 'CLOUD', received_at=_at(1))
+    client = FakeClient(
+        task_states=[queued],
+        active_task_updates=[[ActiveTaskInfo('queued', 'navigate', TaskStatus.RECEIVED, 'CLOUD')]],
+    )
+    queued_data: dict[str, Any] = {
+        'task_id': 'queued',
+        'task_name': 'navigate',
+        'status': 'RECEIVED',
+        'source': 'CLOUD',
+        'mission_id': '',
+        'received_at': '2026-11-25T08:00:01+00:00',
+        'started_at': None,
+        'duration_sec': None,
+        'paused_sec': 0.0,
+        'pauses': [],
+    }
+
+    once = run(client, 'active', '--json')
+    watched = run(client, 'active', '--watch', '--json')
+
+    assert (once.exit_code, watched.exit_code) == (0, 0)
+    assert _lines(once.stdout) == [queued_data]
+    assert _lines(watched.stdout) == [[queued_data], [queued_data]]
+
+
+def test_an_active_paused_task_as_json_stops_its_clock(cli: SimpleNamespace) -> None:
+    open_pause = Pause(_at(3), 'operator')
+    paused = TaskState(
+        'drive', 'navigate', TaskStatus.PAUSED, 'CLI', started_at=_at(1), pauses=[open_pause]
+    )
+    without_stamps = ActiveTaskInfo('other', 'spin', TaskStatus.IN_PROGRESS, 'UI')
+
+    data = cli.records.active_data(paused, now=_at(10))
+    bare = cli.records.active_data(without_stamps, now=_at(10))
+
+    assert (data['duration_sec'], data['paused_sec']) == (2.0, 7.0)
+    assert data['pauses'] == [
+        {
+            'paused_at': '2026-11-25T08:00:03+00:00',
+            'paused_by': 'operator',
+            'resumed_at': None,
+            'resumed_by': '',
+        }
+    ]
+    assert (bare['status'], bare['started_at'], bare['duration_sec']) == ('IN_PROGRESS', None, None)
+
+
+def test_tasks_json_a_line_per_declared_task(run: Any) -> None:
+    declared = [
+        {
+            'key': 'nav',
+            'task_name': 'navigate',
+            'msg_interface': 'nav2_msgs/action/NavigateToPose',
+            'topic': '/navigate_to_pose',
+            'blocking': True,
+            'cancel_timeout': 2,
+            'pause': 'restart',
+        },
+        {'key': '', 'task_name': 'system/stop', 'msg_interface': 'std_srvs/srv/Trigger'},
+    ]
+
+    result = run(FakeClient(declared_tasks=declared), 'tasks', '--json')
+
+    assert (result.exit_code, result.stderr) == (0, '')
+    flags = {'cancel_on_stop': False, 'reentrant': False, 'cancel_reported_as_success': False}
+    assert _lines(result.stdout) == [
+        {
+            'task_name': 'navigate',
+            'msg_interface': 'nav2_msgs/action/NavigateToPose',
+            'topic': '/navigate_to_pose',
+            'blocking': True,
+            **flags,
+            'cancel_timeout_sec': 2.0,
+        },
+        {
+            'task_name': 'system/stop',
+            'msg_interface': 'std_srvs/srv/Trigger',
+            'topic': '',
+            'blocking': False,
+            **flags,
+            'cancel_timeout_sec': 5.0,
+        },
+    ]
+
+
+def test_a_result_without_stamps_has_null_times(cli: SimpleNamespace) -> None:
+    plain = TaskResult('t', 'spin', TaskStatus.ERROR, ErrorCode.UNKNOWN_TASK, {'error': 'no'})
+
+    data = cli.records.result_data(plain)
+
+    assert [data[k] for k in ('received_at', 'started_at', 'ended_at', 'duration_sec')] == [
+        None,
+        None,
+        None,
+        None,
+    ]
+    assert (data['error_code'], data['paused_sec']) == ('unknown_task', 0.0)
