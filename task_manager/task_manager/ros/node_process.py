@@ -37,11 +37,13 @@ def _receive_signals(
 
 
 def _drain(executor: SingleThreadedExecutor) -> None:
-    """Run the work that is ready (e.g. sending the last goal results) without waiting."""
+    """Run the work that is ready (e.g. sending the last goal results) without waiting: until
+    nothing is ready (bounded, in case the work keeps making more)."""
     for _ in range(DRAIN_MAX_CALLBACKS):
         try:
-            executor.spin_once(timeout_sec=0.0)
-        except Exception:  # nothing left, or the context is going
+            handler, _, _ = executor.wait_for_ready_callbacks(timeout_sec=0.0)
+            handler()
+        except Exception:  # nothing is ready (TimeoutException), or the context is going
             return
 
 

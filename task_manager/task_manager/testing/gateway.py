@@ -56,6 +56,8 @@ class ScriptedRobot:
                 # the node must discover this process's servers: 1 s (the default) is not
                 # always enough with the other test process busy on the same 2 cores
                 'server_wait_timeout': SERVER_WAIT_TIMEOUT_SEC,
+                # serve at once: it is alone on the test run's domain
+                'instance_check_timeout': 0,
             },
         )
         self.processes: list[NodeProcess] = []

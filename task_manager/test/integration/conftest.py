@@ -11,6 +11,9 @@ from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, NodeProcess, write_params_file
 
 START_TIMEOUT_SEC = 20.0
+# Serve at once: each test's node is alone on the test run's domain (the tests of two Task
+# Managers meeting, test_instances.py, keep the default wait).
+NO_INSTANCE_CHECK = {'instance_check_timeout': 0}
 
 
 @pytest.fixture
@@ -28,7 +31,13 @@ def launch_task_manager(ros: RosHarness, tmp_path: Path) -> Iterator[LaunchTaskM
     def launch(tasks: dict[str, dict[str, Any]], **node_parameters: Any) -> TaskManagerProbe:
         # each node its own history, so that no test sees another's results
         history = {'history_path': str(tmp_path / f'history{len(processes)}.sqlite')}
-        parameters = {'tasks': list(tasks), **tasks, **history, **node_parameters}
+        parameters = {
+            'tasks': list(tasks),
+            **tasks,
+            **history,
+            **NO_INSTANCE_CHECK,
+            **node_parameters,
+        }
         params_file = write_params_file(tmp_path / f'params{len(processes)}.yaml', parameters)
         process = NodeProcess(params_file)
         processes.append(process)
