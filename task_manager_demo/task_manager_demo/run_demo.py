@@ -15,6 +15,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+from task_manager.discovery import use_quick_discovery
 from task_manager_demo.children import Events
 from task_manager_demo.robot_interface import ROBOT_READY_LOG
 from task_manager_demo.supervisor import Supervisor, say, supervise
@@ -136,6 +137,7 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     options = parse_arguments(argv)
+    use_quick_discovery()  # also for the children, which inherit the environment
     params_file = (options.params_file or default_params_file()).resolve()
     if not params_file.is_file():
         say(f'task-manager-demo: no parameters file {params_file}')

@@ -17,6 +17,7 @@ from pathlib import Path
 from task_manager_mqtt.broker import READY_LINE, MosquittoBroker
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 
+from task_manager.discovery import use_quick_discovery
 from task_manager_demo.children import Events
 from task_manager_demo.run_demo import (
     READY_TIMEOUT_SEC,
@@ -148,6 +149,7 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
 
 def main(argv: list[str] | None = None) -> int:
     options = parse_arguments(argv)
+    use_quick_discovery()  # also for the children, which inherit the environment
     return supervise(
         lambda events: Fleet(options, events),
         options.ready_timeout,

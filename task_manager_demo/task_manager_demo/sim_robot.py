@@ -26,6 +26,7 @@ from rclpy.task import Future
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto
 
+from task_manager.discovery import use_quick_discovery
 from task_manager_demo.motion import DriveToPose, Motion, Pose, Speeds, SpinBy
 from task_manager_demo.robot_interface import (
     DOCK_ACTION,
@@ -269,6 +270,7 @@ class SimRobot(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Console script `task-manager-demo-robot`: run the simulated robot until interrupted."""
+    use_quick_discovery()
     rclpy.init(args=args if args is not None else sys.argv)
     node = None
     executor = SingleThreadedExecutor()

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from task_manager.client import TaskManagerClient
+from task_manager.discovery import use_quick_discovery
 from task_manager_mqtt.bridge import Bridge
 from task_manager_mqtt.settings import (
     DEFAULT_PREFIX,
@@ -116,6 +117,7 @@ def _with_password(broker: Broker, path: Path) -> Broker:
 
 
 def main(argv: list[str] | None = None) -> int:
+    use_quick_discovery()
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT, stream=sys.stderr)
     try:
         settings = settings_from(vars(_arguments(argv)))

@@ -15,6 +15,7 @@ from pathlib import Path
 import uvicorn
 
 from task_manager.client import TaskManagerClient
+from task_manager.discovery import use_quick_discovery
 from task_manager_web.app import Settings, create_app
 
 EXIT_USAGE = 2
@@ -72,6 +73,7 @@ def _listen(host: str, port: int) -> socket.socket:
 
 
 def main(argv: list[str] | None = None) -> None:
+    use_quick_discovery()
     arguments = _arguments(argv)
     logging.basicConfig(
         level=logging.INFO, format='[%(levelname)s] [task_manager_web]: %(message)s'
