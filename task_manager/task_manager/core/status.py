@@ -38,6 +38,8 @@ class ErrorCode(StrEnum):
     TASK_START_FAILED = 'task_start_failed'
     TASK_CANCEL_FAILED = 'task_cancel_failed'
     UNKNOWN_TASK = 'unknown_task'
+    INVALID_REQUEST = 'invalid_request'
+    """An id, task name or source with refused characters or too long (request_text.py)."""
 
 
 class ServerOutcome(StrEnum):

@@ -8,9 +8,11 @@ of the ROS interfaces.
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, RootModel
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, RootModel
 
-NAME_MAX = 256
+from task_manager.core.request_text import MAX_LENGTH, is_refused_character
+
+NAME_MAX = MAX_LENGTH
 """The longest task name, task id or source accepted."""
 IDS_MAX = 1000
 """The most task ids in one cancel, and subtasks in one mission."""
@@ -19,8 +21,22 @@ HISTORY_LIMIT_MAX = 10_000
 TaskStatusName = Literal['RECEIVED', 'IN_PROGRESS', 'PAUSED', 'DONE', 'ERROR', 'CANCELED']
 ErrorCodeName = Literal[
     '', 'duplicate_id', 'task_data_parsing_failed', 'task_start_failed', 'task_cancel_failed',
-    'unknown_task',
+    'unknown_task', 'invalid_request',
 ]  # fmt: skip
+
+
+def _without_refused_characters(text: str) -> str:
+    """Refuse what ROS would cut (NUL) or a log line or a screen would misread."""
+    if any(is_refused_character(character) for character in text):
+        raise ValueError(
+            'control characters and characters that reorder text (right-to-left overrides) '
+            'are not allowed'
+        )
+    return text
+
+
+Name = Annotated[str, AfterValidator(_without_refused_characters)]
+"""A task id, task name or source of a request."""
 EventName = Literal['RECEIVED', 'STARTED', 'FEEDBACK', 'PAUSED', 'RESUMED', 'ENDED']
 
 
@@ -31,20 +47,20 @@ class _Request(BaseModel):
 class StartTask(_Request):
     """Start one task."""
 
-    task_name: str = Field(min_length=1, max_length=NAME_MAX, examples=['navigation/navigate'])
+    task_name: Name = Field(min_length=1, max_length=NAME_MAX, examples=['navigation/navigate'])
     task_data: dict[str, Any] = Field(
         default_factory=dict, description="The goal's fields (see the task's goal_schema)."
     )
-    task_id: str = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
-    source: str = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
+    task_id: Name = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
+    source: Name = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
 
 
 class Subtask(_Request):
     """One step of a mission."""
 
-    task_name: str = Field(min_length=1, max_length=NAME_MAX)
+    task_name: Name = Field(min_length=1, max_length=NAME_MAX)
     task_data: dict[str, Any] = Field(default_factory=dict)
-    task_id: str = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
+    task_id: Name = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
     allow_skipping: bool = Field(False, description='Its failure does not end the mission.')
 
 
@@ -52,14 +68,14 @@ class StartMission(_Request):
     """Start system/mission: its subtasks one after another."""
 
     subtasks: list[Subtask] = Field(min_length=1, max_length=IDS_MAX)
-    task_id: str = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
-    source: str = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
+    task_id: Name = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
+    source: Name = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
 
 
 class CancelTasks(_Request):
     """Cancel tasks by id, whoever started them."""
 
-    task_ids: list[str] = Field(min_length=1, max_length=IDS_MAX)
+    task_ids: list[Name] = Field(min_length=1, max_length=IDS_MAX)
 
 
 class HistoryQuery(_Request):
@@ -229,6 +245,11 @@ class Connection(BaseModel):
         False, description='Whether the bridge reaches the Task Manager node.'
     )
     version: str = Field('1', description='Of this protocol.')
+    dead_letters: int = Field(
+        0,
+        description='Request messages the bridge put on `dead_letter` since it started '
+        '(in the last will: as many as when it connected).',
+    )
 
 
 class ActiveTasks(BaseModel):
@@ -245,6 +266,24 @@ class DeclaredTasks(BaseModel):
     tasks: list[DeclaredTask]
 
 
+class DeadLetter(BaseModel):
+    """`<prefix>/<robot_id>/dead_letter`: a request message the bridge could not answer, as it
+    had no usable request_id to address a reply to (not JSON, not an object, no request_id or
+    one of another type), and why. It was acknowledged and nothing ran."""
+
+    robot_id: str
+    timestamp: datetime
+    error: ErrorDetail = Field(description='Why: the error a reply would have carried.')
+    payload_bytes: int = Field(description="The message's size.")
+    payload_excerpt: str = Field(
+        description='Its first 200 bytes as text (bytes that are not UTF-8 as \\xNN escapes).'
+    )
+    retained: bool = Field(False, description='Whether it came with the retain flag.')
+    count: int = Field(
+        description="The robot's dead letters since its bridge started, this one included."
+    )
+
+
 # key: schema file stem, value: the model it documents
 DOCUMENTS: dict[str, type[BaseModel]] = {
     'start_task': StartTask,
@@ -259,6 +298,7 @@ DOCUMENTS: dict[str, type[BaseModel]] = {
     'mqtt_request': RobotRequest,
     'mqtt_reply': Reply,
     'mqtt_connection': Connection,
+    'mqtt_dead_letter': DeadLetter,
     'mqtt_active_tasks': ActiveTasks,
     'mqtt_tasks': DeclaredTasks,
 }

@@ -15,6 +15,7 @@ from rclpy.task import Future
 from task_manager.core.errors import TaskRequestError
 from task_manager.core.history import TaskHistory
 from task_manager.core.registry import TaskRegistry
+from task_manager.core.request_text import loggable, request_problem
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
@@ -137,6 +138,8 @@ class TaskDispatcher:
         """Track the request, or end it at once (its run is None then)."""
         record = self._new_record(request)
         task_id = record.task_id
+        if problem := request_problem(task_id, request.task_name, request.source):
+            return self._reject(record, ErrorCode.INVALID_REQUEST, problem), None
         runner = self.runners_by_name.get(request.task_name)
         if runner is None:
             reason = self.unknown_task_reason(request.task_name)
@@ -170,8 +173,8 @@ class TaskDispatcher:
         """End a request that will not run: ERROR, its result `{"error": reason}` (and `result`)."""
         task_log.warning(
             self._log,
-            f'task {record.task_id} ({record.task_name}) from {record.source!r} '
-            f'rejected, {code}: {reason}',
+            f'task {loggable(record.task_id)} ({loggable(record.task_name)}) from '
+            f'{loggable(record.source)!r} rejected, {code}: {reason}',
         )
         record.mark_ended(TaskStatus.ERROR, {**(result or {}), 'error': reason}, code)
         return record

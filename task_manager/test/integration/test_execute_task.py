@@ -297,3 +297,34 @@ def test_unrelated_task_starts_while_another_tasks_server_is_missing(
     assert unrelated.task_status == 'DONE'
     assert tm.results_for('waits-for-server') == []  # still waiting for its server
     assert tm.result_of(waiting).result.error_code == 'task_start_failed'
+
+
+def test_control_characters_and_overlong_names_are_refused_and_logged_safely(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    server = _instant_fibonacci(ros, f'{topic_prefix}/fib')
+    tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib')})
+    forged = 'id\n[INFO] [0.0] [task_manager]: forged'
+
+    refused = {
+        'newline id': tm.run('fib', {'order': 1}, task_id=forged),
+        'reversed name': tm.run('fib\u202e', {'order': 1}, task_id='rtl'),
+        'escape in source': tm.run('fib', {'order': 1}, task_id='esc', source='CLI\x1b[2J'),
+        'long id': tm.run('fib', {'order': 1}, task_id='x' * 100_000),
+    }
+    accepted = tm.run('fib', {'order': 1}, task_id='plain', source='Voice control')
+
+    for case, result in refused.items():
+        assert (result.task_status, result.error_code) == ('ERROR', 'invalid_request'), case
+    reasons = {case: json.loads(r.task_result)['error'] for case, r in refused.items()}
+    assert reasons['newline id'].startswith('task_id contains the character U+000A at position 2')
+    assert reasons['reversed name'].startswith('task_name contains the character U+202E')
+    assert reasons['escape in source'].startswith('source contains the character U+001B')
+    assert reasons['long id'] == 'task_id has 100000 characters; at most 256 are allowed'
+    assert accepted.task_status == 'DONE'
+    assert [g.request.order for g in server.wait_for_goals(1, TIMEOUT_SEC)] == [1]
+    tm.process.wait_for_log(r'task plain \(fib\).*ended DONE', TIMEOUT_SEC)
+    log = tm.process.log_lines
+    assert not any('forged' in line and line.startswith('[INFO] [0.0]') for line in log)
+    assert any('id\\u000a[INFO] [0.0] [task_manager]: forged' in line for line in log)
+    assert max(len(line) for line in log) < 2000  # the 100,000-character id is cut

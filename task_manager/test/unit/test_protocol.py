@@ -105,3 +105,24 @@ def test_the_schema_and_the_model_agree_on_a_good_mission() -> None:
 
     validator('start_mission').validate(body)
     assert models.StartMission.model_validate(body).subtasks[0].allow_skipping
+
+
+@pytest.mark.parametrize(
+    ('model', 'body', 'field'),
+    [
+        (models.StartTask, {'task_name': 'camera/take_photo\x00junk'}, 'task_name'),
+        (models.StartTask, {'task_name': 'fib', 'task_id': 'a\nb'}, 'task_id'),
+        (models.StartTask, {'task_name': 'fib', 'source': '\u202eDUOLC'}, 'source'),
+        (models.StartMission, {'subtasks': [{'task_name': 'x\x1b'}]}, 'subtasks.0.task_name'),
+        (models.CancelTasks, {'task_ids': ['ok', 'no\x00']}, 'task_ids.1'),
+    ],
+)
+def test_control_and_reordering_characters_are_refused_at_the_door(
+    model: type[models.BaseModel], body: dict[str, object], field: str
+) -> None:
+    with pytest.raises(ValidationError) as refused:
+        model.model_validate(body)
+
+    (error,) = refused.value.errors()
+    assert '.'.join(str(part) for part in error['loc']) == field
+    assert 'control characters' in error['msg']
