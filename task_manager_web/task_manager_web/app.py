@@ -19,6 +19,7 @@ from fastapi_swagger import patch_fastapi
 
 from task_manager.client import Subtask as ClientSubtask
 from task_manager.client import TaskHandle, TaskManagerClient
+from task_manager.core.request_text import text_problem
 from task_manager.protocol import models
 from task_manager.protocol.records import declared_json, result_json, task_json
 from task_manager_web.access import Access
@@ -184,7 +185,9 @@ def _add_routes(app: FastAPI, access: Access) -> None:
     @app.get('/api/tasks/{task_id:path}', dependencies=read, tags=['state'])
     async def task(task_id: str, link: Link) -> models.Task:
         """One task, active or ended: its state, stamps, latest feedback and result."""
-        states = await link.call(link.client.task_states, [task_id])
+        # an id no task can have (NUL, which ROS would cut, a newline, ...) is looked up nowhere
+        refused = text_problem('task_id', task_id) is not None
+        states = [] if refused else await link.call(link.client.task_states, [task_id])
         if not states:
             raise ApiError(404, 'unknown_task_id', f'the Task Manager knows no task {task_id!r}')
         return models.Task.model_validate(task_json(states[0]))

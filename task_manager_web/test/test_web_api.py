@@ -232,7 +232,12 @@ def test_history_filters_and_csv_export(http: httpx.Client) -> None:
 def test_unknown_task_id_and_route_are_json_404(http: httpx.Client) -> None:
     unknown = http.get('/api/tasks/never-started')
     route = http.get('/api/nothing-here')
+    body = {'task_name': 'instant', 'task_data': {'data': True}}
+    assert start(http, body, wait='true', timeout_sec=TIMEOUT_SEC).status_code == 200
+    # ROS would cut at the NUL: the newest task must not come back for it
+    cut = [http.get(f'/api/tasks/{path}') for path in ('%00', '%00junk', 'a%0Ab')]
 
+    assert [r.status_code for r in cut] == [404, 404, 404], [r.text for r in cut]
     assert unknown.status_code == 404 and check(unknown.json(), 'error')
     assert unknown.json()['error']['code'] == 'unknown_task_id'
     assert route.status_code == 404 and route.json()['error']['code'] == 'not_found'

@@ -265,7 +265,7 @@ class TaskManagerNode(Node):
         for task_id in request.task_ids:
             if task_id in by_id:
                 response.tasks.append(by_id[task_id])
-            elif stored := self.history.query(HistoryQuery(task_id=task_id, limit=1)):
+            elif task_id and (stored := self.history.query(HistoryQuery(task_id=task_id, limit=1))):
                 response.tasks.append(task_state_from_row(stored[0]))
         return response
 
