@@ -8,8 +8,12 @@ state. The callbacks of the two others only queue jobs, so they never wait.
 Results go out in the order of the history's sequence numbers, each at QoS 1: live from the
 ENDED events while the broker is there, and from the node's durable history for whatever
 was missed (the broker away, the bridge restarted, an event lost). See ResultOutbox.
+
+Each request message gets one reply, or one dead letter when it has no request_id to address
+a reply to, and then its acknowledgement, whatever it holds (see decoding.py).
 """
 
+import contextlib
 import logging
 import queue
 import threading
@@ -27,6 +31,7 @@ from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
 from task_manager.protocol.records import declared_json, event_json, iso, task_json
 from task_manager_mqtt.connection import RECONNECT_MIN_SEC, connect, new_client
+from task_manager_mqtt.decoding import refusal
 from task_manager_mqtt.outbox import ResultOutbox
 from task_manager_mqtt.requests import RequestHandler
 from task_manager_mqtt.settings import BridgeSettings, Broker
@@ -42,6 +47,10 @@ SESSION_EXPIRY_SEC = 7 * 24 * 3600
 OFFLINE_TIMEOUT_SEC = 2.0
 QUIET_CHECK_SEC = 1.0
 """After the last task ended, when to look in the history for results not sent."""
+EXCERPT_BYTES = 200
+"""Of a dead letter's payload, shown in its document."""
+DEAD_LETTER_LOG_SEC = 10.0
+NODE_WAIT_SEC = 5.0
 # MQTT 5 reason codes, and MQTT 3.1.1 return codes, of a connection refused for its credentials
 CREDENTIALS_REFUSED = ('Bad user name or password', 'Not authorized')
 
@@ -73,6 +82,11 @@ class Bridge:
         # key: task id, value: its Task document
         self._active: dict[str, dict[str, Any]] = {}
         self._active_queued = False
+        self._connection_queued = False
+        self._dead_letters = 0
+        """Request messages put on dead_letter since the start."""
+        self._dead_letter_logged = -DEAD_LETTER_LOG_SEC
+        self._waited_for_node = False
         self._check_due: float | None = None
         self._node_ready = False
         """The worker has read the node's state since it last connected."""
@@ -167,7 +181,8 @@ class Bridge:
             self._reconnecting = True
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
-        self._jobs.put(partial(self._answer, bytes(message.payload), message.mid, message.qos))
+        payload, retained = bytes(message.payload), bool(message.retain)
+        self._jobs.put(partial(self._answer, payload, message.mid, message.qos, retained))
 
     def _on_publish(self, _: mqtt.Client, __: Any, mid: int, reason: ReasonCode, ___: Any) -> None:
         if reason.is_failure:
@@ -264,12 +279,66 @@ class Bridge:
             self._active[event.task.task_id] = document['task']
         self._queue_active()
 
-    def _answer(self, payload: bytes, message_id: int, qos: int) -> None:
-        if not self.outbox.known and self.client.connected:
-            self._set_start_point()  # before any task this request starts could end
-        reply = self.requests.reply(payload)
-        self._publish(self.topics.reply, reply, 1, False)
-        self.mqtt.ack(message_id, qos)
+    def _answer(self, payload: bytes, message_id: int, qos: int, retained: bool) -> None:
+        """One reply or one dead letter, then the acknowledgement, whatever the message holds
+        (a message never acknowledged holds a place of the broker's in-flight window for good:
+        20 of them and the bridge would receive nothing more)."""
+        answered = False
+        try:
+            self._wait_for_node_once()
+            if not self.outbox.known and self.client.connected:
+                self._set_start_point()  # before any task this request starts could end
+        except TaskManagerUnavailable as error:
+            LOG.warning('the Task Manager is not reachable: %s', error)
+        try:
+            answer = self.requests.answer(payload, retained)
+            if answer.reply is not None:
+                self._publish(self.topics.reply, answer.reply, 1, False)
+            else:
+                self._dead_letter(payload, retained, answer.dead_letter or {})
+            answered = True
+        except Exception as error:  # the callback's boundary: logged, and still answered
+            LOG.error('a request message failed: %s: %s', type(error).__name__, error)
+        finally:
+            if not answered:
+                detail = refusal('internal_error', 'the bridge failed to answer it')
+                with contextlib.suppress(Exception):
+                    self._dead_letter(payload, retained, detail)
+            self.mqtt.ack(message_id, qos)
+
+    def _wait_for_node_once(self) -> None:
+        """Before the first request: requests the broker kept while the bridge was away come
+        as it connects, usually before it has found its Task Manager; they wait for it (at
+        most NODE_WAIT_SEC, once) rather than being refused as `task_manager_unavailable`."""
+        if self._waited_for_node:
+            return
+        self._waited_for_node = True
+        if not self.client.connected:
+            self.client.wait_until_available(NODE_WAIT_SEC)
+
+    def _dead_letter(self, payload: bytes, retained: bool, reason: dict[str, str]) -> None:
+        """Publish a message that cannot be answered on dead_letter, counted."""
+        self._dead_letters += 1
+        document = {
+            'robot_id': self.settings.robot_id,
+            'timestamp': iso(datetime.now(UTC)),
+            'error': reason,
+            'payload_bytes': len(payload),
+            'payload_excerpt': payload[:EXCERPT_BYTES].decode(errors='backslashreplace'),
+            'retained': retained,
+            'count': self._dead_letters,
+        }
+        self._publish(self.topics.dead_letter, document, 1, False)
+        self._queue_connection()
+        now = time.monotonic()
+        if now >= self._dead_letter_logged + DEAD_LETTER_LOG_SEC:  # at most one line in 10 s
+            self._dead_letter_logged = now
+            LOG.warning(
+                'a request without a usable request_id went to %s (%d so far): %s',
+                self.topics.dead_letter,
+                self._dead_letters,
+                reason.get('message', '')[:200],
+            )
 
     # ---- results ------------------------------------------------------------------------------
 
@@ -321,7 +390,14 @@ class Bridge:
             document = {'timestamp': iso(datetime.now(UTC)), 'tasks': list(self._active.values())}
             self._publish(self.topics.active_tasks, document, 1, True)
 
+    def _queue_connection(self) -> None:
+        """Publish the connection document once the jobs queued now are done."""
+        if not self._connection_queued:
+            self._connection_queued = True
+            self._jobs.put(self._publish_connection)
+
     def _publish_connection(self) -> None:
+        self._connection_queued = False
         if self._broker_up:
             self._publish(self.topics.connection, self._connection('ONLINE'), 1, True)
 
@@ -334,6 +410,7 @@ class Bridge:
             'timestamp': iso(datetime.now(UTC)),
             'task_manager_connected': task_manager_connected,
             'version': '1',
+            'dead_letters': self._dead_letters,
         }
 
     def _publish(

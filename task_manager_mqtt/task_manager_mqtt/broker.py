@@ -43,14 +43,17 @@ class MosquittoBroker:
         prefix: str = DEFAULT_PREFIX,
         port: int = 0,
         tls: bool = False,
+        clouds: Sequence[str] = (CLOUD_USER,),
     ) -> None:
-        """`tls`: listen with TLS only, with a certificate of a CA of its own (`ca_file`)."""
+        """`tls`: listen with TLS only, with a certificate of a CA of its own (`ca_file`).
+        `clouds`: the cloud's accounts (one per process of the cloud that connects)."""
         self.folder = folder
         self.prefix = prefix
         self.port = port or free_port()
         self.tls = tls
         self.ca_file: Path | None = None
-        self.passwords = {user: secrets.token_urlsafe(12) for user in (CLOUD_USER, *robots)}
+        self.clouds = list(clouds)
+        self.passwords = {user: secrets.token_urlsafe(12) for user in (*clouds, *robots)}
         self.process: NodeProcess | None = None
         self._write_files()
 
@@ -85,11 +88,13 @@ class MosquittoBroker:
                 check=True,
                 capture_output=True,
             )
+        clouds = ''.join(
+            f'user {user}\ntopic read {self.prefix}/#\ntopic write {self.prefix}/+/request\n'
+            for user in self.clouds
+        )
         (self.folder / 'acl').write_text(
             f'# the cloud reads every robot, and writes their requests\n'
-            f'user {CLOUD_USER}\n'
-            f'topic read {self.prefix}/#\n'
-            f'topic write {self.prefix}/+/request\n'
+            f'{clouds}'
             f'\n'
             f'# a robot (user name = robot id) writes under its own id, reads its requests\n'
             f'pattern read {self.prefix}/%u/request\n'

@@ -21,6 +21,7 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
 from task_manager_mqtt.connection import connect, new_client
+from task_manager_mqtt.decoding import load_json
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, Tls
 from task_manager_mqtt.topics import ANY_ROBOT, Topics
 
@@ -32,7 +33,7 @@ FINAL_STATUSES = ('DONE', 'ERROR', 'CANCELED')
 KEEPALIVE_SEC = 60
 # the topics followed, of every robot; the connection last, so that the retained state of a
 # robot is there when it is seen ONLINE
-FOLLOWED = ('reply', 'result', 'tasks', 'active_tasks', 'connection')
+FOLLOWED = ('reply', 'result', 'dead_letter', 'tasks', 'active_tasks', 'connection')
 
 Document = dict[str, Any]
 
@@ -61,6 +62,11 @@ class RobotView:
     @property
     def online(self) -> bool:
         return bool(self.connection and self.connection.get('connection_state') == 'ONLINE')
+
+    @property
+    def dead_letters(self) -> int:
+        """Request messages its bridge could not answer since it started (see on_dead_letter)."""
+        return int((self.connection or {}).get('dead_letters') or 0)
 
 
 @dataclass
@@ -114,6 +120,7 @@ class FleetClient:
         self._result_callbacks: list[Callable[[str, Document], None]] = []
         self._robot_callbacks: list[Callable[[RobotView], None]] = []
         self._event_callbacks: list[Callable[[str, Document], None]] = []
+        self._dead_letter_callbacks: list[Callable[[str, Document], None]] = []
         self._followed = (*FOLLOWED, 'event') if events else FOLLOWED
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
@@ -128,6 +135,7 @@ class FleetClient:
             'reply': self._on_reply,
             'result': self._on_result,
             'event': self._on_event,
+            'dead_letter': self._on_dead_letter,
         }
 
     def __enter__(self) -> 'FleetClient':
@@ -239,6 +247,11 @@ class FleetClient:
         """`callback(robot_id, event)` for every TaskEvent document (with `events=True`)."""
         self._event_callbacks.append(callback)
 
+    def on_dead_letter(self, callback: Callable[[str, Document], None]) -> None:
+        """`callback(robot_id, dead_letter)` for every request message a robot could not
+        answer, having no usable request_id (a DeadLetter document: the reason, an excerpt)."""
+        self._dead_letter_callbacks.append(callback)
+
     def on_robot_change(self, callback: Callable[[RobotView], None]) -> None:
         """`callback(robot)` when a robot's connection, active or declared tasks change."""
         self._robot_callbacks.append(callback)
@@ -274,22 +287,34 @@ class FleetClient:
         client.subscribe([(self._all.topic(name), 1) for name in self._followed])
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
-        name = message.topic.rsplit('/', 1)[-1]
-        robot_id = self._all.robot_of(message.topic)
+        """The callbacks' boundary: an exception here would end paho's network thread."""
         try:
-            document = json.loads(message.payload) if message.payload else None
-        except ValueError:
-            LOG.warning('%s: not JSON, ignored', message.topic)
+            self._dispatch(message.topic, bytes(message.payload))
+        except Exception as error:  # a robot's bad document, or a user's callback: logged
+            LOG.error('%s: %s: %s', message.topic, type(error).__name__, error)
+
+    def _dispatch(self, topic: str, payload: bytes) -> None:
+        name = topic.rsplit('/', 1)[-1]
+        robot_id = self._all.robot_of(topic)
+        try:
+            document = load_json(payload) if payload else None
+        except ValueError as error:  # the robot's documents are checked as its requests are
+            LOG.warning('%s: not JSON (%s), ignored', topic, str(error)[:200])
             return
         if not isinstance(document, dict | None):
-            LOG.warning('%s: not a JSON object, ignored', message.topic)
-        elif name not in ('reply', 'result', 'event'):
+            LOG.warning('%s: not a JSON object, ignored', topic)
+        elif name in self._handlers:
+            if document is not None:
+                self._handlers[name](robot_id, document)
+        else:
             self._on_robot_state(robot_id, name, document)
-        elif document is not None:
-            self._handlers[name](robot_id, document)
 
     def _on_event(self, robot_id: str, document: Document) -> None:
         for callback in self._event_callbacks:
+            callback(robot_id, document)
+
+    def _on_dead_letter(self, robot_id: str, document: Document) -> None:
+        for callback in self._dead_letter_callbacks:
             callback(robot_id, document)
 
     def _on_reply(self, _: str, document: Document) -> None:

@@ -1,31 +1,33 @@
-"""The bridge's answers to the cloud's requests: a Reply document for every message.
+"""The bridge's answers to the cloud's requests: one reply or one dead letter per message.
 
-Whatever arrives gets exactly one reply: invalid JSON, an unknown op or a missing field is
-an `invalid_request` naming the field; a message over the size limit `payload_too_large`;
-no Task Manager `task_manager_unavailable`. A start whose task id the Task Manager already
-knows starts nothing: the reply is that task, with `duplicate: true`.
+A message is read by `decoding.decode` (which bounds its size and depth before parsing);
+a bad one with a usable request_id gets an error reply naming what is wrong and what is
+allowed (`invalid_request`, `payload_too_large`, `nesting_too_deep`, `retained_request`),
+one without is a dead letter (see Answer). No Task Manager is `task_manager_unavailable`.
+A start whose task id the Task Manager already knows starts nothing: the reply is that
+task, with `duplicate: true`. Whatever happens, `answer` returns one Answer.
 """
 
-import json
 import logging
+from dataclasses import dataclass
 from typing import Any
-
-from pydantic import ValidationError
 
 from task_manager.client import Subtask, TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.protocol import models
-from task_manager.protocol.errors import describe
 from task_manager.protocol.records import result_json, task_json
+from task_manager_mqtt.decoding import Decoded, decode, refusal
 
 LOG = logging.getLogger('task_manager_mqtt')
-OPS = ('start_task', 'start_mission', 'cancel', 'stop', 'history')
 
 
-class RequestError(Exception):
-    def __init__(self, code: str, message: str, field: str = '') -> None:
-        super().__init__(message)
-        self.detail = {'code': code, 'message': message, 'field': field}
+@dataclass(frozen=True)
+class Answer:
+    """The one outcome of a request message: a Reply document, or the reason (an ErrorDetail
+    document) it is a dead letter, having no request_id to address a reply to."""
+
+    reply: dict[str, Any] | None = None
+    dead_letter: dict[str, str] | None = None
 
 
 class RequestHandler:
@@ -36,42 +38,35 @@ class RequestHandler:
         self.source = source
         self.max_payload_bytes = max_payload_bytes
 
-    def reply(self, payload: bytes) -> dict[str, Any]:
-        """The Reply document to the request message `payload` (every field present)."""
-        return models.Reply.model_validate(self._reply(payload)).model_dump(mode='json')
-
-    def _reply(self, payload: bytes) -> dict[str, Any]:
-        too_large = len(payload) > self.max_payload_bytes
-        request_id, op = ('', '') if too_large else _ids_of(payload)
+    def answer(self, payload: bytes, retained: bool = False) -> Answer:
+        """The reply to the request message `payload`, or why it is a dead letter."""
+        decoded = decode(payload, self.max_payload_bytes, retained)
+        if decoded.error is not None and not decoded.addressed:
+            return Answer(dead_letter=decoded.error)
         try:
-            request = self._parse(payload)
-            return {'request_id': request_id, 'ok': True, 'op': op, **self._run(request)}
-        except RequestError as error:
-            LOG.warning('request %r (%s) refused: %s', request_id, op or '?', error)
-            return {'request_id': request_id, 'ok': False, 'op': op, 'error': error.detail}
+            document = self._reply(decoded)
+            return Answer(reply=models.Reply.model_validate(document).model_dump(mode='json'))
+        except Exception as error:  # the reply could not be made: an error reply instead
+            LOG.error('the reply to %r failed: %s: %s', decoded.request_id, type(error).__name__,
+                      error)  # fmt: skip
+            message = f'the bridge failed: {type(error).__name__}'
+            detail = refusal('internal_error', message)
+            return Answer(reply=_error_reply(decoded, detail))
+
+    def _reply(self, decoded: Decoded) -> dict[str, Any]:
+        request_id, op = decoded.request_id, decoded.op
+        if decoded.error is not None:
+            LOG.warning('request %r (%s) refused: %s', request_id, op or '?',
+                        decoded.error['message'][:200])  # fmt: skip
+            return _error_reply(decoded, decoded.error)
+        try:
+            return {'request_id': request_id, 'ok': True, 'op': op, **self._run(decoded.request)}
         except TaskManagerUnavailable as error:
-            detail = {'code': 'task_manager_unavailable', 'message': str(error), 'field': ''}
-            return {'request_id': request_id, 'ok': False, 'op': op, 'error': detail}
+            return _error_reply(decoded, refusal('task_manager_unavailable', str(error)))
         except Exception as error:  # one line, a reply; the bridge goes on
             LOG.error('request %r (%s) failed: %s: %s', request_id, op, type(error).__name__, error)
             message = f'the bridge failed: {type(error).__name__}'
-            detail = {'code': 'internal_error', 'message': message, 'field': ''}
-            return {'request_id': request_id, 'ok': False, 'op': op, 'error': detail}
-
-    def _parse(self, payload: bytes) -> Any:
-        if len(payload) > self.max_payload_bytes:
-            raise RequestError(
-                'payload_too_large',
-                f'the request is {len(payload)} bytes; at most {self.max_payload_bytes} allowed',
-            )
-        try:
-            return models.RobotRequest.model_validate_json(payload).root
-        except ValidationError as error:
-            message, field = describe(error.errors(), skip=OPS)
-            if error.errors()[0].get('type') == 'union_tag_invalid':
-                message = f'unknown op; allowed: {", ".join(OPS)}'
-                field = 'op'
-            raise RequestError('invalid_request', message, field) from None
+            return _error_reply(decoded, refusal('internal_error', message))
 
     def _run(self, request: Any) -> dict[str, Any]:
         if not self.client.connected:
@@ -133,16 +128,5 @@ def _started(handle: TaskHandle) -> dict[str, Any]:
     return {'task_id': handle.task_id, 'task': None if state is None else task_json(state)}
 
 
-def _ids_of(payload: bytes) -> tuple[str, str]:
-    """The request_id and op of a request, if it has them, for the reply to a bad one."""
-    try:
-        document = json.loads(payload)
-    except ValueError:
-        return '', ''
-    if not isinstance(document, dict):
-        return '', ''
-    request_id, op = document.get('request_id'), document.get('op')
-    return (
-        request_id if isinstance(request_id, str) else '',
-        op if isinstance(op, str) else '',
-    )
+def _error_reply(decoded: Decoded, detail: dict[str, str]) -> dict[str, Any]:
+    return {'request_id': decoded.request_id, 'ok': False, 'op': decoded.op, 'error': detail}

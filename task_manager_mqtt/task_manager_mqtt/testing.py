@@ -1,15 +1,28 @@
-"""Helpers of the bridge's tests and benchmarks: the bridge run as users run it."""
+"""Helpers of the bridge's tests and benchmarks: the bridge run as users run it, and a bare
+MQTT client that sends what the FleetClient never would."""
 
 import sys
+import threading
+import uuid
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.enums import CallbackAPIVersion
+from paho.mqtt.reasoncodes import ReasonCode
 
 from task_manager.testing.process import NodeProcess
 
 BRIDGE_EXECUTABLE = str(Path(sys.executable).with_name('task-manager-mqtt'))
 CONNECTED_LINE = r'connected to the broker'
 START_TIMEOUT_SEC = 20.0
+TIMEOUT_SEC = 15.0
 ROBOT = 'robot1'
 """The robot of the tests with one robot."""
+TESTER = 'tester'
+"""A second cloud account of the tests' broker: a bare client beside the FleetClient."""
 
 
 class BridgeProcess(NodeProcess):
@@ -32,3 +45,103 @@ class BridgeProcess(NodeProcess):
         super().__init__(None, command=command)
         if wait:
             self.wait_for_log(CONNECTED_LINE, START_TIMEOUT_SEC)
+
+
+@dataclass(frozen=True)
+class Received:
+    topic: str
+    payload: bytes
+    retain: bool
+
+
+class RawClient:
+    """A bare MQTT 5 client: any account and client id, raw payloads (with the retain flag if
+    asked), the broker's answer to each publication, and every message of `topics`."""
+
+    def __init__(
+        self,
+        port: int,
+        user: str,
+        password: str,
+        client_id: str = '',
+        topics: Sequence[str] = (),
+    ) -> None:
+        self.received: list[Received] = []
+        self.disconnections: list[str] = []
+        """The reason of each disconnection (e.g. 'Session taken over')."""
+        self._changed = threading.Condition()
+        # key: message id, value: the broker's reason code for it
+        self._acks: dict[int, ReasonCode] = {}
+        self._ready = threading.Event()
+        self._topics = topics
+        self.connect_reason = ''
+        self.mqtt = mqtt.Client(
+            CallbackAPIVersion.VERSION2,
+            client_id=client_id or f'raw_{uuid.uuid4().hex[:8]}',
+            protocol=mqtt.MQTTv5,
+        )
+        self.mqtt.username_pw_set(user, password)
+        self.mqtt.on_connect = self._on_connect
+        self.mqtt.on_subscribe = lambda *_: self._ready.set()
+        self.mqtt.on_message = self._on_message
+        self.mqtt.on_publish = self._on_publish
+        self.mqtt.on_disconnect = self._on_disconnect
+        self.mqtt.connect('127.0.0.1', port)
+        self.mqtt.loop_start()
+        if not self._ready.wait(TIMEOUT_SEC):
+            self.close()
+            raise TimeoutError(f'{user}: no connection to the broker ({self.connect_reason})')
+
+    def __enter__(self) -> 'RawClient':
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        self.mqtt.disconnect()
+        self.mqtt.loop_stop()
+
+    def publish(self, topic: str, payload: bytes | str, retain: bool = False) -> str:
+        """Publish at QoS 1 and wait for the broker's acknowledgement; its reason code."""
+        info = self.mqtt.publish(topic, payload, qos=1, retain=retain)
+        with self._changed:
+            if not self._changed.wait_for(lambda: info.mid in self._acks, TIMEOUT_SEC):
+                raise TimeoutError(f'no acknowledgement of the publication to {topic}')
+            return str(self._acks.pop(info.mid))
+
+    def wait_for(self, condition: Callable[[list[Received]], Any], what: str) -> Any:
+        """Wait until `condition(received)` is true; its value."""
+        with self._changed:
+            value = self._changed.wait_for(lambda: condition(self.received), TIMEOUT_SEC)
+        if not value:
+            raise TimeoutError(f'{what}: not within {TIMEOUT_SEC} s')
+        return value
+
+    def _on_connect(
+        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+    ) -> None:
+        self.connect_reason = str(reason)
+        if reason.is_failure:
+            return
+        if self._topics:
+            client.subscribe([(topic, 1) for topic in self._topics])
+        else:
+            self._ready.set()
+
+    def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
+        with self._changed:
+            self.received.append(Received(message.topic, bytes(message.payload), message.retain))
+            self._changed.notify_all()
+
+    def _on_publish(self, _: mqtt.Client, __: Any, mid: int, reason: ReasonCode, ___: Any) -> None:
+        with self._changed:
+            self._acks[mid] = reason
+            self._changed.notify_all()
+
+    def _on_disconnect(
+        self, _: mqtt.Client, __: Any, ___: Any, reason: ReasonCode, ____: Any
+    ) -> None:
+        with self._changed:
+            self.disconnections.append(str(reason))
+            self._changed.notify_all()

@@ -4,6 +4,8 @@ the robot id stands for its manufacturer/serialNumber pair)."""
 from dataclasses import dataclass
 
 ANY_ROBOT = '+'
+OUTGOING = ('reply', 'result', 'event', 'active_tasks', 'tasks', 'connection', 'dead_letter')
+"""The topics a robot writes (its bridge); the cloud writes only `request`."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +50,11 @@ class Topics:
     def connection(self) -> str:
         """robot -> cloud, retained, QoS 1: ONLINE, OFFLINE or (last will) CONNECTIONBROKEN."""
         return self.topic('connection')
+
+    @property
+    def dead_letter(self) -> str:
+        """robot -> cloud, QoS 1: a request that could not be answered (no request_id), and why."""
+        return self.topic('dead_letter')
 
     def robot_of(self, topic: str) -> str:
         """The robot id in a topic of this layout (of a subscription to ANY_ROBOT)."""

@@ -7,16 +7,18 @@ from pathlib import Path
 import pytest
 
 from task_manager.testing.gateway import Robot
-from task_manager_mqtt.broker import MosquittoBroker
+from task_manager_mqtt.broker import CLOUD_USER, MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient
-from task_manager_mqtt.testing import ROBOT, BridgeProcess
+from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess
 
 ONLINE_TIMEOUT_SEC = 20.0
 
 
 @pytest.fixture
 def broker(tmp_path: Path) -> Iterator[MosquittoBroker]:
-    broker = MosquittoBroker(tmp_path / 'broker', robots=[ROBOT, 'robot2'])
+    broker = MosquittoBroker(
+        tmp_path / 'broker', robots=[ROBOT, 'robot2'], clouds=[CLOUD_USER, TESTER]
+    )
     broker.start()
     yield broker
     broker.stop()

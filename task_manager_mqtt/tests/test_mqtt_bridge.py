@@ -1,18 +1,41 @@
-"""The bridge between a real Task Manager and a real mosquitto, driven by the FleetClient."""
+"""The bridge between a real Task Manager and a real mosquitto, driven by the FleetClient
+(and by a bare client, for what the FleetClient never sends)."""
 
+import json
 from collections.abc import Callable
 from typing import Any
 
 import pytest
 
 from task_manager.client import TaskManagerClient
-from task_manager.testing.gateway import TIMEOUT_SEC, check, wait_until
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
 from task_manager_mqtt.broker import MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient
-from task_manager_mqtt.testing import ROBOT, BridgeProcess
+from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, RawClient, Received
+from task_manager_mqtt.topics import Topics
 
 pytestmark = pytest.mark.ros
 BURST = 200
+BRIDGE_MAX_BYTES = 65_536
+DEEP = b'[' * 5000 + b']' * 5000  # 10 KB: RecursionError in json and in a pydantic model
+# each: its payload, and the error code of its reply (None: a dead letter, it has no usable id)
+POISON: list[tuple[bytes, str | None]] = [
+    (b'{"request_id": "p-deep", "op": "start_task", "task_name": "instant", "task_data": %s}'
+     % DEEP, 'nesting_too_deep'),
+    (DEEP, None),
+    (json.dumps({'request_id': 'p-huge', 'op': 'stop', 'pad': 'x' * BRIDGE_MAX_BYTES}).encode(),
+     'payload_too_large'),
+    (b'{"request_id": "p-utf8", "op": "stop", "note": "\xff\xfe"}', 'invalid_request'),
+    (b'\xff\xfe\x00\x01 not UTF-8', None),
+    (b'{"request_id": "p-json", "op": "stop", ', 'invalid_request'),
+    (b'not JSON at all', None),
+    (b'', None),
+    (b'{"op": "stop"}', None),
+    (b'{"request_id": 42, "op": "stop"}', None),
+    (b'{"request_id": ["p-list"], "op": "stop"}', None),
+]  # fmt: skip
+ROUNDS = 3
+"""30 messages: more than mosquitto's in-flight window (20) of messages not acknowledged."""
 
 
 def test_a_task_and_a_mission_from_the_cloud(online: FleetClient) -> None:
@@ -107,3 +130,50 @@ def test_bad_requests_get_an_error_reply_and_start_nothing(online: FleetClient) 
     assert allowed in unknown['error']['message']
     assert not missing['ok'] and missing['error']['field'] == 'task_name'
     assert online.history(ROBOT, source='CLOUD') == []
+
+
+def test_poison_messages_get_one_answer_each_and_the_robot_still_answers(
+    robot: Robot,
+    broker: MosquittoBroker,
+    start_bridge: Callable[..., BridgeProcess],
+    fleet: FleetClient,
+) -> None:
+    topics = Topics('task_manager/v1', ROBOT)
+    dead: list[dict[str, Any]] = []
+    fleet.on_dead_letter(lambda robot_id, letter: dead.append(check(letter, 'mqtt_dead_letter')))
+    bridge = start_bridge('--max-payload-bytes', str(BRIDGE_MAX_BYTES))
+    assert fleet.wait_online([ROBOT])
+    with RawClient(broker.port, TESTER, broker.passwords[TESTER], topics=[topics.reply]) as raw:
+
+        def send_poison() -> None:
+            for _ in range(ROUNDS):
+                for payload, _code in POISON:
+                    assert raw.publish(topics.request, payload) == 'Success'
+
+        send_poison()
+        task = fleet.start_task(ROBOT, 'instant', {'data': True}, task_id='after-poison')
+        assert task.accepted()['ok'] and task.result()['status'] == 'DONE'
+        expected = sorted([code for _, code in POISON if code] * ROUNDS)
+        replies = raw.wait_for(
+            lambda received: len(poison_replies(received)) >= len(expected) and received,
+            'the replies to the poison messages',
+        )
+        assert sorted(r['error']['code'] for r in poison_replies(replies)) == expected
+        unaddressed = sum(code is None for _, code in POISON) * ROUNDS
+        assert fleet.wait_for(lambda robots: robots[ROBOT].dead_letters == unaddressed)
+        assert [letter['count'] for letter in dead] == list(range(1, unaddressed + 1))
+        assert {d['error']['code'] for d in dead} == {'invalid_request', 'nesting_too_deep'}
+
+        # the same while the bridge is away: kept in its session, delivered when it is back
+        assert bridge.stop() == 0
+        send_poison()
+        history = fleet.request(ROBOT, 'history', source='CLOUD')
+        start_bridge('--max-payload-bytes', str(BRIDGE_MAX_BYTES))
+        reply = check(history.result(TIMEOUT_SEC), 'mqtt_reply')
+    assert reply['ok'] and [t['task_id'] for t in reply['tasks']] == ['after-poison'], reply
+    assert len(dead) == 2 * unaddressed  # counted again from 1 by the new bridge
+
+
+def poison_replies(received: list[Received]) -> list[dict[str, Any]]:
+    replies = [check(json.loads(m.payload), 'mqtt_reply') for m in received]
+    return [r for r in replies if r['request_id'].startswith('p-')]
