@@ -50,7 +50,6 @@ QUIET_CHECK_SEC = 1.0
 EXCERPT_BYTES = 200
 """Of a dead letter's payload, shown in its document."""
 DEAD_LETTER_LOG_SEC = 10.0
-NODE_WAIT_SEC = 5.0
 # MQTT 5 reason codes, and MQTT 3.1.1 return codes, of a connection refused for its credentials
 CREDENTIALS_REFUSED = ('Bad user name or password', 'Not authorized')
 
@@ -86,7 +85,6 @@ class Bridge:
         self._dead_letters = 0
         """Request messages put on dead_letter since the start."""
         self._dead_letter_logged = -DEAD_LETTER_LOG_SEC
-        self._waited_for_node = False
         self._check_due: float | None = None
         self._node_ready = False
         """The worker has read the node's state since it last connected."""
@@ -285,7 +283,6 @@ class Bridge:
         20 of them and the bridge would receive nothing more)."""
         answered = False
         try:
-            self._wait_for_node_once()
             if not self.outbox.known and self.client.connected:
                 self._set_start_point()  # before any task this request starts could end
         except TaskManagerUnavailable as error:
@@ -305,16 +302,6 @@ class Bridge:
                 with contextlib.suppress(Exception):
                     self._dead_letter(payload, retained, detail)
             self.mqtt.ack(message_id, qos)
-
-    def _wait_for_node_once(self) -> None:
-        """Before the first request: requests the broker kept while the bridge was away come
-        as it connects, usually before it has found its Task Manager; they wait for it (at
-        most NODE_WAIT_SEC, once) rather than being refused as `task_manager_unavailable`."""
-        if self._waited_for_node:
-            return
-        self._waited_for_node = True
-        if not self.client.connected:
-            self.client.wait_until_available(NODE_WAIT_SEC)
 
     def _dead_letter(self, payload: bytes, retained: bool, reason: dict[str, str]) -> None:
         """Publish a message that cannot be answered on dead_letter, counted."""

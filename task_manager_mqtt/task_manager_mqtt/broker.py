@@ -1,9 +1,11 @@
 """A local mosquitto of our own (Debian's `mosquitto`), for the tests, `make fleet` and the bench.
 
-On 127.0.0.1 only, with an account per robot and one for the cloud, and an ACL that lets a
-robot write only under its own id and read only its own requests; the cloud reads every
-robot's topics and writes their requests. Its sessions and queued messages persist across
-a restart (stop() then start() again), as a production broker's should.
+On 127.0.0.1 only, with an account per robot and one for the cloud (or several), and an ACL
+that lets a robot read only its own requests and write only its own outgoing topics (reply,
+result, ...), and the cloud read those of every robot and write only their requests. The
+broker takes each client's id from its account (`use_username_as_clientid`), so that no
+account can connect as another's client and push it off. Its sessions and queued messages
+persist across a restart (stop() then start() again), as a production broker's should.
 """
 
 import getpass
@@ -16,6 +18,7 @@ from pathlib import Path
 
 from task_manager.testing.process import NodeProcess
 from task_manager_mqtt.settings import DEFAULT_PREFIX
+from task_manager_mqtt.topics import ANY_ROBOT, OUTGOING, Topics
 
 CLOUD_USER = 'cloud'
 READY_LINE = r'mosquitto version \S+ running'
@@ -52,6 +55,7 @@ class MosquittoBroker:
         self.port = port or free_port()
         self.tls = tls
         self.ca_file: Path | None = None
+        self.robots = list(robots)
         self.clouds = list(clouds)
         self.passwords = {user: secrets.token_urlsafe(12) for user in (*clouds, *robots)}
         self.process: NodeProcess | None = None
@@ -88,18 +92,7 @@ class MosquittoBroker:
                 check=True,
                 capture_output=True,
             )
-        clouds = ''.join(
-            f'user {user}\ntopic read {self.prefix}/#\ntopic write {self.prefix}/+/request\n'
-            for user in self.clouds
-        )
-        (self.folder / 'acl').write_text(
-            f'# the cloud reads every robot, and writes their requests\n'
-            f'{clouds}'
-            f'\n'
-            f'# a robot (user name = robot id) writes under its own id, reads its requests\n'
-            f'pattern read {self.prefix}/%u/request\n'
-            f'pattern write {self.prefix}/%u/#\n'
-        )
+        (self.folder / 'acl').write_text(self.acl())
         (self.folder / 'mosquitto.conf').write_text(
             f'listener {self.port} 127.0.0.1\n'
             # run as whoever started it (as root, mosquitto would switch to its own user)
@@ -108,12 +101,29 @@ class MosquittoBroker:
             f'password_file {passwords}\n'
             f'acl_file {self.folder / "acl"}\n'
             f'set_tcp_nodelay true\n'
+            # a client's id is its user name: robot2's account connecting as robot1's client
+            # would otherwise disconnect robot1's bridge (the broker drops the older connection)
+            f'use_username_as_clientid true\n'
             f'persistence true\n'
             f'persistence_location {self.folder}/\n'
             f'max_queued_messages {MAX_QUEUED_MESSAGES}\n'
             f'log_dest stderr\n'  # unbuffered: each line as it is written
             f'log_timestamp false\n' + self._tls_lines()
         )
+
+    def acl(self) -> str:
+        """The ACL file: user by user, no `pattern` lines (they apply to every account)."""
+        every_robot = Topics(self.prefix, ANY_ROBOT)
+        lines = ['# the cloud: reads what every robot sends, writes only their requests']
+        for user in self.clouds:
+            lines += [f'user {user}', *(f'topic read {every_robot.topic(n)}' for n in OUTGOING)]
+            lines += [f'topic write {every_robot.request}', '']
+        lines += ['# a robot (user name = robot id): reads its requests, writes what it sends']
+        for robot_id in self.robots:
+            own = Topics(self.prefix, robot_id)
+            lines += [f'user {robot_id}', f'topic read {own.request}']
+            lines += [*(f'topic write {own.topic(name)}' for name in OUTGOING), '']
+        return '\n'.join(lines)
 
     def _tls_lines(self) -> str:
         if not self.tls:

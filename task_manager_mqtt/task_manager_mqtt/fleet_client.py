@@ -102,6 +102,8 @@ class FleetClient:
     ) -> None:
         """`client_id`: a stable one keeps this client's session (and the results sent while
         it is away) on the broker for SESSION_EXPIRY_SEC; empty: a new id, no session kept.
+        A broker that ties client ids to accounts (mosquitto's `use_username_as_clientid`,
+        as `make fleet`'s does) uses the user name instead: one connection per account.
         `events`: also follow every task event of every robot (see `on_event`).
 
         `ca_file`: with an mqtts:// URL, the certificate authorities to trust (else the

@@ -8,6 +8,7 @@ A start whose task id the Task Manager already knows starts nothing: the reply i
 task, with `duplicate: true`. Whatever happens, `answer` returns one Answer.
 """
 
+import contextlib
 import logging
 from dataclasses import dataclass
 from typing import Any
@@ -19,6 +20,7 @@ from task_manager.protocol.records import result_json, task_json
 from task_manager_mqtt.decoding import Decoded, decode, refusal
 
 LOG = logging.getLogger('task_manager_mqtt')
+NODE_WAIT_SEC = 5.0
 
 
 @dataclass(frozen=True)
@@ -37,6 +39,7 @@ class RequestHandler:
         self.client = client
         self.source = source
         self.max_payload_bytes = max_payload_bytes
+        self._waited_for_node = False
 
     def answer(self, payload: bytes, retained: bool = False) -> Answer:
         """The reply to the request message `payload`, or why it is a dead letter."""
@@ -69,6 +72,7 @@ class RequestHandler:
             return _error_reply(decoded, refusal('internal_error', message))
 
     def _run(self, request: Any) -> dict[str, Any]:
+        self._wait_for_node_once()
         if not self.client.connected:
             raise TaskManagerUnavailable(
                 "the Task Manager is not reachable from the robot's bridge"
@@ -87,6 +91,17 @@ class RequestHandler:
                 filters = request.model_dump(exclude={'request_id', 'op'})
                 return {'tasks': [task_json(s) for s in self.client.history(**filters)]}
         raise AssertionError(f'unhandled request {request!r}')
+
+    def _wait_for_node_once(self) -> None:
+        """Before the first request to run: those the broker kept while the bridge was away
+        come as it connects, usually before it has found its Task Manager; they wait for it
+        (at most NODE_WAIT_SEC, once) rather than being refused `task_manager_unavailable`."""
+        if self._waited_for_node:
+            return
+        self._waited_for_node = True
+        if not self.client.connected:
+            with contextlib.suppress(TaskManagerUnavailable):
+                self.client.wait_until_available(NODE_WAIT_SEC)
 
     def _start_task(self, request: models.StartTaskRequest) -> dict[str, Any]:
         task_id = request.task_id or request.request_id

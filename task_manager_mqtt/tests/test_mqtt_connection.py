@@ -5,17 +5,20 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-import paho.mqtt.client as mqtt
 import pytest
-from paho.mqtt.enums import CallbackAPIVersion
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
 from task_manager_mqtt.broker import MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient, RobotView
-from task_manager_mqtt.testing import ROBOT, BridgeProcess
+from task_manager_mqtt.settings import DEFAULT_PREFIX as PREFIX
+from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, RawClient
+from task_manager_mqtt.topics import Topics
 
 pytestmark = pytest.mark.ros
 KEEPALIVE_SEC = 1
+NOT_AUTHORIZED = 'Not authorized'
+"""The reason code of the broker's acknowledgement of a publication its ACL refused."""
+STOP = json.dumps({'request_id': 'acl-test', 'op': 'stop'})
 RETRIES_SEC = 1.5
 """Long enough for the bridge's first two attempts (at 0 and 1 s)."""
 
@@ -54,29 +57,37 @@ def test_retained_state_last_will_and_clean_stop(
         check(view.connection, 'mqtt_connection')
 
 
-def test_a_robot_writes_only_under_its_own_id(broker: MosquittoBroker, fleet: FleetClient) -> None:
+def test_a_robot_writes_only_its_own_outgoing_topics(
+    broker: MosquittoBroker, fleet: FleetClient
+) -> None:
     seen: list[str] = []
     fleet.on_result(lambda robot_id, _: seen.append(robot_id))
-    published = threading.Event()
-    robot = mqtt.Client(CallbackAPIVersion.VERSION2, client_id='acl_test', protocol=mqtt.MQTTv5)
-    robot.username_pw_set(ROBOT, broker.passwords[ROBOT])
-    robot.on_connect = lambda *_: published.set()
-    robot.connect('127.0.0.1', broker.port)
-    robot.loop_start()
-    try:
-        assert published.wait(TIMEOUT_SEC)
-        document = json.dumps({'task_id': 'forged', 'sequence': 1})
-        robot.publish('task_manager/v1/robot2/result', document, qos=1).wait_for_publish(
-            TIMEOUT_SEC
-        )
-        robot.publish(f'task_manager/v1/{ROBOT}/result', document, qos=1).wait_for_publish(
-            TIMEOUT_SEC
-        )
-        assert fleet.wait_for(lambda _: bool(seen), TIMEOUT_SEC)
-    finally:
-        robot.disconnect()
-        robot.loop_stop()
-    assert seen == [ROBOT]  # the message under robot2's id was dropped by the broker
+    document = json.dumps({'task_id': 'forged', 'sequence': 1})
+    own, other = Topics(PREFIX, ROBOT), Topics(PREFIX, 'robot2')
+    with RawClient(broker.port, ROBOT, broker.passwords[ROBOT]) as robot:
+        assert robot.publish(other.result, document) == NOT_AUTHORIZED
+        assert robot.publish(own.request, STOP) == NOT_AUTHORIZED  # no requests to itself
+        assert robot.publish(own.result, document) == 'Success'
+    with RawClient(broker.port, TESTER, broker.passwords[TESTER]) as cloud:
+        assert cloud.publish(own.result, document) == NOT_AUTHORIZED  # no result as a robot
+        assert cloud.publish(Topics(PREFIX, TESTER).result, document) == NOT_AUTHORIZED
+        assert cloud.publish(own.request, STOP) == 'No matching subscribers'  # accepted
+    assert fleet.wait_for(lambda _: bool(seen), TIMEOUT_SEC)
+    assert seen == [ROBOT]  # the others were dropped by the broker
+
+
+def test_another_account_cannot_take_over_a_bridges_connection(
+    broker: MosquittoBroker, start_bridge: Callable[..., BridgeProcess], fleet: FleetClient
+) -> None:
+    bridge = start_bridge()
+    for client_id in (f'task_manager_{ROBOT}', ROBOT):  # the bridge's id, and its user name
+        with RawClient(broker.port, 'robot2', broker.passwords['robot2'], client_id) as thief:
+            assert thief.connect_reason == 'Success'
+    # a reply after: had the bridge been disconnected, it would have said so before (its log)
+    assert fleet.request(ROBOT, 'dance').result(TIMEOUT_SEC)['error']['field'] == 'op'
+    assert bridge.stop() == 0
+    assert not [line for line in bridge.log_lines if 'lost the broker' in line], bridge.log_lines
+    assert sum('connected to the broker' in line for line in bridge.log_lines) == 1
 
 
 def test_wrong_credentials_exit_2_with_one_line(
