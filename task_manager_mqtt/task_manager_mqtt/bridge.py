@@ -25,6 +25,7 @@ from typing import Any
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
+from paho.mqtt.subscribeoptions import SubscribeOptions
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
@@ -47,6 +48,12 @@ SESSION_EXPIRY_SEC = 7 * 24 * 3600
 OFFLINE_TIMEOUT_SEC = 2.0
 QUIET_CHECK_SEC = 1.0
 """After the last task ended, when to look in the history for results not sent."""
+REQUESTS_SUBSCRIPTION = SubscribeOptions(
+    qos=1, retainAsPublished=True, retainHandling=SubscribeOptions.RETAIN_DO_NOT_SEND
+)
+"""A retained request would run again at every (re)subscription: the broker hands over none
+that it stored (retain handling 2), and one published with the retain flag comes with it, to
+be refused (retain as published)."""
 EXCERPT_BYTES = 200
 """Of a dead letter's payload, shown in its document."""
 DEAD_LETTER_LOG_SEC = 10.0
@@ -157,7 +164,7 @@ class Bridge:
             self.topics.topic('').rstrip('/'),
         )
         self._reconnecting = False
-        client.subscribe(self.topics.request, qos=1)
+        client.subscribe(self.topics.request, options=REQUESTS_SUBSCRIPTION)
         self._jobs.put(self._on_broker_up)
 
     def _on_connect_fail(self, _: mqtt.Client, __: Any) -> None:

@@ -138,27 +138,36 @@ def test_poison_messages_get_one_answer_each_and_the_robot_still_answers(
     start_bridge: Callable[..., BridgeProcess],
     fleet: FleetClient,
 ) -> None:
+    """Retained requests too: refused when they come, never handed over again at a
+    (re)connection; the history shows that none of them ran."""
     topics = Topics('task_manager/v1', ROBOT)
     dead: list[dict[str, Any]] = []
     fleet.on_dead_letter(lambda robot_id, letter: dead.append(check(letter, 'mqtt_dead_letter')))
-    bridge = start_bridge('--max-payload-bytes', str(BRIDGE_MAX_BYTES))
-    assert fleet.wait_online([ROBOT])
     with RawClient(broker.port, TESTER, broker.passwords[TESTER], topics=[topics.reply]) as raw:
 
         def send_poison() -> None:
             for _ in range(ROUNDS):
                 for payload, _code in POISON:
                     assert raw.publish(topics.request, payload) == 'Success'
+                # the retain flag on a request published while the bridge is subscribed
+                raw.publish(topics.request, start_request('p-retained'), retain=True)
 
+        def reply_to(request_id: str) -> dict[str, Any]:
+            raw.publish(topics.request, json.dumps({'request_id': request_id, 'op': 'dance'}))
+            return raw.wait_for(lambda received: replies_to(received, request_id), request_id)
+
+        # stored by the broker before the bridge's first subscription: never delivered
+        stored = start_request('p-retained-stored')
+        assert raw.publish(topics.request, stored, retain=True) == 'No matching subscribers'
+        bridge = start_bridge('--max-payload-bytes', str(BRIDGE_MAX_BYTES))
+        assert fleet.wait_online([ROBOT])
         send_poison()
         task = fleet.start_task(ROBOT, 'instant', {'data': True}, task_id='after-poison')
         assert task.accepted()['ok'] and task.result()['status'] == 'DONE'
-        expected = sorted([code for _, code in POISON if code] * ROUNDS)
-        replies = raw.wait_for(
-            lambda received: len(poison_replies(received)) >= len(expected) and received,
-            'the replies to the poison messages',
-        )
-        assert sorted(r['error']['code'] for r in poison_replies(replies)) == expected
+        reply_to('p-end')  # the replies to all that came before are there
+        expected = sorted([*(code for _, code in POISON if code), 'retained_request'] * ROUNDS)
+        codes = [r['error']['code'] for r in replies_to(raw.received, 'p-')]
+        assert sorted(codes) == sorted([*expected, 'invalid_request'])  # and p-end's
         unaddressed = sum(code is None for _, code in POISON) * ROUNDS
         assert fleet.wait_for(lambda robots: robots[ROBOT].dead_letters == unaddressed)
         assert [letter['count'] for letter in dead] == list(range(1, unaddressed + 1))
@@ -170,10 +179,19 @@ def test_poison_messages_get_one_answer_each_and_the_robot_still_answers(
         history = fleet.request(ROBOT, 'history', source='CLOUD')
         start_bridge('--max-payload-bytes', str(BRIDGE_MAX_BYTES))
         reply = check(history.result(TIMEOUT_SEC), 'mqtt_reply')
+        reply_to('p-end-2')
+        assert not replies_to(raw.received, 'p-retained-stored')
     assert reply['ok'] and [t['task_id'] for t in reply['tasks']] == ['after-poison'], reply
     assert len(dead) == 2 * unaddressed  # counted again from 1 by the new bridge
 
 
-def poison_replies(received: list[Received]) -> list[dict[str, Any]]:
+def start_request(task_id: str) -> str:
+    request = {'request_id': task_id, 'op': 'start_task', 'task_name': 'instant',
+               'task_data': {'data': True}, 'task_id': task_id}  # fmt: skip
+    return json.dumps(request)
+
+
+def replies_to(received: list[Received], prefix: str) -> list[dict[str, Any]]:
+    """The replies received to requests whose id starts with `prefix`."""
     replies = [check(json.loads(m.payload), 'mqtt_reply') for m in received]
-    return [r for r in replies if r['request_id'].startswith('p-')]
+    return [r for r in replies if r['request_id'].startswith(prefix)]
