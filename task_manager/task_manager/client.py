@@ -24,12 +24,12 @@ from typing import Any, Generic, Protocol, TypeAlias, TypeVar
 
 import rclpy
 from builtin_interfaces.msg import Time
+from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.client import Client
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import parameter_value_to_python
-from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
 from rclpy.timer import Timer
@@ -63,6 +63,8 @@ QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
 HISTORY_LIMIT_MAX = 10_000  # the most rows /task_manager/query_task_history returns at once
 FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)
 TASK_MANAGER_NODE = '/task_manager'
+LIST_PARAMETERS_SERVICE = f'{TASK_MANAGER_NODE}/list_parameters'
+GET_PARAMETERS_SERVICE = f'{TASK_MANAGER_NODE}/get_parameters'
 MISSION_SOURCE = 'Mission'
 DEFAULT_TIMEOUT_SEC = 5.0
 # How long a result that arrived before its task's ENDED event waits for it (for the stamps).
@@ -837,17 +839,16 @@ class TaskManagerClient(PauseMethods, ScheduleMethods):
                 return task_stats(ended)
 
     def declared_tasks(self) -> list[dict[str, Any]]:
-        """The declared tasks and their properties, read from the node's parameters."""
-        parameters = AsyncParameterClient(self.node, TASK_MANAGER_NODE)
-        if not parameters.wait_for_services(timeout_sec=self.timeout_sec):
-            raise TaskManagerUnavailable('the Task Manager parameter services are not available')
-        listed = _wait(parameters.list_parameters(), self.timeout_sec)
-        if listed is None:
-            raise TaskManagerUnavailable('the Task Manager did not list its parameters')
+        """The declared tasks and their properties, read from the node's parameters.
+
+        Through this client's own two clients of the node's parameter services, made once:
+        a parameter client per call (rclpy's AsyncParameterClient makes six) was never
+        destroyed, and every process of the domain grew with each read.
+        """
+        listed = self._call(ListParameters, LIST_PARAMETERS_SERVICE, ListParameters.Request())
         names = list(listed.result.names)
-        got = _wait(parameters.get_parameters(names), self.timeout_sec)
-        if got is None:
-            raise TaskManagerUnavailable('the Task Manager did not send its parameters')
+        request = GetParameters.Request(names=names)
+        got = self._call(GetParameters, GET_PARAMETERS_SERVICE, request)
         values = {n: parameter_value_to_python(v) for n, v in zip(names, got.values, strict=True)}
         return [*self._declared_in(values), *_system_tasks()]
 
