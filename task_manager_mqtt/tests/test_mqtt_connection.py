@@ -80,6 +80,7 @@ def test_another_account_cannot_take_over_a_bridges_connection(
     broker: MosquittoBroker, start_bridge: Callable[..., BridgeProcess], fleet: FleetClient
 ) -> None:
     bridge = start_bridge()
+    wait_state(fleet, 'ONLINE')  # (published once it has subscribed to its requests)
     for client_id in (f'task_manager_{ROBOT}', ROBOT):  # the bridge's id, and its user name
         with RawClient(broker.port, 'robot2', broker.passwords['robot2'], client_id) as thief:
             assert thief.connect_reason == 'Success'
