@@ -1,11 +1,13 @@
 """Send a photo mission to every robot of a fleet through the broker, and print its progress
 (run `make fleet` first; it prints this command with the broker URL).
 
-.venv/bin/python examples/fleet_mission.py --broker-url mqtt://cloud:PASSWORD@127.0.0.1:PORT
+.venv/bin/python examples/fleet_mission.py --broker-url mqtt://cloud@127.0.0.1:PORT \
+    --password-file .ros/task_manager/fleet/cloud/mqtt_password
 """
 
 import argparse
 import sys
+from pathlib import Path
 from typing import Any
 
 from task_manager_mqtt.fleet_client import FleetClient, FleetError
@@ -32,11 +34,17 @@ def show(robot_id: str, event: dict[str, Any]) -> None:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument('--broker-url', required=True)
+    parser.add_argument('--broker-url', required=True, help='mqtt://cloud@HOST:PORT')
+    parser.add_argument(
+        '--password-file', type=Path, help="the file holding the cloud account's password"
+    )
     parser.add_argument('--robots', default=','.join(ROBOTS), help='comma-separated ids')
     options = parser.parse_args()
     robots = options.robots.split(',')
-    with FleetClient(options.broker_url, events=True, source='fleet_example') as fleet:
+    password = options.password_file.read_text().strip() if options.password_file else ''
+    with FleetClient(
+        options.broker_url, events=True, source='fleet_example', password=password
+    ) as fleet:
         if not fleet.wait_online(robots, timeout_sec=30.0):
             print(f'not every robot of {robots} is online: {list(fleet.robots)}')
             return 1

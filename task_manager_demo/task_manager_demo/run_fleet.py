@@ -1,10 +1,11 @@
 """Console script `task-manager-fleet` (`make fleet`): a fleet of simulated robots on a broker.
 
 Starts a local mosquitto (an account per robot and one for the cloud; each robot may write
-only under its own id), then for each robot, in a ROS domain of its own: the simulated
+only its own outgoing topics), then for each robot, in a ROS domain of its own: the simulated
 robot, a Task Manager with the demo's tasks, and its MQTT bridge. Once all are ready it
-prints the broker URL with the cloud's credentials and the example to run, then streams
-their logs. Ctrl-C stops everything it started.
+prints the broker URL, the file that holds the cloud's password (never the password: a
+banner ends up in logs and scrollback, a command line in `ps`) and the example to run, then
+streams their logs. Ctrl-C stops everything it started.
 """
 
 import argparse
@@ -14,7 +15,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from task_manager_mqtt.broker import READY_LINE, MosquittoBroker
+from task_manager_mqtt.broker import CLOUD_USER, READY_LINE, MosquittoBroker
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 
 from task_manager.discovery import use_quick_discovery
@@ -40,6 +41,8 @@ DEFAULT_PORT = 0
 DEFAULT_FIRST_DOMAIN = 1
 RULE = '=' * 78
 EXAMPLE = Path('examples') / 'fleet_mission.py'
+PASSWORD_FILE = 'mqtt_password'
+"""In the folder of each account (<folder>/<robot_id>/, <folder>/cloud/)."""
 
 
 class Fleet(Supervisor):
@@ -53,8 +56,10 @@ class Fleet(Supervisor):
         self.broker = MosquittoBroker(
             self.folder / 'broker', self.robot_ids, port=options.broker_port
         )
+        self.cloud_password_file = self.folder / CLOUD_USER / PASSWORD_FILE
 
     def start(self) -> None:
+        write_password(self.cloud_password_file, self.broker.passwords[CLOUD_USER])
         self.start_child('broker', self.broker.command, BROKER_READY)
         for robot_id in self.robot_ids:
             self._start_robot(robot_id)
@@ -62,9 +67,8 @@ class Fleet(Supervisor):
     def _start_robot(self, robot_id: str) -> None:
         home = self.folder / robot_id
         home.mkdir(parents=True, exist_ok=True)
-        password_file = home / 'mqtt_password'
-        password_file.write_text(self.broker.passwords[robot_id] + '\n')
-        password_file.chmod(0o600)
+        password_file = home / PASSWORD_FILE
+        write_password(password_file, self.broker.passwords[robot_id])
         env = {'ROS_DOMAIN_ID': str(self.domains[robot_id]), 'ROS_HOME': str(home)}
         robot = [find_executable(*ROBOT_EXECUTABLE)]
         if self.robot_args:
@@ -89,7 +93,8 @@ class Fleet(Supervisor):
         self.start_child(f'{robot_id}/bridge', bridge, BRIDGE_READY, env)
 
     def banner(self, ready: dict[str, str]) -> str:
-        url = self.broker.url()
+        url = f'mqtt://{CLOUD_USER}@127.0.0.1:{self.broker.port}'
+        password_file = shown_path(self.cloud_password_file)
         python = shown_path(Path(sys.executable))
         robots = ', '.join(f'{r} (ROS domain {d})' for r, d in self.domains.items())
         return '\n'.join(
@@ -98,21 +103,37 @@ class Fleet(Supervisor):
                 f'Fleet ready: {len(self.robot_ids)} simulated robots, each with a Task Manager '
                 'and its MQTT bridge',
                 f'  broker: {url}',
-                "          (the cloud's account; each robot has its own, see "
+                f"          the cloud's password is in {password_file}",
+                '          (each robot has an account of its own, see '
                 f'{shown_path(self.broker.folder / "acl")})',
                 textwrap.fill(
                     robots, width=len(RULE), initial_indent='  robots: ', subsequent_indent=' ' * 10
                 ),
-                f'  topics: {DEFAULT_PREFIX}/<robot_id>/request, reply, result, event, '
-                'active_tasks, tasks, connection',
+                textwrap.fill(
+                    f'{DEFAULT_PREFIX}/<robot_id>/request, reply, result, event, active_tasks, '
+                    'tasks, connection, dead_letter',
+                    width=len(RULE),
+                    initial_indent='  topics: ',
+                    subsequent_indent=' ' * 10,
+                ),
                 '',
                 'In a second terminal, send a mission to every robot and watch the fleet:',
-                f'  {python} {EXAMPLE} --broker-url {url}',
+                f'  {python} {EXAMPLE} --broker-url {url} \\',
+                f'      --password-file {password_file}',
                 '',
                 'Ctrl-C stops the broker, the robots, their Task Managers and bridges.',
                 RULE,
             ]
         )
+
+
+def write_password(path: Path, password: str) -> None:
+    """Readable by its owner only, from its creation on."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.unlink(missing_ok=True)
+    descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(descriptor, 'w') as file:
+        file.write(password + '\n')
 
 
 def parse_arguments(argv: list[str] | None) -> argparse.Namespace:

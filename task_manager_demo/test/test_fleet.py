@@ -40,7 +40,11 @@ def test_one_cloud_client_drives_three_robots(tmp_path: Path) -> None:
     try:
         line = fleet.wait_for_line(r'  broker: mqtt://', READY_TIMEOUT_SEC)
         url = re.search(r'(mqtt://\S+)', line)[1]  # type: ignore[index]
-        with FleetClient(url) as cloud:
+        line = fleet.wait_for_line(r"the cloud's password is in ", READY_TIMEOUT_SEC)
+        password_file = Path(line.rsplit(' ', 1)[1])  # relative to the working directory
+        password = password_file.read_text().strip()
+        assert password and password_file.stat().st_mode & 0o077 == 0
+        with FleetClient(url, password=password) as cloud:
             assert cloud.wait_online(ROBOTS, READY_TIMEOUT_SEC), cloud.robots
             photos = [
                 cloud.start_task(robot_id, 'camera/take_photo', {'camera': 'front'})
@@ -51,7 +55,14 @@ def test_one_cloud_client_drives_three_robots(tmp_path: Path) -> None:
             check_results(results)
 
         example = subprocess.run(
-            [sys.executable, str(REPO / 'examples' / 'fleet_mission.py'), '--broker-url', url],
+            [
+                sys.executable,
+                str(REPO / 'examples' / 'fleet_mission.py'),
+                '--broker-url',
+                url,
+                '--password-file',
+                str(password_file),
+            ],
             capture_output=True,
             text=True,
             timeout=RESULT_TIMEOUT_SEC,
@@ -63,6 +74,7 @@ def test_one_cloud_client_drives_three_robots(tmp_path: Path) -> None:
         code = fleet.stop(timeout_sec=60.0)
     assert code == 0, fleet.output
     assert 'the fleet has stopped' in fleet.output
+    assert password not in fleet.output  # in a file only, not in the banner nor a command line
 
 
 def check_results(results: list[tuple[FleetTask, dict[str, Any]]]) -> None:

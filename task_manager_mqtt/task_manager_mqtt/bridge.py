@@ -31,9 +31,15 @@ from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, Tas
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
 from task_manager.protocol.records import declared_json, event_json, iso, task_json
-from task_manager_mqtt.connection import RECONNECT_MIN_SEC, connect, new_client
+from task_manager_mqtt.connection import (
+    RECONNECT_MIN_SEC,
+    connect,
+    largest_payload,
+    new_client,
+)
 from task_manager_mqtt.decoding import refusal
 from task_manager_mqtt.outbox import ResultOutbox
+from task_manager_mqtt.outgoing import fitted
 from task_manager_mqtt.requests import RequestHandler
 from task_manager_mqtt.settings import BridgeSettings, Broker
 from task_manager_mqtt.topics import Topics
@@ -81,6 +87,8 @@ class Bridge:
         self._jobs: queue.SimpleQueue[Callable[[], None] | None] = queue.SimpleQueue()
         self._worker = threading.Thread(target=self._work, name='bridge-worker', daemon=True)
         self._stopping = False
+        self._largest_payload: int = settings.max_payload_bytes
+        """Of a message sent: the bridge's limit, or the broker's if smaller."""
         self._reconnecting = False
         # the rest belongs to the worker
         self._broker_up = False
@@ -144,7 +152,7 @@ class Bridge:
     # ---- on the MQTT client's thread: queue, never wait -------------------------------------
 
     def _on_connect(
-        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, properties: Any
     ) -> None:
         if reason.is_failure:
             if str(reason) in CREDENTIALS_REFUSED:
@@ -164,6 +172,7 @@ class Bridge:
             self.topics.topic('').rstrip('/'),
         )
         self._reconnecting = False
+        self._largest_payload = largest_payload(properties, self.settings.max_payload_bytes)
         client.subscribe(self.topics.request, options=REQUESTS_SUBSCRIPTION)
         self._jobs.put(self._on_broker_up)
 
@@ -410,7 +419,8 @@ class Bridge:
     def _publish(
         self, topic: str, document: dict[str, Any], qos: int, retain: bool
     ) -> mqtt.MQTTMessageInfo:
-        return self.mqtt.publish(topic, compact_json(document), qos=qos, retain=retain)
+        payload = fitted(topic.rsplit('/', 1)[-1], document, self._largest_payload)
+        return self.mqtt.publish(topic, payload, qos=qos, retain=retain)
 
 
 def _name(job: Callable[[], None]) -> str:

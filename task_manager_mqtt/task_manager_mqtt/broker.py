@@ -17,7 +17,11 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from task_manager.testing.process import NodeProcess
-from task_manager_mqtt.settings import DEFAULT_PREFIX
+from task_manager_mqtt.settings import (
+    DEFAULT_MAX_PAYLOAD_BYTES,
+    DEFAULT_PREFIX,
+    PACKET_HEADROOM_BYTES,
+)
 from task_manager_mqtt.topics import ANY_ROBOT, OUTGOING, Topics
 
 CLOUD_USER = 'cloud'
@@ -47,13 +51,16 @@ class MosquittoBroker:
         port: int = 0,
         tls: bool = False,
         clouds: Sequence[str] = (CLOUD_USER,),
+        max_payload_bytes: int = DEFAULT_MAX_PAYLOAD_BYTES,
     ) -> None:
         """`tls`: listen with TLS only, with a certificate of a CA of its own (`ca_file`).
-        `clouds`: the cloud's accounts (one per process of the cloud that connects)."""
+        `clouds`: the cloud's accounts (one per process of the cloud that connects).
+        `max_payload_bytes`: the largest message it passes on (the bridges' limit)."""
         self.folder = folder
         self.prefix = prefix
         self.port = port or free_port()
         self.tls = tls
+        self.max_payload_bytes = max_payload_bytes
         self.ca_file: Path | None = None
         self.robots = list(robots)
         self.clouds = list(clouds)
@@ -107,6 +114,10 @@ class MosquittoBroker:
             f'persistence true\n'
             f'persistence_location {self.folder}/\n'
             f'max_queued_messages {MAX_QUEUED_MESSAGES}\n'
+            # MQTT 5 clients learn it from the CONNACK; one that sends a larger packet is
+            # disconnected and its message never delivered. (message_size_limit would drop
+            # the message with a PUBACK of reason 0x95, which paho takes for a malformed packet)
+            f'max_packet_size {self.max_payload_bytes + PACKET_HEADROOM_BYTES}\n'
             f'log_dest stderr\n'  # unbuffered: each line as it is written
             f'log_timestamp false\n' + self._tls_lines()
         )

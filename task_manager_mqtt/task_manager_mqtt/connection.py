@@ -1,14 +1,14 @@
 """The MQTT client of the bridge and of the FleetClient (paho-mqtt), made the same way."""
 
 import socket
-from typing import Any
+from typing import Any, overload
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 from paho.mqtt.packettypes import PacketTypes
 from paho.mqtt.properties import Properties
 
-from task_manager_mqtt.settings import Broker
+from task_manager_mqtt.settings import PACKET_HEADROOM_BYTES, Broker
 
 RECONNECT_MIN_SEC = 1
 
@@ -56,6 +56,21 @@ def connect(client: mqtt.Client, broker: Broker, keepalive_sec: int, session_sec
         broker.host, broker.port, keepalive=keepalive_sec, clean_start=False, properties=properties
     )
     client.loop_start()
+
+
+@overload
+def largest_payload(connack: Properties | None, limit: int) -> int: ...
+@overload
+def largest_payload(connack: Properties | None, limit: None) -> int | None: ...
+def largest_payload(connack: Properties | None, limit: int | None) -> int | None:
+    """The largest payload to publish: `limit`, or less if the broker takes only smaller
+    packets (MQTT 5's Maximum Packet Size, in its CONNACK). A larger packet would make the
+    broker disconnect the client, and paho would send it again at each reconnection."""
+    server = getattr(connack, 'MaximumPacketSize', None)
+    if server is None:
+        return limit
+    server_limit = int(server) - PACKET_HEADROOM_BYTES
+    return server_limit if limit is None else min(limit, server_limit)
 
 
 def _no_delay(_: mqtt.Client, __: Any, sock: Any) -> None:

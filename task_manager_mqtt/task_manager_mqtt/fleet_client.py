@@ -14,13 +14,13 @@ import threading
 import uuid
 from collections.abc import Callable
 from concurrent.futures import Future
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
-from task_manager_mqtt.connection import connect, new_client
+from task_manager_mqtt.connection import connect, largest_payload, new_client
 from task_manager_mqtt.decoding import load_json
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, Tls
 from task_manager_mqtt.topics import ANY_ROBOT, Topics
@@ -99,6 +99,7 @@ class FleetClient:
         source: str = 'CLOUD',
         events: bool = False,
         ca_file: str = '',
+        password: str = '',
     ) -> None:
         """`client_id`: a stable one keeps this client's session (and the results sent while
         it is away) on the broker for SESSION_EXPIRY_SEC; empty: a new id, no session kept.
@@ -107,9 +108,11 @@ class FleetClient:
         `events`: also follow every task event of every robot (see `on_event`).
 
         `ca_file`: with an mqtts:// URL, the certificate authorities to trust (else the
-        system's).
+        system's). `password`: the account's, if the URL has none (read from a file, say: a
+        password on a command line is visible to every user of the machine in `ps`).
         """
-        self.broker = Broker.from_url(broker_url, Tls(ca_file=ca_file) if ca_file else None)
+        broker = Broker.from_url(broker_url, Tls(ca_file=ca_file) if ca_file else None)
+        self.broker = replace(broker, password=password) if password else broker
         self.prefix = prefix
         self.source = source
         self.robots: dict[str, RobotView] = {}
@@ -117,6 +120,12 @@ class FleetClient:
         self._lock = threading.Lock()
         self._changed = threading.Condition(self._lock)
         self._replies: dict[str, Future[Document]] = {}
+        # key: message id of a request not acknowledged yet, value: its request id
+        self._unacknowledged: dict[int, str] = {}
+        # key: message id, value: the broker's answer, come before publish() returned
+        self._early_acks: dict[int, ReasonCode] = {}
+        self._largest_payload: int | None = None
+        """The largest request the broker takes (MQTT 5's Maximum Packet Size); None: any."""
         # key: (robot id, task id), value: its result, once it comes
         self._results: dict[tuple[str, str], Future[Document]] = {}
         self._result_callbacks: list[Callable[[str, Document], None]] = []
@@ -133,6 +142,7 @@ class FleetClient:
         self._mqtt.on_connect = self._on_connect
         self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
         self._mqtt.on_message = self._on_message
+        self._mqtt.on_publish = self._on_publish
         self._handlers = {
             'reply': self._on_reply,
             'result': self._on_result,
@@ -201,14 +211,28 @@ class FleetClient:
     def request(
         self, robot_id: str, op: str, *, request_id: str = '', **fields: Any
     ) -> Future[Document]:
-        """Send any request; the future completes with the robot's Reply document."""
+        """Send any request; the future completes with the robot's Reply document, or fails
+        with FleetError if the broker refuses it or takes no message that large."""
         request_id = request_id or f'{uuid.uuid4().hex[:12]}-{next(self._request_numbers)}'
         reply: Future[Document] = Future()
+        document = {'request_id': request_id, 'op': op, **fields}
+        payload = json.dumps(document).encode()
+        limit = self._largest_payload
+        if limit is not None and len(payload) > limit:  # never sent: see largest_payload
+            message = f'the request is {len(payload)} bytes; the broker takes at most {limit}'
+            reply.set_exception(FleetError(message, 'payload_too_large'))
+            return reply
         with self._lock:
             self._replies[request_id] = reply
-        document = {'request_id': request_id, 'op': op, **fields}
         topic = Topics(self.prefix, robot_id).request
-        self._mqtt.publish(topic, json.dumps(document), qos=1)
+        # not under self._lock: paho calls on_publish holding a lock publish() takes too
+        info = self._mqtt.publish(topic, payload, qos=1)
+        with self._lock:
+            early = self._early_acks.pop(info.mid, None)
+            if early is None:
+                self._unacknowledged[info.mid] = request_id
+        if early is not None:
+            self._refused(request_id, early)
         return reply
 
     def _start(
@@ -224,6 +248,12 @@ class FleetClient:
 
     def _on_start_reply(self, robot_id: str, task_id: str, reply: Future[Document]) -> None:
         """A refused start fails its result; a duplicate of an ended task has it already."""
+        if (failure := reply.exception()) is not None:  # not sent, or refused by the broker
+            with self._lock:
+                result = self._results.pop((robot_id, task_id), None)
+            if result is not None and not result.done():
+                result.set_exception(failure)
+            return
         document = reply.result()
         known = document.get('task') or {}
         ended = document.get('duplicate') and known.get('status') in FINAL_STATUSES
@@ -281,12 +311,31 @@ class FleetClient:
     # ---- on the MQTT client's thread ----------------------------------------------------------
 
     def _on_connect(
-        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, properties: Any
     ) -> None:
         if reason.is_failure:
             LOG.warning('the broker refused the connection: %s', reason)
             return
+        self._largest_payload = largest_payload(properties, None)
         client.subscribe([(self._all.topic(name), 1) for name in self._followed])
+
+    def _on_publish(self, _: mqtt.Client, __: Any, mid: int, reason: ReasonCode, ___: Any) -> None:
+        """A request the broker refused (too large for it, not allowed) fails at once."""
+        with self._lock:
+            request_id = self._unacknowledged.pop(mid, None)
+            if request_id is None:  # publish() has not returned its id yet
+                self._early_acks[mid] = reason
+                return
+        self._refused(request_id, reason)
+
+    def _refused(self, request_id: str, reason: ReasonCode) -> None:
+        if not reason.is_failure:
+            return
+        with self._lock:
+            reply = self._replies.pop(request_id, None)
+        if reply is not None and not reply.done():
+            message = f'the broker refused the request: {reason} (too large for it, or not allowed)'
+            reply.set_exception(FleetError(message, 'refused_by_broker'))
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
         """The callbacks' boundary: an exception here would end paho's network thread."""

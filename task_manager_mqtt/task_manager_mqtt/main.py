@@ -25,6 +25,7 @@ from task_manager.client import TaskManagerClient
 from task_manager.discovery import use_quick_discovery
 from task_manager_mqtt.bridge import Bridge
 from task_manager_mqtt.settings import (
+    DEFAULT_MAX_PAYLOAD_BYTES,
     DEFAULT_PREFIX,
     BridgeSettings,
     Broker,
@@ -40,7 +41,7 @@ DEFAULTS: dict[str, Any] = {
     'broker_url': 'mqtt://127.0.0.1:1883',
     'prefix': DEFAULT_PREFIX,
     'source': 'CLOUD',
-    'max_payload_bytes': 1_048_576,
+    'max_payload_bytes': DEFAULT_MAX_PAYLOAD_BYTES,
     'keepalive_sec': 10,
     'reconnect_max_sec': 2,
 }
@@ -69,7 +70,11 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         help='where the last acknowledged result is kept '
         '($ROS_HOME/task_manager/mqtt/<robot_id>.acked)',
     )
-    parser.add_argument('--max-payload-bytes', type=int, help='largest request (1 MiB)')
+    parser.add_argument(
+        '--max-payload-bytes',
+        type=int,
+        help="largest request accepted and message sent (1 MiB): the broker's message size limit",
+    )
     parser.add_argument('--keepalive-sec', type=int, help='MQTT keep-alive (10 s)')
     parser.add_argument(
         '--reconnect-max-sec', type=int, help='longest wait between connection attempts (2 s)'

@@ -15,6 +15,10 @@ import yaml
 DEFAULT_PREFIX = 'task_manager/v1'
 DEFAULT_PORTS = {'mqtt': 1883, 'mqtts': 8883}
 TOPIC_FORBIDDEN = ('+', '#', '/')
+DEFAULT_MAX_PAYLOAD_BYTES = 1_048_576
+"""The largest request the bridge accepts and message it sends; the broker's limit too."""
+PACKET_HEADROOM_BYTES = 1024
+"""What an MQTT packet here adds to its payload, at most: fixed header, topic, properties."""
 
 
 class SettingsError(ValueError):
@@ -82,7 +86,9 @@ class BridgeSettings:
     """The source of the tasks the cloud starts without naming one."""
     state_file: Path | None = None
     """Where the last sequence number the broker acknowledged is kept; None: the default."""
-    max_payload_bytes: int = 1_048_576
+    max_payload_bytes: int = DEFAULT_MAX_PAYLOAD_BYTES
+    """The largest request accepted, and message sent (see outgoing.py); set the broker's
+    message size limit to it, so that the broker refuses a larger request itself."""
     keepalive_sec: int = 10
     """How soon the broker notices a vanished bridge (and sends its last will): 1.5x this."""
     reconnect_max_sec: int = 2

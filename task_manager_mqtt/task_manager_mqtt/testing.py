@@ -102,9 +102,14 @@ class RawClient:
         self.mqtt.disconnect()
         self.mqtt.loop_stop()
 
-    def publish(self, topic: str, payload: bytes | str, retain: bool = False) -> str:
-        """Publish at QoS 1 and wait for the broker's acknowledgement; its reason code."""
+    def publish(
+        self, topic: str, payload: bytes | str, retain: bool = False, wait: bool = True
+    ) -> str:
+        """Publish at QoS 1 and wait for the broker's acknowledgement; its reason code (with
+        `wait` False: '' at once)."""
         info = self.mqtt.publish(topic, payload, qos=1, retain=retain)
+        if not wait:
+            return ''
         with self._changed:
             if not self._changed.wait_for(lambda: info.mid in self._acks, TIMEOUT_SEC):
                 raise TimeoutError(f'no acknowledgement of the publication to {topic}')

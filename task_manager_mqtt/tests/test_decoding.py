@@ -98,7 +98,7 @@ def test_any_message_gets_one_reply_or_one_dead_letter(payload: bytes, retained:
 def test_the_depth_check_agrees_with_the_parsed_document(value: Any) -> None:
     text = json.dumps(value).encode()
     assert deeper_than(text, MAX_DEPTH) == (depth_of(value) > MAX_DEPTH)
-    assert load_json(text) == value or value != value  # NaN is not equal to itself
+    assert json.dumps(load_json(text)) == text.decode()  # (NaN is not equal to itself)
 
 
 @settings(max_examples=EXAMPLES // 2, deadline=None)

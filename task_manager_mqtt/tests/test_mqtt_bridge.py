@@ -10,7 +10,12 @@ import pytest
 from task_manager.client import TaskManagerClient
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
 from task_manager_mqtt.broker import MosquittoBroker
-from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.fleet_client import FleetClient, FleetError
+from task_manager_mqtt.settings import (
+    DEFAULT_MAX_PAYLOAD_BYTES,
+    DEFAULT_PREFIX,
+    PACKET_HEADROOM_BYTES,
+)
 from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, RawClient, Received
 from task_manager_mqtt.topics import Topics
 
@@ -122,13 +127,24 @@ def test_a_restarted_bridge_sends_what_ended_meanwhile_and_nothing_again(
     assert online.robots[ROBOT].duplicates == 0
 
 
-def test_bad_requests_get_an_error_reply_and_start_nothing(online: FleetClient) -> None:
+def test_bad_requests_get_an_error_reply_and_start_nothing(
+    online: FleetClient, broker: MosquittoBroker
+) -> None:
     unknown = check(online.request(ROBOT, 'dance').result(TIMEOUT_SEC), 'mqtt_reply')
     missing = check(online.request(ROBOT, 'start_task').result(TIMEOUT_SEC), 'mqtt_reply')
     assert not unknown['ok'] and unknown['error']['field'] == 'op'
     allowed = 'allowed: start_task, start_mission, cancel, stop, history'
     assert allowed in unknown['error']['message']
     assert not missing['ok'] and missing['error']['field'] == 'task_name'
+    # over the bridge's limit: refused by the broker itself (its limit is the same)
+    pad = 'x' * DEFAULT_MAX_PAYLOAD_BYTES
+    with pytest.raises(FleetError, match='the broker takes at most') as refused:
+        online.request(ROBOT, 'stop', pad=pad).result(TIMEOUT_SEC)  # not sent by the client
+    assert refused.value.code == 'payload_too_large'
+    with RawClient(broker.port, TESTER, broker.passwords[TESTER]) as raw:  # sent: disconnected
+        over = 'x' * (DEFAULT_MAX_PAYLOAD_BYTES + PACKET_HEADROOM_BYTES)
+        raw.publish(Topics(DEFAULT_PREFIX, ROBOT).request, over, wait=False)
+        raw.wait_for(lambda _: 'Packet too large' in raw.disconnections, 'its disconnection')
     assert online.history(ROBOT, source='CLOUD') == []
 
 
@@ -140,7 +156,7 @@ def test_poison_messages_get_one_answer_each_and_the_robot_still_answers(
 ) -> None:
     """Retained requests too: refused when they come, never handed over again at a
     (re)connection; the history shows that none of them ran."""
-    topics = Topics('task_manager/v1', ROBOT)
+    topics = Topics(DEFAULT_PREFIX, ROBOT)
     dead: list[dict[str, Any]] = []
     fleet.on_dead_letter(lambda robot_id, letter: dead.append(check(letter, 'mqtt_dead_letter')))
     with RawClient(broker.port, TESTER, broker.passwords[TESTER], topics=[topics.reply]) as raw:
