@@ -22,17 +22,20 @@ from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.request_text import text_problem
 from task_manager.protocol import models
 from task_manager.protocol.records import declared_json, result_json, task_json
-from task_manager_web.access import Access
+from task_manager_web.access import Access, Reader, StreamReader, Writer
 from task_manager_web.body_limit import BodyLimit
 from task_manager_web.errors import ApiError, add_error_handlers
 from task_manager_web.history_csv import history_csv
 from task_manager_web.node_link import EventStream, NodeLink
+from task_manager_web.read_bound import ReadBound
 
 KEEPALIVE_SEC = 15.0
 """An event stream idle this long gets a comment line, which also finds clients gone."""
 WAIT_DEFAULT_SEC = 30.0
 WAIT_MAX_SEC = 600.0
 STATIC = Path(__file__).with_name('static')
+MAX_READS_PER_CLIENT = 32
+"""The default bound of a client's reads in flight (the dashboard makes 3 at once)."""
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,8 @@ class Settings:
     source: str = 'WEB'
     """The source of the tasks started here that name none."""
     max_body_bytes: int = 1_048_576
+    max_reads_per_client: int = MAX_READS_PER_CLIENT
+    """Reads in flight per client (the token's holder, or an address without it); more: 429."""
 
 
 def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient]) -> FastAPI:
@@ -50,7 +55,7 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         client = await asyncio.to_thread(make_client)
-        app.state.link = NodeLink(client, asyncio.get_running_loop(), settings.source)
+        app.state.link = NodeLink(client, asyncio.get_running_loop())
         try:
             yield
         finally:
@@ -68,8 +73,11 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
     )
     patch_fastapi(app, docs_url='/docs', redirect_from_root_to_docs=False)
     add_error_handlers(app)
+    access = Access(settings.token, settings.read_without_token, settings.source)
+    app.state.access = access
     app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
-    _add_routes(app, Access(settings.token, settings.read_without_token))
+    app.add_middleware(ReadBound, access=access, max_reads=settings.max_reads_per_client)
+    _add_routes(app)
     app.mount('/static', StaticFiles(directory=str(STATIC)), name='static')
     return app
 
@@ -78,7 +86,7 @@ class HistoryParameters(models.HistoryQuery):
     format: Literal['json', 'csv'] = 'json'
 
 
-def _link(request: Request) -> NodeLink:
+async def _link(request: Request) -> NodeLink:
     link: NodeLink = request.app.state.link
     return link
 
@@ -90,10 +98,7 @@ WaitSec = Annotated[
 ]
 
 
-def _add_routes(app: FastAPI, access: Access) -> None:
-    write = [Depends(access.writer)]
-    read = [Depends(access.reader)]
-
+def _add_routes(app: FastAPI) -> None:
     @app.get('/', include_in_schema=False)
     async def dashboard() -> FileResponse:
         return FileResponse(str(STATIC / 'index.html'))
@@ -103,21 +108,21 @@ def _add_routes(app: FastAPI, access: Access) -> None:
         """Whether the gateway reaches a Task Manager (no token needed)."""
         return {'connected': link.connected, 'event_streams': link.stream_count}
 
-    @app.get('/api/tasks', dependencies=read, tags=['tasks'])
-    async def declared_tasks(link: Link) -> list[models.DeclaredTask]:
+    @app.get('/api/tasks', tags=['tasks'])
+    async def declared_tasks(_: Reader, link: Link) -> list[models.DeclaredTask]:
         """The tasks the Task Manager runs, each with a JSON Schema of its task_data."""
-        declared = await link.call(link.client.declared_tasks)
+        declared = await link.read(link.client.declared_tasks)
         return [models.DeclaredTask.model_validate(declared_json(entry)) for entry in declared]
 
     @app.post(
         '/api/tasks/start',
-        dependencies=write,
         tags=['tasks'],
         status_code=202,
         responses={200: {'model': models.Started, 'description': 'The task ended (wait=true).'}},
     )
     async def start_task(
         body: models.StartTask,
+        caller: Writer,
         link: Link,
         response: Response,
         wait: Wait = False,
@@ -128,24 +133,24 @@ def _add_routes(app: FastAPI, access: Access) -> None:
         A task the Task Manager refuses (unknown, bad task_data, ...) is no HTTP error:
         it ends ERROR with its error code and message.
         """
-        handle = await link.send(
+        handle = await link.start(
             link.client.start_task,
             body.task_name,
             body.task_data,
             task_id=body.task_id,
-            source=body.source or link.source,
+            source=body.source or caller.source,
         )
         return await _started(link, handle, response, wait, timeout_sec)
 
     @app.post(
         '/api/missions',
-        dependencies=write,
         tags=['tasks'],
         status_code=202,
         responses={200: {'model': models.Started, 'description': 'The mission ended.'}},
     )
     async def start_mission(
         body: models.StartMission,
+        caller: Writer,
         link: Link,
         response: Response,
         wait: Wait = False,
@@ -156,52 +161,51 @@ def _add_routes(app: FastAPI, access: Access) -> None:
             ClientSubtask(s.task_name, s.task_data, s.allow_skipping, s.task_id)
             for s in body.subtasks
         ]
-        handle, subtask_ids = await link.send(
+        handle, subtask_ids = await link.start(
             link.client.start_mission,
             subtasks,
             task_id=body.task_id,
-            source=body.source or link.source,
+            source=body.source or caller.source,
         )
         return await _started(link, handle, response, wait, timeout_sec, subtask_ids)
 
-    @app.post('/api/tasks/cancel', dependencies=write, tags=['tasks'])
-    async def cancel_tasks(body: models.CancelTasks, link: Link) -> models.Task:
+    @app.post('/api/tasks/cancel', tags=['tasks'])
+    async def cancel_tasks(body: models.CancelTasks, caller: Writer, link: Link) -> models.Task:
         """system/cancel_task: cancel these tasks, whoever started them; its result."""
-        result = await link.send(link.client.cancel_tasks, body.task_ids, source=link.source)
+        result = await link.control(link.client.cancel_tasks, body.task_ids, source=caller.source)
         return models.Task.model_validate(result_json(result))
 
-    @app.post('/api/stop', dependencies=write, tags=['tasks'])
-    async def stop(link: Link) -> models.Task:
+    @app.post('/api/stop', tags=['tasks'])
+    async def stop(caller: Writer, link: Link) -> models.Task:
         """system/stop: cancel every task declared cancel_on_stop; its result."""
-        result = await link.send(link.client.stop, source=link.source)
+        result = await link.control(link.client.stop, source=caller.source)
         return models.Task.model_validate(result_json(result))
 
-    @app.get('/api/active', dependencies=read, tags=['state'])
-    async def active(link: Link) -> list[models.Task]:
+    @app.get('/api/active', tags=['state'])
+    async def active(_: Reader, link: Link) -> list[models.Task]:
         """Every active task, with its stamps and latest feedback."""
-        states = await link.call(link.client.task_states)
+        states = await link.read(link.client.task_states)
         return [models.Task.model_validate(task_json(s)) for s in states]
 
-    @app.get('/api/tasks/{task_id:path}', dependencies=read, tags=['state'])
-    async def task(task_id: str, link: Link) -> models.Task:
+    @app.get('/api/tasks/{task_id:path}', tags=['state'])
+    async def task(task_id: str, _: Reader, link: Link) -> models.Task:
         """One task, active or ended: its state, stamps, latest feedback and result."""
         # an id no task can have (NUL, which ROS would cut, a newline, ...) is looked up nowhere
         refused = text_problem('task_id', task_id) is not None
-        states = [] if refused else await link.call(link.client.task_states, [task_id])
+        states = [] if refused else await link.read(link.client.task_states, [task_id])
         if not states:
             raise ApiError(404, 'unknown_task_id', f'the Task Manager knows no task {task_id!r}')
         return models.Task.model_validate(task_json(states[0]))
 
     @app.get(
         '/api/history',
-        dependencies=read,
         tags=['state'],
         responses={200: {'content': {'text/csv': {}}}},
     )
-    async def history(link: Link, query: Annotated[HistoryParameters, Query()]) -> Any:
+    async def history(_: Reader, link: Link, query: Annotated[HistoryParameters, Query()]) -> Any:
         """Ended tasks from the durable history, newest first; format=csv for a spreadsheet."""
         # the query's fields are the client's filters, by the same names
-        states = await link.call(link.client.history, **query.model_dump(exclude={'format'}))
+        states = await link.read(link.client.history, **query.model_dump(exclude={'format'}))
         tasks = [task_json(s) for s in states]
         if query.format == 'csv':
             return Response(
@@ -213,12 +217,11 @@ def _add_routes(app: FastAPI, access: Access) -> None:
 
     @app.get(
         '/api/events',
-        dependencies=[Depends(access.stream_reader)],
         tags=['state'],
         response_class=StreamingResponse,
         responses={200: {'content': {'text/event-stream': {}}}},
     )
-    async def events(link: Link) -> StreamingResponse:
+    async def events(_: StreamReader, link: Link) -> StreamingResponse:
         """Server-Sent Events: `hello` and `connection` ({"connected": bool}), then a `task`
         event (a TaskEvent document) for every change of every task."""
         stream = link.open_stream()

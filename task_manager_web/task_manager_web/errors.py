@@ -29,12 +29,20 @@ REQUEST_PARTS = ('body', 'query', 'path')
 class ApiError(Exception):
     """An answer other than success, with its HTTP status."""
 
-    def __init__(self, status: int, code: str, message: str, field: str = '') -> None:
+    def __init__(
+        self,
+        status: int,
+        code: str,
+        message: str,
+        field: str = '',
+        headers: Mapping[str, str] | None = None,
+    ) -> None:
         super().__init__(message)
         self.status = status
         self.code = code
         self.message = message
         self.field = field
+        self.headers = headers
 
 
 def error_response(
@@ -54,7 +62,7 @@ async def _on_validation_error(_: Request, error: Exception) -> JSONResponse:
 
 async def _on_api_error(_: Request, error: Exception) -> JSONResponse:
     assert isinstance(error, ApiError)
-    return error_response(error.status, error.code, error.message, error.field)
+    return error_response(error.status, error.code, error.message, error.field, error.headers)
 
 
 async def _on_unavailable(_: Request, error: Exception) -> JSONResponse:

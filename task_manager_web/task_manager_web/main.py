@@ -16,7 +16,7 @@ import uvicorn
 
 from task_manager.client import TaskManagerClient
 from task_manager.discovery import use_quick_discovery
-from task_manager_web.app import Settings, create_app
+from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080
@@ -40,6 +40,13 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument('--source', default='WEB', help='source of the tasks started here (WEB)')
     parser.add_argument(
         '--max-body-bytes', type=int, default=1_048_576, help='largest request body (1 MiB)'
+    )
+    parser.add_argument(
+        '--max-reads-per-client',
+        type=int,
+        default=MAX_READS_PER_CLIENT,
+        help='reads in flight per client (the token, or an address without it); more get 429 '
+        f'({MAX_READS_PER_CLIENT})',
     )
     parser.add_argument('--access-log', action='store_true', help='log every request')
     return parser.parse_args(argv)
@@ -89,6 +96,7 @@ def main(argv: list[str] | None = None) -> None:
         read_without_token=arguments.read_without_token,
         source=arguments.source,
         max_body_bytes=arguments.max_body_bytes,
+        max_reads_per_client=arguments.max_reads_per_client,
     )
     app = create_app(
         settings, lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC)

@@ -4,12 +4,18 @@ The client is thread-based (its executor spins in a thread of its own): its bloc
 run in worker threads, and what it reports on its executor thread (task events, the node
 coming and going) is handed to the event loop with `call_soon_threadsafe`. Each event is
 turned into JSON once, then offered to every open event stream.
+
+The blocking calls have three pools of threads, so that no kind of request waits behind
+another: reads, starts, and control (stop and cancel). A flood of reads held up a cancel for
+seconds in the one small pool all shared (asyncio's default). Reads are bounded per client
+before they get here (read_bound.py).
 """
 
 import asyncio
 import contextlib
 import json
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from functools import partial
 from typing import Any, TypeVar
 
@@ -19,6 +25,10 @@ from task_manager.core.json_text import compact_json
 from task_manager.protocol.records import event_json
 
 T = TypeVar('T')
+READ_THREADS = 4
+START_THREADS = 8
+CONTROL_THREADS = 4
+"""Stop and cancel: each holds its thread until the system task ended (milliseconds)."""
 STREAM_QUEUE_MAX = 10_000
 """Events a stream may have waiting; a client that falls this far behind is disconnected."""
 NOT_CONNECTED = (
@@ -52,13 +62,12 @@ class EventStream:
 class NodeLink:
     """The Task Manager as the gateway's handlers see it (use from the event loop)."""
 
-    def __init__(
-        self, client: TaskManagerClient, loop: asyncio.AbstractEventLoop, source: str
-    ) -> None:
+    def __init__(self, client: TaskManagerClient, loop: asyncio.AbstractEventLoop) -> None:
         self.client = client
-        self.source = source
-        """The source of requests that name none."""
         self._loop = loop
+        self._reads = ThreadPoolExecutor(READ_THREADS, 'web_read')
+        self._starts = ThreadPoolExecutor(START_THREADS, 'web_start')
+        self._control = ThreadPoolExecutor(CONTROL_THREADS, 'web_control')
         self._streams: set[EventStream] = set()
         self._unsubscribe = [
             client.on_task_event(self._on_event),
@@ -68,6 +77,8 @@ class NodeLink:
     def close(self) -> None:
         for unsubscribe in self._unsubscribe:
             unsubscribe()
+        for pool in (self._reads, self._starts, self._control):
+            pool.shutdown(wait=False, cancel_futures=True)
 
     @property
     def connected(self) -> bool:
@@ -78,23 +89,38 @@ class NodeLink:
         if not self.client.connected:
             raise TaskManagerUnavailable(NOT_CONNECTED)
 
-    async def call(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
-        """A blocking client call, in a worker thread; only while a Task Manager is there."""
+    async def read(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """A blocking client call that reads, in a read thread; only while a Task Manager is
+        there."""
         self.require_connected()
-        return await asyncio.to_thread(partial(function, *args, **kwargs))
+        return await self._in(self._reads, partial(function, *args, **kwargs))
 
-    async def send(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
-        """Like `call`, for a call that sends a goal: once the ExecuteTask server is matched.
+    async def start(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """A client call that sends a goal (a start), in a start thread; see `_send`."""
+        return await self._send(self._starts, function, *args, **kwargs)
+
+    async def control(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """Stop or cancel, in a thread of their own that no read or start can take."""
+        return await self._send(self._control, function, *args, **kwargs)
+
+    async def _send(
+        self, pool: ThreadPoolExecutor, function: Callable[..., T], *args: Any, **kwargs: Any
+    ) -> T:
+        """A call that sends a goal: once the ExecuteTask server is matched.
 
         The node's topics can match before its action server does; a goal sent before then
         would be lost. Once matched, the wait returns at once.
         """
+        self.require_connected()
 
         def when_available() -> T:
             self.client.wait_until_available()
             return function(*args, **kwargs)
 
-        return await self.call(when_available)
+        return await self._in(pool, when_available)
+
+    async def _in(self, pool: ThreadPoolExecutor, call: Callable[[], T]) -> T:
+        return await self._loop.run_in_executor(pool, call)
 
     async def result(self, handle: TaskHandle, timeout_sec: float) -> TaskResult | None:
         """The task's result once it ends; None if it has not within `timeout_sec`."""

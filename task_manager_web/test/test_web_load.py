@@ -1,13 +1,18 @@
 """The gateway under load, against a real gateway process and a real Task Manager node."""
 
+import json
+import socket
 import statistics
 import time
+from collections import Counter
+from collections.abc import Callable
 
 import httpx
 import psutil
 import pytest
 
-from task_manager.testing.gateway import Robot
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
+from task_manager_web.app import MAX_READS_PER_CLIENT
 from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
@@ -51,3 +56,79 @@ def test_reading_the_declared_tasks_1000_times_grows_no_process_and_slows_nothin
     )
     assert all(bytes_ <= MEMORY_GROWTH_MAX_BYTES for bytes_ in growth.values()), growth
     assert last <= 1.5 * first + 0.002
+
+
+FLOOD_READS = 500
+CONTROL_ANSWER_MAX_SEC = 0.5
+"""0.08 to 0.19 s measured, 0.14 to 0.30 s with two processes spinning beside (was 0.2 to 0.65 s
+with all reads in one small pool of threads, 2.2 to 6.9 s in the issue)."""
+
+
+def flood(gateway: GatewayProcess, path: str, count: int) -> list[socket.socket]:
+    """`count` GET requests of `path`, each on a connection of its own, sent and not read."""
+    url = httpx.URL(gateway.url)
+    request = (
+        f'GET {path} HTTP/1.1\r\nHost: {url.host}:{url.port}\r\n'
+        f'Authorization: Bearer {gateway.token}\r\nConnection: close\r\n\r\n'
+    ).encode()
+    connections = []
+    for _ in range(count):
+        connection = socket.create_connection((url.host, url.port), timeout=TIMEOUT_SEC)
+        connection.sendall(request)
+        connections.append(connection)
+    return connections
+
+
+def replies(connections: list[socket.socket]) -> list[tuple[int, bytes]]:
+    """The status and body of each connection's reply (read to its end)."""
+    answered = []
+    for connection in connections:
+        with connection:
+            reply = b''
+            while chunk := connection.recv(65536):
+                reply += chunk
+        head, _, body = reply.partition(b'\r\n\r\n')
+        answered.append((int(head.split(b' ', 2)[1]), body))
+    return answered
+
+
+def timed(send: Callable[[], httpx.Response]) -> tuple[httpx.Response, float]:
+    began = time.perf_counter()
+    response = send()
+    return response, time.perf_counter() - began
+
+
+def test_stop_and_cancel_are_answered_at_once_under_500_reads(
+    robot: Robot, gateway: GatewayProcess, http: httpx.Client
+) -> None:
+    for task_id in ('to-cancel', 'to-stop'):
+        body = {'task_name': 'fib', 'task_data': {'order': 1}, 'task_id': task_id}
+        assert http.post('/api/tasks/start', json=body).status_code == 202
+    robot.fib.wait_for_goals(2, TIMEOUT_SEC)
+    _, idle_sec = timed(lambda: http.get('/api/tasks/to-cancel'))
+
+    reads = flood(gateway, '/api/active', FLOOD_READS)
+    cancel, cancel_sec = timed(
+        lambda: http.post('/api/tasks/cancel', json={'task_ids': ['to-cancel']})
+    )
+    cancel_reads = replies(reads)
+    reads = flood(gateway, '/api/active', FLOOD_READS)
+    stop, stop_sec = timed(lambda: http.post('/api/stop'))
+    stop_reads = replies(reads)
+
+    counts = [Counter(status for status, _ in each) for each in (cancel_reads, stop_reads)]
+    print(
+        f'\nwith {FLOOD_READS} reads sent just before: cancel answered in {cancel_sec:.3f} s '
+        f'(reads: {dict(counts[0])}), stop in {stop_sec:.3f} s (reads: {dict(counts[1])}); '
+        f'a read alone {idle_sec:.3f} s'
+    )
+    assert cancel.status_code == 200 and cancel.json()['status'] == 'DONE', cancel.text
+    assert stop.status_code == 200 and stop.json()['status'] == 'DONE', stop.text
+    assert http.get('/api/tasks/to-cancel').json()['status'] == 'CANCELED'
+    assert http.get('/api/tasks/to-stop').json()['status'] == 'CANCELED'
+    assert cancel_sec < CONTROL_ANSWER_MAX_SEC and stop_sec < CONTROL_ANSWER_MAX_SEC
+    # each client has MAX_READS_PER_CLIENT reads in flight at most: the rest are refused at once
+    for count in counts:
+        assert set(count) == {200, 429} and count[200] >= MAX_READS_PER_CLIENT, count
+    refused = next(body for status, body in cancel_reads if status == 429)
+    assert check(json.loads(refused), 'error')['error']['code'] == 'too_many_requests'
