@@ -1,4 +1,9 @@
-"""The history as CSV: who started what, when, and how it ended; one row per task."""
+"""The history as CSV: who started what, when, and how it ended; one row per task.
+
+A text cell a spreadsheet would read as a formula (one that begins with `=`, `+`, `-`, `@`, a
+tab or a carriage return, as OWASP lists them: a task id `=HYPERLINK(...)` would run when the
+file is opened) is written with a single quote before it, which shows it as text.
+"""
 
 import csv
 import io
@@ -21,14 +26,25 @@ COLUMNS = (
     'paused_sec',
     'result',
 )
+FORMULA_STARTS = ('=', '+', '-', '@', '\t', '\r')
 
 
 def history_csv(tasks: list[dict[str, Any]]) -> str:
     """CSV text with a header row, from Task documents; `result` as compact JSON."""
     out = io.StringIO()
-    writer = csv.writer(out, lineterminator='\n')
+    # CRLF, as RFC 4180 has it: the writer then also quotes a cell holding a lone CR
+    writer = csv.writer(out, lineterminator='\r\n')
     writer.writerow(COLUMNS)
     for task in tasks:
         row = {**task, 'result': json.dumps(task.get('result'), separators=(',', ':'))}
-        writer.writerow(['' if row.get(column) is None else row[column] for column in COLUMNS])
+        writer.writerow([_cell(row.get(column)) for column in COLUMNS])
     return out.getvalue()
+
+
+def _cell(value: Any) -> Any:
+    """What is written for `value`: text a spreadsheet would take for a formula, quoted."""
+    if value is None:
+        return ''
+    if isinstance(value, str) and value.startswith(FORMULA_STARTS):
+        return f"'{value}"
+    return value

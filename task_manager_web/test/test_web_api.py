@@ -211,7 +211,9 @@ def test_history_filters_and_csv_export(http: httpx.Client) -> None:
     for _ in range(3):
         response = start(http, {'task_name': 'instant', 'task_data': {'data': True}}, wait='true')
         assert response.json()['task']['status'] == 'DONE', response.text
-    assert start(http, {'task_name': 'no/such_task'}, wait='true').status_code == 200
+    formula = '=HYPERLINK("http://example.com","x")'  # run by a spreadsheet unless quoted
+    refused = start(http, {'task_name': 'no/such_task', 'task_id': formula}, wait='true')
+    assert refused.status_code == 200
 
     done = http.get('/api/history', params={'task_name': 'instant', 'status': 'DONE'}).json()
     errors = http.get('/api/history', params={'status': 'ERROR', 'limit': 1}).json()
@@ -225,6 +227,7 @@ def test_history_filters_and_csv_export(http: httpx.Client) -> None:
     rows = list(csv.DictReader(io.StringIO(exported.text)))
     assert len(rows) == 4 and {r['source'] for r in rows} == {'WEB'}
     assert rows[0]['task_name'] == 'no/such_task' and rows[0]['error_code'] == 'unknown_task'
+    assert rows[0]['task_id'] == f"'{formula}"
     invalid = http.get('/api/history', params={'status': 'RUNNING'})
     assert invalid.status_code == 422 and invalid.json()['error']['field'] == 'status'
 
