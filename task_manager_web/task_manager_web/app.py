@@ -43,7 +43,7 @@ class Settings:
     token: str
     read_without_token: bool = False
     source: str = 'WEB'
-    """The source of the tasks started here that name none."""
+    """The source of every task started, cancelled or stopped here (a request cannot say)."""
     max_body_bytes: int = 1_048_576
     max_reads_per_client: int = MAX_READS_PER_CLIENT
     """Reads in flight per client (the token's holder, or an address without it); more: 429."""
@@ -138,7 +138,7 @@ def _add_routes(app: FastAPI) -> None:
             body.task_name,
             body.task_data,
             task_id=body.task_id,
-            source=body.source or caller.source,
+            source=caller.source,
         )
         return await _started(link, handle, response, wait, timeout_sec)
 
@@ -165,7 +165,7 @@ def _add_routes(app: FastAPI) -> None:
             link.client.start_mission,
             subtasks,
             task_id=body.task_id,
-            source=body.source or caller.source,
+            source=caller.source,
         )
         return await _started(link, handle, response, wait, timeout_sec, subtask_ids)
 

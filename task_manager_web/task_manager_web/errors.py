@@ -54,9 +54,15 @@ def error_response(
 
 async def _on_validation_error(_: Request, error: Exception) -> JSONResponse:
     assert isinstance(error, RequestValidationError)
-    message, field = describe(list(error.errors()), skip=REQUEST_PARTS)
+    errors = list(error.errors())
+    message, field = describe(errors, skip=REQUEST_PARTS)
     if message == 'the message must be a JSON object':
         message = 'the body must be a JSON object, sent with Content-Type: application/json'
+    if errors[0].get('type') == 'extra_forbidden' and field == 'source':
+        message = (
+            'source: set by the gateway (the tasks started here are its own, WEB by default), '
+            'not by the request: leave it out'
+        )
     return error_response(422, 'invalid_request', message, field)
 
 

@@ -37,7 +37,12 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         '--read-without-token', action='store_true', help='let anyone read; writing still needs it'
     )
-    parser.add_argument('--source', default='WEB', help='source of the tasks started here (WEB)')
+    parser.add_argument(
+        '--source',
+        default='WEB',
+        help='source of the tasks started, cancelled and stopped here; requests cannot set it '
+        '(WEB)',
+    )
     parser.add_argument(
         '--max-body-bytes', type=int, default=1_048_576, help='largest request body (1 MiB)'
     )

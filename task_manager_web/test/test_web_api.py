@@ -61,6 +61,16 @@ def test_start_answers_at_once_with_the_id_then_wait_gives_the_end(
     assert goal.goal_handle.request.order == 4
     state = check(http.get('/api/tasks/web-1').json(), 'task')
     assert state['source'] == 'WEB' and state['status'] in ('RECEIVED', 'IN_PROGRESS')
+    # the gateway says who started a task, not the request
+    spoofed = [
+        start(http, {'task_name': 'fib', 'task_id': 'spoofed', 'source': 'CLOUD'}),
+        http.post('/api/missions', json={'subtasks': [{'task_name': 'fib'}], 'source': 'CLOUD'}),
+    ]
+    for response in spoofed:
+        error = check(response.json(), 'error')['error']
+        assert (response.status_code, error['field']) == (422, 'source')
+        assert 'set by the gateway' in error['message']
+    assert http.get('/api/tasks/spoofed').status_code == 404
 
     waiting = started_in_background(
         pool, http, {'task_name': 'fib', 'task_data': {'order': 2}, 'task_id': 'web-2'}
@@ -173,10 +183,11 @@ def test_cancel_and_stop_end_running_tasks_canceled(
     cancel = http.post('/api/tasks/cancel', json={'task_ids': ['to-cancel']})
 
     assert cancel.status_code == 200
-    assert check(cancel.json(), 'task')['status'] == 'DONE'
+    assert check(cancel.json(), 'task')['status'] == 'DONE' and cancel.json()['source'] == 'WEB'
     assert first.result(TIMEOUT_SEC).json()['task']['status'] == 'CANCELED'
     stop = http.post('/api/stop')
     assert check(stop.json(), 'task')['task_name'] == 'system/stop'
+    assert stop.json()['source'] == 'WEB'
     assert second.result(TIMEOUT_SEC).json()['task']['status'] == 'CANCELED'
 
 

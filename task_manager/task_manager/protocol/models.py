@@ -45,14 +45,14 @@ class _Request(BaseModel):
 
 
 class StartTask(_Request):
-    """Start one task."""
+    """Start one task. Its source is not the request's to say: the web gateway sets it (`WEB`),
+    so that the history says who started it."""
 
     task_name: Name = Field(min_length=1, max_length=NAME_MAX, examples=['navigation/navigate'])
     task_data: dict[str, Any] = Field(
         default_factory=dict, description="The goal's fields (see the task's goal_schema)."
     )
     task_id: Name = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
-    source: Name = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
 
 
 class Subtask(_Request):
@@ -65,11 +65,10 @@ class Subtask(_Request):
 
 
 class StartMission(_Request):
-    """Start system/mission: its subtasks one after another."""
+    """Start system/mission: its subtasks one after another (source: as StartTask)."""
 
     subtasks: list[Subtask] = Field(min_length=1, max_length=IDS_MAX)
     task_id: Name = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
-    source: Name = Field('', max_length=NAME_MAX, description="Empty: the gateway's own name.")
 
 
 class CancelTasks(_Request):
@@ -167,14 +166,18 @@ class _Addressed(_Request):
     )
 
 
-class StartTaskRequest(StartTask, _Addressed):
+class _Sourced(_Request):
+    source: Name = Field('', max_length=NAME_MAX, description="Empty: the bridge's own name.")
+
+
+class StartTaskRequest(StartTask, _Sourced, _Addressed):
     """`start_task`. Without a task_id, the task's id is the request_id, so that a request
     delivered twice is recognised and starts nothing the second time."""
 
     op: Literal['start_task']
 
 
-class StartMissionRequest(StartMission, _Addressed):
+class StartMissionRequest(StartMission, _Sourced, _Addressed):
     """`start_mission` (the mission's id defaults to the request_id, as for start_task)."""
 
     op: Literal['start_mission']

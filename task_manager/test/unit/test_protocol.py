@@ -90,6 +90,7 @@ def test_an_event_is_a_valid_task_event_document() -> None:
         ({'task_name': 'a', 'task_data': 'text'}, 'task_data'),
         ({'task_name': 'a', 'surprise': 1}, 'surprise'),
         ({'task_name': 'a' * 257}, 'task_name'),
+        ({'task_name': 'a', 'source': 'CLOUD'}, 'source'),  # the web gateway sets it
     ],
 )
 def test_a_bad_start_request_names_its_field(body: dict[str, object], field: str) -> None:
@@ -112,7 +113,11 @@ def test_the_schema_and_the_model_agree_on_a_good_mission() -> None:
     [
         (models.StartTask, {'task_name': 'camera/take_photo\x00junk'}, 'task_name'),
         (models.StartTask, {'task_name': 'fib', 'task_id': 'a\nb'}, 'task_id'),
-        (models.StartTask, {'task_name': 'fib', 'source': '\u202eDUOLC'}, 'source'),
+        (
+            models.StartTaskRequest,
+            {'op': 'start_task', 'request_id': 'r', 'task_name': 'fib', 'source': '\u202eDUOLC'},
+            'source',
+        ),
         (models.StartMission, {'subtasks': [{'task_name': 'x\x1b'}]}, 'subtasks.0.task_name'),
         (models.CancelTasks, {'task_ids': ['ok', 'no\x00']}, 'task_ids.1'),
     ],
