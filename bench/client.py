@@ -18,9 +18,8 @@ from test_msgs.action import Fibonacci
 from bench import config
 from bench.lean_action import LeanActionClient
 from bench.replies import BenchError, Reply, stamped, wait_reply
+from task_manager.core.names import ACTIVE_TASKS_TOPIC, EXECUTE_TASK_ACTION, TASK_EVENTS_TOPIC
 from task_manager.ros import qos
-from task_manager.ros.node import ACTIVE_TASKS_TOPIC, EXECUTE_TASK_ACTION
-from task_manager.ros.task_events import TASK_EVENTS_TOPIC
 from task_manager.testing.harness import RosHarness
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskEvent

@@ -18,7 +18,8 @@ from bench.profiler import Profile, PySpyRecorder
 from bench.replies import BenchError, Reply, wait_reply
 from bench.report import Report
 from bench.stats import latency_ms
-from task_manager.ros.instances import INSTANCES_QOS, INSTANCES_TOPIC
+from task_manager.core.names import INSTANCES_TOPIC
+from task_manager.ros.instances import INSTANCES_QOS
 from task_manager_msgs.msg import TaskManagerInstance
 
 WARM_UP_ATTEMPTS = 5

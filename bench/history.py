@@ -22,11 +22,11 @@ from bench.replies import BenchError, Reply, wait_reply
 from bench.report import Row
 from bench.stats import Summary, latency_ms, ratio
 from task_manager.core.history import HistoryQuery, TaskHistory
+from task_manager.core.names import QUERY_TASK_HISTORY_SERVICE
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
 from task_manager.ros import qos
-from task_manager.ros.node import QUERY_TASK_HISTORY_SERVICE
 from task_manager_msgs.srv import QueryTaskHistory
 
 HISTORY_IN_MEMORY = Setting('history in memory', {'history_path': ''})

@@ -39,11 +39,24 @@ from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.core.errors import TaskManagerUnavailable, TaskTimeout
+from task_manager.core.names import (
+    ACTIVE_TASKS_TOPIC,
+    CANCEL_TASK,
+    EXECUTE_TASK_ACTION,
+    GET_TASK_RESULTS_SERVICE,
+    GET_TASK_STATES_SERVICE,
+    HISTORY_QUERY_LIMIT_MAX,
+    MISSION,
+    MISSION_SOURCE,
+    QUERY_TASK_HISTORY_SERVICE,
+    RESULTS_TOPIC,
+    STOP,
+)
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task_stats import TaskStats, task_stats
 from task_manager.message_values import datetime_of, json_object, json_text, stamp_of
-from task_manager.missions import MISSION_TASK, mission_task_data
 from task_manager.missions import Subtask as Subtask  # public here too, as before
+from task_manager.missions import mission_task_data
 from task_manager.pauses import Pause as Pause  # the type of TaskState.pauses
 from task_manager.pauses import PauseMethods, parse_pauses, paused_time, running_time
 from task_manager.ros import qos
@@ -54,18 +67,10 @@ from task_manager.ros.system.specs import SYSTEM_SPECS
 from task_manager.ros.task_events import TASK_EVENTS_TOPIC
 from task_manager.schedules import ScheduleMethods
 
-EXECUTE_TASK_ACTION = '/task_manager/execute_task'
-ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
-RESULTS_TOPIC = '/task_manager/results'
-GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
-GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
-QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
-HISTORY_LIMIT_MAX = 10_000  # the most rows /task_manager/query_task_history returns at once
 FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)
 TASK_MANAGER_NODE = '/task_manager'
 LIST_PARAMETERS_SERVICE = f'{TASK_MANAGER_NODE}/list_parameters'
 GET_PARAMETERS_SERVICE = f'{TASK_MANAGER_NODE}/get_parameters'
-MISSION_SOURCE = 'Mission'
 DEFAULT_TIMEOUT_SEC = 5.0
 # How long a result that arrived before its task's ENDED event waits for it (for the stamps).
 # The event is published first, so it is normally there already; this bounds a lost one.
@@ -632,7 +637,7 @@ class TaskManagerClient(PauseMethods, ScheduleMethods):
         """
         subtask_ids = [s.task_id or str(uuid.uuid4()) for s in subtasks]
         data = mission_task_data(subtasks, subtask_ids)
-        handle = TaskHandle(self, task_id or str(uuid.uuid4()), MISSION_TASK, source)
+        handle = TaskHandle(self, task_id or str(uuid.uuid4()), MISSION, source)
         handle.subtasks = [
             TaskHandle(self, subtask_id, s.task_name, MISSION_SOURCE)
             for s, subtask_id in zip(subtasks, subtask_ids, strict=True)
@@ -641,11 +646,11 @@ class TaskManagerClient(PauseMethods, ScheduleMethods):
 
     def cancel_tasks(self, task_ids: list[str], *, source: str = 'python') -> TaskResult:
         """Cancel tasks by id through system/cancel_task (whoever started them)."""
-        return self.run_task('system/cancel_task', {'cancelled_tasks': task_ids}, source=source)
+        return self.run_task(CANCEL_TASK, {'cancelled_tasks': task_ids}, source=source)
 
     def stop(self, *, source: str = 'python') -> TaskResult:
         """system/stop: cancel every task declared with cancel_on_stop."""
-        return self.run_task('system/stop', {}, source=source)
+        return self.run_task(STOP, {}, source=source)
 
     def cancel_own(self, handle: TaskHandle, timeout_sec: float) -> bool:
         """Cancel a task this client started, as its client (the task ends CANCELED)."""
@@ -782,8 +787,8 @@ class TaskManagerClient(PauseMethods, ScheduleMethods):
         `sequence` is greater; with `oldest_first` the tasks come by sequence, so that a
         consumer can resume after the last one it saw. At most `limit` (1 to 10,000).
         """
-        if not 1 <= limit <= HISTORY_LIMIT_MAX:
-            raise ValueError(f'limit must be from 1 to {HISTORY_LIMIT_MAX}, got {limit}')
+        if not 1 <= limit <= HISTORY_QUERY_LIMIT_MAX:
+            raise ValueError(f'limit must be from 1 to {HISTORY_QUERY_LIMIT_MAX}, got {limit}')
         if status and status not in FINAL_STATUSES:
             allowed = ', '.join(FINAL_STATUSES)
             raise ValueError(f'status must be one of {allowed} (or empty), got {status!r}')
@@ -830,12 +835,12 @@ class TaskManagerClient(PauseMethods, ScheduleMethods):
                 since=since,
                 until=until,
                 after_sequence=ended[-1].sequence if ended else 0,
-                limit=HISTORY_LIMIT_MAX,
+                limit=HISTORY_QUERY_LIMIT_MAX,
                 oldest_first=True,
                 timeout_sec=timeout_sec,
             )
             ended.extend(page)
-            if len(page) < HISTORY_LIMIT_MAX:
+            if len(page) < HISTORY_QUERY_LIMIT_MAX:
                 return task_stats(ended)
 
     def declared_tasks(self) -> list[dict[str, Any]]:

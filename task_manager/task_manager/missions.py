@@ -6,8 +6,6 @@ from typing import Any
 
 from task_manager.message_values import json_text
 
-MISSION_TASK = 'system/mission'
-
 
 @dataclass(frozen=True)
 class Subtask:

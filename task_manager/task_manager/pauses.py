@@ -10,13 +10,12 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import TYPE_CHECKING, Any, TypeGuard
 
+from task_manager.core.names import PAUSE as PAUSE_TASK
+from task_manager.core.names import RESUME as RESUME_TASK
 from task_manager.message_values import datetime_of_epoch
 
 if TYPE_CHECKING:
     from task_manager.client import TaskResult
-
-PAUSE_TASK = 'system/pause'
-RESUME_TASK = 'system/resume'
 
 
 @dataclass(frozen=True)

@@ -14,19 +14,19 @@ from typing import TYPE_CHECKING, Any, TypeAlias
 
 from task_manager_msgs.srv import GetSchedules
 
+from task_manager.core.names import ENABLE_SCHEDULE as ENABLE_SCHEDULE_TASK
+from task_manager.core.names import GET_SCHEDULES_SERVICE, MISSION
+from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
+from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
 from task_manager.core.schedule import OverlapPolicy
 from task_manager.core.status import TaskStatus
 from task_manager.message_values import datetime_of, datetime_of_json, json_object, json_text
-from task_manager.missions import MISSION_TASK, Subtask, mission_task_data
+from task_manager.missions import Subtask, mission_task_data
 from task_manager.pauses import RunsTasks
 
 if TYPE_CHECKING:
     from task_manager.client import TaskResult
 
-SCHEDULE_TASK = 'system/schedule'
-UNSCHEDULE_TASK = 'system/unschedule'
-ENABLE_SCHEDULE_TASK = 'system/enable_schedule'
-GET_SCHEDULES_SERVICE = '/task_manager/get_schedules'
 RUN_SOURCE_PREFIX = 'schedule:'
 """The source of a schedule's runs: this and the schedule id."""
 
@@ -288,7 +288,7 @@ class ScheduleMethods(RunsTasks):
             )
         data = mission_task_data(subtasks, [s.task_id for s in subtasks])
         return self.schedule_task(
-            MISSION_TASK,
+            MISSION,
             data,
             at=at,
             delay=delay,

@@ -5,8 +5,6 @@ from dataclasses import dataclass
 
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 
-MISSION_SOURCE = 'Mission'
-
 
 @dataclass(frozen=True)
 class SubtaskRefusal:

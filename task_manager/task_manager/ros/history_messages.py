@@ -17,6 +17,8 @@ from task_manager.core.history import (
     HistoryRow,
     TaskHistory,
 )
+from task_manager.core.names import HISTORY_QUERY_LIMIT_DEFAULT as DEFAULT_QUERY_LIMIT
+from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX as MAX_QUERY_LIMIT
 from task_manager.ros.task_events import stamp
 
 
@@ -50,8 +52,6 @@ def task_state_from_row(row: HistoryRow) -> TaskState:
 
 
 # The most tasks one query returns, however many it asks for (a response must stay small).
-MAX_QUERY_LIMIT = 10_000
-DEFAULT_QUERY_LIMIT = 100
 
 
 def _seconds(time_msg: Time) -> float | None:

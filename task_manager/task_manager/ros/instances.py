@@ -19,7 +19,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.task import Future
 from task_manager_msgs.msg import TaskManagerInstance
 
-INSTANCES_TOPIC = '/task_manager/instances'
+from task_manager.core.names import INSTANCES_TOPIC
+
 NANOSECONDS = 1_000_000_000
 
 # Each publisher keeps its one message for subscribers that join later.

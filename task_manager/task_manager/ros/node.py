@@ -10,6 +10,17 @@ from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
 from task_manager_msgs.srv import GetSchedules, GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.core.history import HistoryQuery, HistoryRow
+from task_manager.core.names import (
+    ACTIVE_TASKS_TOPIC,
+    EXECUTE_TASK_ACTION,
+    GET_SCHEDULES_SERVICE,
+    GET_TASK_RESULTS_SERVICE,
+    GET_TASK_STATES_SERVICE,
+    NODE_NAME,
+    QUERY_TASK_HISTORY_SERVICE,
+    RESULTS_TOPIC,
+    SYSTEM_TASK_NAMES,
+)
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.ros import qos
@@ -31,19 +42,11 @@ from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
 from task_manager.ros.scheduler import TaskScheduler
 from task_manager.ros.service_runner import ServiceTaskRunner
-from task_manager.ros.system import SYSTEM_TASK_NAMES, create_system_runners
+from task_manager.ros.system import create_system_runners
 from task_manager.ros.system.schedules import schedule_msg
 from task_manager.ros.task_events import TaskEventStream, task_state_msg, to_json
 from task_manager.ros.task_servers import create_task_servers
 
-NODE_NAME = 'task_manager'
-EXECUTE_TASK_ACTION = '/task_manager/execute_task'
-ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
-RESULTS_TOPIC = '/task_manager/results'
-GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
-GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
-QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
-GET_SCHEDULES_SERVICE = '/task_manager/get_schedules'
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
 SHUTDOWN_MARGIN_SEC = 1.0
 # Retention runs once a minute and deletes at most a batch, so that it never holds up dispatch.

@@ -10,6 +10,7 @@ from rclpy.action import ActionServer, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
+from task_manager.core.names import TASK_SERVER_PREFIX
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.ros.dispatcher import TaskDispatcher
@@ -17,7 +18,6 @@ from task_manager.ros.goal_binding import GoalTaskBinding
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.message_json import TaskDataError, message_from_dict, message_to_json
 
-TASK_SERVER_PREFIX = '/task_manager/task/'
 TASK_SERVER_SOURCE = 'task_server'
 
 

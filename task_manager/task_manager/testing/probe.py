@@ -10,6 +10,7 @@ from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
 from unique_identifier_msgs.msg import UUID
 
+from task_manager.core.names import EXECUTE_TASK_ACTION
 from task_manager.ros import qos
 from task_manager.testing.harness import (
     RosHarness,
@@ -18,7 +19,6 @@ from task_manager.testing.harness import (
     wait_for_future,
 )
 
-EXECUTE_TASK_ACTION = '/task_manager/execute_task'
 SendGoalResponse = ExecuteTask.Impl.SendGoalService.Response
 DEFAULT_TIMEOUT_SEC = 15.0
 WARM_UP_ATTEMPTS = 5

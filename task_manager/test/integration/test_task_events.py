@@ -14,8 +14,8 @@ from task_manager_msgs.srv import GetTaskStates
 from test_msgs.action import Fibonacci
 from test_msgs.srv import BasicTypes
 
+from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.ros import qos
-from task_manager.ros.task_events import TASK_EVENTS_TOPIC
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,

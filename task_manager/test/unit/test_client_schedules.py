@@ -11,10 +11,10 @@ from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import GetSchedules
 
 from task_manager.client import Subtask, TaskResult
+from task_manager.core.names import GET_SCHEDULES_SERVICE
 from task_manager.core.schedule import OverlapPolicy
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.schedules import (
-    GET_SCHEDULES_SERVICE,
     ScheduleInfo,
     ScheduleMethods,
     iso_8601,

@@ -10,7 +10,8 @@ from task_manager.cli.common import connected, duration_text, output
 from task_manager.cli.durations import parse_span
 from task_manager.cli.records import history_data, json_line
 from task_manager.cli.verbs.watch import result_line
-from task_manager.client import FINAL_STATUSES, HISTORY_LIMIT_MAX
+from task_manager.client import FINAL_STATUSES
+from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX
 
 
 def _span(text: str, option: str) -> timedelta:
@@ -47,7 +48,7 @@ def history(
     source: str = typer.Option('', '--source', help='Only tasks from this source'),
     mission: str = typer.Option('', '--mission', help='Only the subtasks of this mission id'),
     limit: int = typer.Option(
-        100, '--limit', min=1, max=HISTORY_LIMIT_MAX, help='At most this many tasks'
+        100, '--limit', min=1, max=HISTORY_QUERY_LIMIT_MAX, help='At most this many tasks'
     ),
     oldest_first: bool = typer.Option(
         False, '--oldest-first', help='By sequence number, oldest first (default: newest first)'

@@ -14,10 +14,9 @@ from task_manager.ros.system.schedules import (
     ScheduleTaskRunner,
     UnscheduleRunner,
 )
-from task_manager.ros.system.specs import SYSTEM_TASK_NAMES
 from task_manager.ros.system.wait import WaitRunner
 
-__all__ = ['SYSTEM_TASK_NAMES', 'create_system_runners']
+__all__ = ['create_system_runners']
 
 
 def create_system_runners(

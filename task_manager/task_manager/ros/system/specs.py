@@ -2,32 +2,19 @@
 
 from typing import Any
 
-from task_manager.core.task_spec import InterfaceName, PauseMode, TaskKind, TaskSpec
-
-MISSION = 'system/mission'
-CANCEL_TASK = 'system/cancel_task'
-CANCEL_TASK_ALIAS = 'system/cancel_tasks'
-STOP = 'system/stop'
-WAIT = 'system/wait'
-PAUSE = 'system/pause'
-RESUME = 'system/resume'
-SCHEDULE = 'system/schedule'
-UNSCHEDULE = 'system/unschedule'
-ENABLE_SCHEDULE = 'system/enable_schedule'
-SYSTEM_TASK_NAMES = frozenset(
-    {
-        MISSION,
-        CANCEL_TASK,
-        CANCEL_TASK_ALIAS,
-        STOP,
-        WAIT,
-        PAUSE,
-        RESUME,
-        SCHEDULE,
-        UNSCHEDULE,
-        ENABLE_SCHEDULE,
-    }
+from task_manager.core.names import (
+    CANCEL_TASK,
+    CANCEL_TASK_ALIAS,
+    ENABLE_SCHEDULE,
+    MISSION,
+    PAUSE,
+    RESUME,
+    SCHEDULE,
+    STOP,
+    UNSCHEDULE,
+    WAIT,
 )
+from task_manager.core.task_spec import InterfaceName, PauseMode, TaskKind, TaskSpec
 
 
 def _system_spec(name: str, kind: TaskKind, interface: str, **properties: Any) -> TaskSpec:

@@ -1,0 +1,59 @@
+"""Every name and limit of the Task Manager on the wire, defined once.
+
+The node, the client, the gateways and the tests import them from here: the node's name, its
+action, topics and services, the system tasks, the source of a mission's subtasks, and the
+limits a request is held to.
+"""
+
+NODE_NAME = 'task_manager'
+
+# ---- the node's public ROS interfaces (INTERFACES.md, then ours) --------------------------------
+EXECUTE_TASK_ACTION = '/task_manager/execute_task'
+ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
+RESULTS_TOPIC = '/task_manager/results'
+TASK_EVENTS_TOPIC = '/task_manager/task_events'
+INSTANCES_TOPIC = '/task_manager/instances'
+GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
+GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
+QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
+GET_SCHEDULES_SERVICE = '/task_manager/get_schedules'
+TASK_SERVER_PREFIX = '/task_manager/task/'
+"""With enable_task_servers, task NAME is also served at TASK_SERVER_PREFIX + NAME."""
+
+# ---- the system tasks ---------------------------------------------------------------------------
+MISSION = 'system/mission'
+CANCEL_TASK = 'system/cancel_task'
+CANCEL_TASK_ALIAS = 'system/cancel_tasks'
+"""The seed's other name for system/cancel_task."""
+STOP = 'system/stop'
+WAIT = 'system/wait'
+PAUSE = 'system/pause'
+RESUME = 'system/resume'
+SCHEDULE = 'system/schedule'
+UNSCHEDULE = 'system/unschedule'
+ENABLE_SCHEDULE = 'system/enable_schedule'
+SYSTEM_TASK_NAMES = frozenset(
+    {
+        MISSION,
+        CANCEL_TASK,
+        CANCEL_TASK_ALIAS,
+        STOP,
+        WAIT,
+        PAUSE,
+        RESUME,
+        SCHEDULE,
+        UNSCHEDULE,
+        ENABLE_SCHEDULE,
+    }
+)
+
+MISSION_SOURCE = 'Mission'
+"""The source of a mission's subtasks."""
+
+# ---- limits -------------------------------------------------------------------------------------
+HISTORY_QUERY_LIMIT_MAX = 10_000
+"""The most rows one /task_manager/query_task_history answer holds."""
+HISTORY_QUERY_LIMIT_DEFAULT = 100
+"""The rows of a history query that names no limit."""
+IDS_MAX = 1000
+"""The most task ids in one cancel, and subtasks in one mission, from a gateway."""
