@@ -10,13 +10,11 @@ from typing import Annotated, Any, Literal
 
 from pydantic import AfterValidator, BaseModel, ConfigDict, Field, RootModel
 
+from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, IDS_MAX
 from task_manager.core.request_text import MAX_LENGTH, is_refused_character
 
 NAME_MAX = MAX_LENGTH
 """The longest task name, task id or source accepted."""
-IDS_MAX = 1000
-"""The most task ids in one cancel, and subtasks in one mission."""
-HISTORY_LIMIT_MAX = 10_000
 
 TaskStatusName = Literal['RECEIVED', 'IN_PROGRESS', 'PAUSED', 'DONE', 'ERROR', 'CANCELED']
 ErrorCodeName = Literal[
@@ -87,7 +85,7 @@ class HistoryQuery(_Request):
     since: datetime | None = Field(None, description='Ended at or after this moment.')
     until: datetime | None = Field(None, description='Ended at or before this moment.')
     after_sequence: int = Field(0, ge=0, description='Only tasks with a greater sequence.')
-    limit: int = Field(100, ge=1, le=HISTORY_LIMIT_MAX)
+    limit: int = Field(100, ge=1, le=HISTORY_QUERY_LIMIT_MAX)
     oldest_first: bool = Field(False, description='By sequence, to resume after the last seen.')
 
 
