@@ -13,9 +13,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
-from task_manager_mqtt.broker import MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient
-from task_manager_mqtt.testing import BridgeProcess
+from task_manager_mqtt.testing import BridgeProcess, BrokerProcess
 
 from bench import config
 from bench.context import BenchContext
@@ -30,8 +29,8 @@ ROBOT = 'bench_robot'
 
 
 @contextmanager
-def running_bridge(ctx: BenchContext) -> Iterator[tuple[MosquittoBroker, FleetClient]]:
-    broker = MosquittoBroker(ctx.log_dir / 'mqtt_broker', [ROBOT])
+def running_bridge(ctx: BenchContext) -> Iterator[tuple[BrokerProcess, FleetClient]]:
+    broker = BrokerProcess(ctx.log_dir / 'mqtt_broker', [ROBOT])
     broker.start()
     bridge = BridgeProcess(ROBOT, broker.url(ROBOT), ctx.log_dir / 'mqtt_acked')
     try:
@@ -79,7 +78,7 @@ def run(ctx: BenchContext) -> None:
         _outage(ctx, broker, fleet)
 
 
-def _outage(ctx: BenchContext, broker: MosquittoBroker, fleet: FleetClient) -> None:
+def _outage(ctx: BenchContext, broker: BrokerProcess, fleet: FleetClient) -> None:
     """Stop the broker, end MQTT_OUTAGE_TASKS tasks, start it again: until all are delivered."""
     count = config.MQTT_OUTAGE_TASKS
     arrived: list[float] = []

@@ -16,7 +16,6 @@ import subprocess
 from collections.abc import Sequence
 from pathlib import Path
 
-from task_manager.testing.process import NodeProcess
 from task_manager_mqtt.settings import (
     DEFAULT_MAX_PAYLOAD_BYTES,
     DEFAULT_PREFIX,
@@ -26,7 +25,6 @@ from task_manager_mqtt.topics import ANY_ROBOT, OUTGOING, Topics
 
 CLOUD_USER = 'cloud'
 READY_LINE = r'mosquitto version \S+ running'
-START_TIMEOUT_SEC = 10.0
 MAX_QUEUED_MESSAGES = 100_000
 """Per client, while it is away (mosquitto's default, 1,000, would drop a long outage's)."""
 
@@ -65,7 +63,6 @@ class MosquittoBroker:
         self.robots = list(robots)
         self.clouds = list(clouds)
         self.passwords = {user: secrets.token_urlsafe(12) for user in (*clouds, *robots)}
-        self.process: NodeProcess | None = None
         self._write_files()
 
     def url(self, user: str = CLOUD_USER) -> str:
@@ -76,17 +73,6 @@ class MosquittoBroker:
     def command(self) -> list[str]:
         """The broker's command line (which logs READY_LINE once it listens)."""
         return [mosquitto_executable(), '-c', str(self.folder / 'mosquitto.conf')]
-
-    def start(self) -> None:
-        self.process = NodeProcess(None, command=self.command)
-        self.process.wait_for_log(READY_LINE, START_TIMEOUT_SEC)
-
-    def stop(self) -> int:
-        """SIGINT: mosquitto saves its sessions and queued messages, then exits."""
-        if self.process is None:
-            return 0
-        process, self.process = self.process, None
-        return process.stop()
 
     def _write_files(self) -> None:
         self.folder.mkdir(parents=True, exist_ok=True)

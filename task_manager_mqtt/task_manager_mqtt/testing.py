@@ -14,6 +14,7 @@ from paho.mqtt.enums import CallbackAPIVersion
 from paho.mqtt.reasoncodes import ReasonCode
 
 from task_manager.testing.process import NodeProcess
+from task_manager_mqtt.broker import READY_LINE, MosquittoBroker
 
 BRIDGE_EXECUTABLE = str(Path(sys.executable).with_name('task-manager-mqtt'))
 CONNECTED_LINE = r'connected to the broker'
@@ -150,3 +151,24 @@ class RawClient:
         with self._changed:
             self.disconnections.append(str(reason))
             self._changed.notify_all()
+
+
+BROKER_START_TIMEOUT_SEC = 10.0
+
+
+class BrokerProcess(MosquittoBroker):
+    """A MosquittoBroker the tests and the bench start and stop themselves (`make fleet` runs
+    its command under its own supervisor)."""
+
+    process: NodeProcess | None = None
+
+    def start(self) -> None:
+        self.process = NodeProcess(None, command=self.command)
+        self.process.wait_for_log(READY_LINE, BROKER_START_TIMEOUT_SEC)
+
+    def stop(self) -> int:
+        """SIGINT: mosquitto saves its sessions and queued messages, then exits."""
+        if self.process is None:
+            return 0
+        process, self.process = self.process, None
+        return process.stop()

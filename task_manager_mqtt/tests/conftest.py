@@ -7,16 +7,16 @@ from pathlib import Path
 import pytest
 
 from task_manager.testing.gateway import Robot
-from task_manager_mqtt.broker import CLOUD_USER, MosquittoBroker
+from task_manager_mqtt.broker import CLOUD_USER
 from task_manager_mqtt.fleet_client import FleetClient
-from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess
+from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, BrokerProcess
 
 ONLINE_TIMEOUT_SEC = 20.0
 
 
 @pytest.fixture
-def broker(tmp_path: Path) -> Iterator[MosquittoBroker]:
-    broker = MosquittoBroker(
+def broker(tmp_path: Path) -> Iterator[BrokerProcess]:
+    broker = BrokerProcess(
         tmp_path / 'broker', robots=[ROBOT, 'robot2'], clouds=[CLOUD_USER, TESTER]
     )
     broker.start()
@@ -25,7 +25,7 @@ def broker(tmp_path: Path) -> Iterator[MosquittoBroker]:
 
 
 @pytest.fixture
-def start_bridge(broker: MosquittoBroker, tmp_path: Path) -> Iterator[Callable[..., BridgeProcess]]:
+def start_bridge(broker: BrokerProcess, tmp_path: Path) -> Iterator[Callable[..., BridgeProcess]]:
     """Start `task-manager-mqtt` for robot1 (args added); stopped cleanly at the end."""
     bridges: list[BridgeProcess] = []
 
@@ -43,7 +43,7 @@ def start_bridge(broker: MosquittoBroker, tmp_path: Path) -> Iterator[Callable[.
 
 
 @pytest.fixture
-def fleet(broker: MosquittoBroker) -> Iterator[FleetClient]:
+def fleet(broker: BrokerProcess) -> Iterator[FleetClient]:
     with FleetClient(broker.url(), client_id='test-cloud', events=True) as client:
         yield client
 

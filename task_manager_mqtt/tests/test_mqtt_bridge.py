@@ -9,14 +9,20 @@ import pytest
 
 from task_manager.client import TaskManagerClient
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
-from task_manager_mqtt.broker import MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient, FleetError
 from task_manager_mqtt.settings import (
     DEFAULT_MAX_PAYLOAD_BYTES,
     DEFAULT_PREFIX,
     PACKET_HEADROOM_BYTES,
 )
-from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, RawClient, Received
+from task_manager_mqtt.testing import (
+    ROBOT,
+    TESTER,
+    BridgeProcess,
+    BrokerProcess,
+    RawClient,
+    Received,
+)
 from task_manager_mqtt.topics import Topics
 
 pytestmark = pytest.mark.ros
@@ -92,7 +98,7 @@ def test_a_request_delivered_twice_starts_one_task(online: FleetClient) -> None:
 
 
 def test_every_result_of_a_broker_outage_arrives_once_in_order(
-    online: FleetClient, broker: MosquittoBroker
+    online: FleetClient, broker: BrokerProcess
 ) -> None:
     results: list[dict[str, Any]] = []
     online.on_result(lambda _, task: results.append(task))
@@ -128,7 +134,7 @@ def test_a_restarted_bridge_sends_what_ended_meanwhile_and_nothing_again(
 
 
 def test_bad_requests_get_an_error_reply_and_start_nothing(
-    online: FleetClient, broker: MosquittoBroker
+    online: FleetClient, broker: BrokerProcess
 ) -> None:
     unknown = check(online.request(ROBOT, 'dance').result(TIMEOUT_SEC), 'mqtt_reply')
     missing = check(online.request(ROBOT, 'start_task').result(TIMEOUT_SEC), 'mqtt_reply')
@@ -150,7 +156,7 @@ def test_bad_requests_get_an_error_reply_and_start_nothing(
 
 def test_poison_messages_get_one_answer_each_and_the_robot_still_answers(
     robot: Robot,
-    broker: MosquittoBroker,
+    broker: BrokerProcess,
     start_bridge: Callable[..., BridgeProcess],
     fleet: FleetClient,
 ) -> None:

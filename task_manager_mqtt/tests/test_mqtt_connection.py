@@ -8,10 +8,9 @@ from pathlib import Path
 import pytest
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
-from task_manager_mqtt.broker import MosquittoBroker
 from task_manager_mqtt.fleet_client import FleetClient, RobotView
 from task_manager_mqtt.settings import DEFAULT_PREFIX as PREFIX
-from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, RawClient
+from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, BrokerProcess, RawClient
 from task_manager_mqtt.topics import Topics
 
 pytestmark = pytest.mark.ros
@@ -33,7 +32,7 @@ def wait_state(fleet: FleetClient, state: str) -> None:
 
 
 def test_retained_state_last_will_and_clean_stop(
-    robot: Robot, start_bridge: Callable[..., BridgeProcess], broker: MosquittoBroker
+    robot: Robot, start_bridge: Callable[..., BridgeProcess], broker: BrokerProcess
 ) -> None:
     bridge = start_bridge('--keepalive-sec', str(KEEPALIVE_SEC))
     with FleetClient(broker.url()) as fleet:  # joins later: gets the retained state
@@ -58,7 +57,7 @@ def test_retained_state_last_will_and_clean_stop(
 
 
 def test_a_robot_writes_only_its_own_outgoing_topics(
-    broker: MosquittoBroker, fleet: FleetClient
+    broker: BrokerProcess, fleet: FleetClient
 ) -> None:
     seen: list[str] = []
     fleet.on_result(lambda robot_id, _: seen.append(robot_id))
@@ -77,7 +76,7 @@ def test_a_robot_writes_only_its_own_outgoing_topics(
 
 
 def test_another_account_cannot_take_over_a_bridges_connection(
-    broker: MosquittoBroker, start_bridge: Callable[..., BridgeProcess], fleet: FleetClient
+    broker: BrokerProcess, start_bridge: Callable[..., BridgeProcess], fleet: FleetClient
 ) -> None:
     bridge = start_bridge()
     wait_state(fleet, 'ONLINE')  # (published once it has subscribed to its requests)
@@ -92,7 +91,7 @@ def test_another_account_cannot_take_over_a_bridges_connection(
 
 
 def test_wrong_credentials_exit_2_with_one_line(
-    broker: MosquittoBroker, start_bridge: Callable[..., BridgeProcess]
+    broker: BrokerProcess, start_bridge: Callable[..., BridgeProcess]
 ) -> None:
     bridge = start_bridge(url=f'mqtt://{ROBOT}:wrong@127.0.0.1:{broker.port}', wait=False)
     assert bridge.wait_exit(TIMEOUT_SEC) == 2
@@ -103,7 +102,7 @@ def test_wrong_credentials_exit_2_with_one_line(
 def test_a_broker_down_at_start_is_retried_and_said_once(
     tmp_path: Path, start_bridge: Callable[..., BridgeProcess]
 ) -> None:
-    later = MosquittoBroker(tmp_path / 'later', robots=[ROBOT])
+    later = BrokerProcess(tmp_path / 'later', robots=[ROBOT])
     bridge = start_bridge(url=later.url(ROBOT), wait=False)
     bridge.wait_for_log('cannot reach the broker', TIMEOUT_SEC)
     threading.Event().wait(RETRIES_SEC)  # time for more attempts, which must not be logged
@@ -119,7 +118,7 @@ def test_a_broker_down_at_start_is_retried_and_said_once(
 def test_tls_with_the_brokers_own_certificate_authority(
     robot: Robot, start_bridge: Callable[..., BridgeProcess], tmp_path: Path
 ) -> None:
-    secure = MosquittoBroker(tmp_path / 'tls', robots=[ROBOT], tls=True)
+    secure = BrokerProcess(tmp_path / 'tls', robots=[ROBOT], tls=True)
     secure.start()
     try:
         assert secure.url().startswith('mqtts://') and secure.ca_file is not None
