@@ -119,7 +119,7 @@ lint: install
 # `make run PARAMS=file.yaml` gives the Task Manager another parameters file; the dashboard
 # (the web gateway) listens on WEB_PORT.
 # ROS_HOME is DEMO_ROS_HOME; the history file is the Task Manager's default one for its ROS
-# domain (README, Task history).
+# domain (docs/starting-and-watching.md, "Where the history file lives").
 run: install
 	@echo "task history: $(DEMO_ROS_HOME)/task_manager/domain$(or $(ROS_DOMAIN_ID),0)/task_manager/history.sqlite (ROS_HOME=$(DEMO_ROS_HOME))"
 	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
