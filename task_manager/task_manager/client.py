@@ -51,6 +51,7 @@ from task_manager.core.names import (
     QUERY_TASK_HISTORY_SERVICE,
     RESULTS_TOPIC,
     STOP,
+    TASK_EVENTS_TOPIC,
 )
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task_stats import TaskStats, task_stats
@@ -64,7 +65,6 @@ from task_manager.ros.action_services import ActionServicesClient
 from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.futures import result_of
 from task_manager.ros.system.specs import SYSTEM_SPECS
-from task_manager.ros.task_events import TASK_EVENTS_TOPIC
 from task_manager.schedules import ScheduleMethods
 
 FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)
