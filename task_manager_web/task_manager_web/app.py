@@ -1,7 +1,10 @@
 """The gateway's HTTP API, event stream and dashboard (a FastAPI application).
 
 Requests and answers are the documents of `task_manager.protocol` (its JSON Schema files);
-the OpenAPI description is at /openapi.json and browsable at /docs.
+the OpenAPI description is at /openapi.json and browsable at /docs (Swagger UI, served here).
+Before routing, a request passes three doors (middlewares), outermost first: FrontDoor (Host
+allow-list; the security headers of every answer), ReadBound (reads in flight per client),
+BodyDoor (size, time and JSON of the body).
 """
 
 import asyncio
@@ -15,7 +18,6 @@ from typing import Annotated, Any, Literal
 from fastapi import Depends, FastAPI, Query, Request, Response
 from fastapi.responses import FileResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
-from fastapi_swagger import patch_fastapi
 
 from task_manager.client import Subtask as ClientSubtask
 from task_manager.client import TaskHandle, TaskManagerClient
@@ -23,8 +25,9 @@ from task_manager.core.request_text import text_problem
 from task_manager.protocol import models
 from task_manager.protocol.records import declared_json, result_json, task_json
 from task_manager_web.access import Access, Reader, StreamReader, Writer
-from task_manager_web.body_limit import BodyLimit
+from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.errors import ApiError, add_error_handlers
+from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
 from task_manager_web.history_csv import history_csv
 from task_manager_web.node_link import EventStream, NodeLink
 from task_manager_web.read_bound import ReadBound
@@ -45,6 +48,9 @@ class Settings:
     source: str = 'WEB'
     """The source of every task started, cancelled or stopped here (a request cannot say)."""
     max_body_bytes: int = 1_048_576
+    body_timeout_sec: float = BODY_TIMEOUT_SEC
+    allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
+    """The names a request's Host header may give (its port is not compared)."""
     max_reads_per_client: int = MAX_READS_PER_CLIENT
     """Reads in flight per client (the token's holder, or an address without it); more: 429."""
 
@@ -71,14 +77,18 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
         redoc_url=None,
         swagger_ui_oauth2_redirect_url=None,
     )
-    patch_fastapi(app, docs_url='/docs', redirect_from_root_to_docs=False)
     add_error_handlers(app)
     access = Access(settings.token, settings.read_without_token, settings.source)
     app.state.access = access
-    app.add_middleware(BodyLimit, max_bytes=settings.max_body_bytes)
+    # the last added is the outermost
+    app.add_middleware(
+        BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
+    )
     app.add_middleware(ReadBound, access=access, max_reads=settings.max_reads_per_client)
+    app.add_middleware(FrontDoor, allowed_hosts=settings.allowed_hosts)
     _add_routes(app)
     app.mount('/static', StaticFiles(directory=str(STATIC)), name='static')
+    app.mount('/swagger', StaticFiles(packages=[('fastapi_swagger', 'resources')]), name='swagger')
     return app
 
 
@@ -102,6 +112,11 @@ def _add_routes(app: FastAPI) -> None:
     @app.get('/', include_in_schema=False)
     async def dashboard() -> FileResponse:
         return FileResponse(str(STATIC / 'index.html'))
+
+    @app.get('/docs', include_in_schema=False)
+    async def docs() -> FileResponse:
+        """Swagger UI (fastapi_swagger's files), its URLs relative: never built from Host."""
+        return FileResponse(str(STATIC / 'docs.html'))
 
     @app.get('/api/health', tags=['state'])
     async def health(link: Link) -> dict[str, Any]:

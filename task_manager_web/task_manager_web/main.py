@@ -17,12 +17,12 @@ import uvicorn
 from task_manager.client import TaskManagerClient
 from task_manager.discovery import use_quick_discovery
 from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
+from task_manager_web.front_door import LOCAL_HOSTS
+from task_manager_web.http_server import HEADER_TIMEOUT_SEC, server_config
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080
 CLIENT_TIMEOUT_SEC = 5.0
-SHUTDOWN_GRACE_SEC = 2
-"""How long open event streams may keep the gateway from stopping."""
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
@@ -53,7 +53,26 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         help='reads in flight per client (the token, or an address without it); more get 429 '
         f'({MAX_READS_PER_CLIENT})',
     )
-    parser.add_argument('--access-log', action='store_true', help='log every request')
+    parser.add_argument(
+        '--allowed-host',
+        action='append',
+        default=[],
+        metavar='NAME',
+        help='a name the Host header may give besides 127.0.0.1, localhost, ::1 and the --host '
+        "address (e.g. the robot's name behind a reverse proxy); again for more",
+    )
+    parser.add_argument(
+        '--header-timeout-sec',
+        type=float,
+        default=HEADER_TIMEOUT_SEC,
+        help="a request's head must arrive within this, else the connection is closed "
+        f'({HEADER_TIMEOUT_SEC:g})',
+    )
+    parser.add_argument(
+        '--access-log',
+        action='store_true',
+        help='print a line per request (its token parameter removed)',
+    )
     return parser.parse_args(argv)
 
 
@@ -102,16 +121,12 @@ def main(argv: list[str] | None = None) -> None:
         source=arguments.source,
         max_body_bytes=arguments.max_body_bytes,
         max_reads_per_client=arguments.max_reads_per_client,
+        allowed_hosts=(*LOCAL_HOSTS, arguments.host, *arguments.allowed_host),
     )
     app = create_app(
         settings, lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC)
     )
-    config = uvicorn.Config(
-        app,
-        log_level='warning',
-        access_log=arguments.access_log,
-        timeout_graceful_shutdown=SHUTDOWN_GRACE_SEC,
-    )
+    config = server_config(app, arguments.header_timeout_sec, arguments.access_log)
     server = uvicorn.Server(config)
     host, port = listener.getsockname()[:2]
     shown_host = f'[{host}]' if ':' in host else host

@@ -43,13 +43,25 @@ def page(browser: Browser, robot: Robot, gateway: GatewayProcess) -> Iterator[Pa
     expect.set_options(timeout=EXPECT_TIMEOUT_MS)
     context = browser.new_context(viewport={'width': 1280, 'height': 900})
     page = context.new_page()
-    errors: list[str] = []
-    page.on('pageerror', lambda error: errors.append(str(error)))
+    errors = watch_errors(page)
     page.goto(f'{gateway.url}/?token={gateway.token}')
     expect(page.locator('#connection')).to_have_text('connected')
     yield page
     context.close()
     assert not errors, errors
+
+
+def watch_errors(page: Page) -> list[str]:
+    """The page's script errors and what its Content-Security-Policy refused, as they come."""
+    errors: list[str] = []
+    page.on('pageerror', lambda error: errors.append(str(error)))
+    page.on(
+        'console',
+        lambda message: (
+            errors.append(message.text) if 'Content Security Policy' in message.text else None
+        ),
+    )
+    return errors
 
 
 @pytest.fixture
@@ -127,3 +139,21 @@ def test_the_dashboard_says_when_the_node_is_gone_and_recovers_by_itself(
     expect(page.locator('#connection')).to_have_text('connected')
     expect(page.locator('#banner')).to_be_hidden()
     expect(page.locator('body')).not_to_have_class('stale')
+
+
+def test_the_api_docs_render_under_the_content_security_policy(
+    browser: Browser, gateway: GatewayProcess
+) -> None:
+    expect.set_options(timeout=EXPECT_TIMEOUT_MS)
+    context = browser.new_context()
+    page = context.new_page()
+    errors = watch_errors(page)
+
+    page.goto(f'{gateway.url}/docs')
+
+    expect(page.locator('#swagger-ui')).to_contain_text('/api/tasks/start')
+    page.locator('.opblock-summary', has_text='/api/tasks/start').click()  # its body's schema
+    expect(page.locator('.opblock-body').first).to_contain_text('task_name')
+    expect(page.locator('.models')).to_contain_text('StartTask')
+    context.close()
+    assert not errors, errors
