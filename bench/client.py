@@ -19,7 +19,7 @@ from bench import config
 from bench.lean_action import LeanActionClient
 from bench.replies import BenchError, Reply, stamped, wait_reply
 from task_manager.core.names import ACTIVE_TASKS_TOPIC, EXECUTE_TASK_ACTION, TASK_EVENTS_TOPIC
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskEvent

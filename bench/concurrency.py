@@ -28,8 +28,8 @@ from bench.processes import ResourceSampler, cpu_percent
 from bench.replies import BenchError
 from bench.report import Row
 from bench.stats import Summary, last_reply_after, ratio
-from task_manager.ros import qos
-from task_manager.ros.futures import result_of
+from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.futures import result_of
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray
 
 THREAD_GROWTH_ALLOWED = 2

@@ -20,7 +20,7 @@ from test_msgs.srv import BasicTypes
 from bench.client import event_and_task_id
 from bench.processes import spin_child
 from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager_msgs.msg import TaskEvent
 
 LISTENER_NODE_NAME = 'task_manager_bench_event_listener'

@@ -18,7 +18,7 @@ from bench.event_listener import EVENT_COUNTS_SERVICE
 from bench.node_settings import Setting, compare
 from bench.processes import start_event_listener
 from bench.replies import BenchError, wait_reply
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 
 TASK_EVENTS = ('RECEIVED', 'STARTED', 'ENDED')
 COUNTS_TIMEOUT_SEC = 30.0

@@ -26,7 +26,7 @@ from task_manager.core.names import QUERY_TASK_HISTORY_SERVICE
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager_msgs.srv import QueryTaskHistory
 
 HISTORY_IN_MEMORY = Setting('history in memory', {'history_path': ''})

@@ -14,7 +14,7 @@ from bench.context import BenchContext
 from bench.replies import BenchError
 from bench.report import Row
 from bench.stats import last_reply_after
-from task_manager.ros.futures import result_of
+from task_manager.rclpy_tools.futures import result_of
 
 MIB = 1024 * 1024
 GROWTH_TARGET_PERCENT = 10.0

@@ -24,8 +24,8 @@ from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
 from bench.replies import Reply, stamped
-from task_manager.ros.futures import result_of
-from task_manager.ros.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.futures import result_of
+from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 
 FEEDBACK_DEPTH = 10
 

@@ -15,7 +15,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-from task_manager.ros.cleanup import destroy_waitables
+from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.testing.process import task_manager_executable
 
 STOP_TIMEOUT_SEC = 10.0

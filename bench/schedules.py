@@ -40,7 +40,7 @@ from task_manager.core.history import TaskHistory
 from task_manager.core.names import GET_TASK_STATES_SERVICE, RESULTS_TOPIC
 from task_manager.core.schedule import ScheduleSpec, first_fire_time
 from task_manager.core.schedule_book import ScheduleState, run_task_id
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager_msgs.msg import TaskDoneResult
 from task_manager_msgs.srv import GetTaskStates
 

@@ -23,7 +23,7 @@ from test_msgs.action import Fibonacci
 from bench import config
 from bench.lean_action import InstantActionServer
 from bench.processes import spin_child
-from task_manager.ros.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 
 SERVER_NODE_NAME = 'task_manager_bench_servers'
 FEEDBACK_SEQUENCE_LENGTH = 10

@@ -54,17 +54,17 @@ from task_manager.core.names import (
     TASK_EVENTS_TOPIC,
 )
 from task_manager.core.status import ErrorCode, TaskStatus
+from task_manager.core.system_tasks import SYSTEM_SPECS
 from task_manager.core.task_stats import TaskStats, task_stats
 from task_manager.message_values import datetime_of, json_object, json_text, stamp_of
 from task_manager.missions import Subtask as Subtask  # public here too, as before
 from task_manager.missions import mission_task_data
 from task_manager.pauses import Pause as Pause  # the type of TaskState.pauses
 from task_manager.pauses import PauseMethods, parse_pauses, paused_time, running_time
-from task_manager.ros import qos
-from task_manager.ros.action_services import ActionServicesClient
-from task_manager.ros.cleanup import destroy_waitables
-from task_manager.ros.futures import result_of
-from task_manager.ros.system.specs import SYSTEM_SPECS
+from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.action_services import ActionServicesClient
+from task_manager.rclpy_tools.cleanup import destroy_waitables
+from task_manager.rclpy_tools.futures import result_of
 from task_manager.schedules import ScheduleMethods
 
 FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)

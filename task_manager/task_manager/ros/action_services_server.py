@@ -32,10 +32,10 @@ from rclpy.qos import QoSProfile, qos_profile_action_status_default
 from rclpy.task import Future
 from rclpy.timer import Timer
 
-from task_manager.ros.action_services import action_service_name
-from task_manager.ros.cleanup import destroy_timer
-from task_manager.ros.futures import resolved
-from task_manager.ros.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.action_services import action_service_name
+from task_manager.rclpy_tools.cleanup import destroy_timer
+from task_manager.rclpy_tools.futures import resolved
+from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 from task_manager.ros.turn_publication import TurnPublication
 
 RESULT_TIMEOUT_SEC = 10.0

@@ -19,10 +19,7 @@ from task_manager.core.request_text import loggable, request_problem
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
-from task_manager.ros import task_log
-from task_manager.ros.active_tasks import ActiveTasksPublication
-from task_manager.ros.execution import Execution, TaskRunner
-from task_manager.ros.futures import (
+from task_manager.rclpy_tools.futures import (
     all_completed,
     completed_future,
     first_completed,
@@ -30,6 +27,9 @@ from task_manager.ros.futures import (
     result_of,
     wait_for,
 )
+from task_manager.ros import task_log
+from task_manager.ros.active_tasks import ActiveTasksPublication
+from task_manager.ros.execution import Execution, TaskRunner
 from task_manager.ros.history_writer import HistoryWriter
 from task_manager.ros.message_json import TaskDataError
 from task_manager.ros.pause_control import PauseControl

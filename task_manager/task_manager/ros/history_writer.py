@@ -19,7 +19,7 @@ from rclpy.timer import Timer
 
 from task_manager.core.history import TaskHistory
 from task_manager.core.task import TaskRecord
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.rclpy_tools.cleanup import destroy_timer
 
 WRITE_ERROR_LOG_PERIOD_SEC = 60.0
 RETRY_AFTER_SEC = 5.0

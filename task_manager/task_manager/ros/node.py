@@ -23,13 +23,13 @@ from task_manager.core.names import (
 )
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.cleanup import destroy_waitables
+from task_manager.rclpy_tools.futures import wait_until_ready
 from task_manager.ros.action_runner import ActionTaskRunner
 from task_manager.ros.action_services_server import ActionServicesServer
-from task_manager.ros.cleanup import destroy_waitables
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.execution import RunnerTimeouts, TaskRunner
-from task_manager.ros.futures import wait_until_ready
 from task_manager.ros.goal_binding import GoalTaskBinding
 from task_manager.ros.history_messages import (
     done_result_msg,

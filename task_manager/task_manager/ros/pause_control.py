@@ -15,7 +15,7 @@ from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskEnd
 from task_manager.core.task_spec import PauseMode
-from task_manager.ros.futures import result_of
+from task_manager.rclpy_tools.futures import result_of
 from task_manager.ros.task_run import TaskRun
 
 if TYPE_CHECKING:

@@ -27,8 +27,8 @@ from task_manager.core.schedule_book import (
 from task_manager.core.schedule_store import ScheduleStore
 from task_manager.core.status import CancelReason
 from task_manager.core.task import TaskRequest
+from task_manager.rclpy_tools.futures import all_completed, resolved
 from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.futures import all_completed, resolved
 
 # The longest the timer waits before it looks at the wall clock again (see the module doc).
 MAX_TIMER_SEC = 300.0

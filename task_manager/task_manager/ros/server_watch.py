@@ -16,7 +16,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
 
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.rclpy_tools.cleanup import destroy_timer
 
 # A probe answers True (alive now), False (gone now), or a future that completes if alive.
 Probe = Callable[[], bool | Future]

@@ -19,8 +19,8 @@ from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.core.task import TaskRecord, pauses_to_json
-from task_manager.ros import qos
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.ros.message_json import dict_to_json
 
 NANOSECONDS = 1_000_000_000

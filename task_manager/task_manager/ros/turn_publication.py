@@ -13,7 +13,7 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.timer import Timer
 
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.rclpy_tools.cleanup import destroy_timer
 
 
 class TurnPublication:

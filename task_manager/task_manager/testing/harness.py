@@ -12,7 +12,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
 
-from task_manager.ros.cleanup import destroy_waitables
+from task_manager.rclpy_tools.cleanup import destroy_waitables
 
 T = TypeVar('T')
 

@@ -11,7 +11,7 @@ from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
 from unique_identifier_msgs.msg import UUID
 
 from task_manager.core.names import EXECUTE_TASK_ACTION
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,

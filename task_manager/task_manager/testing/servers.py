@@ -17,7 +17,7 @@ from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
 
-from task_manager.ros.futures import result_of
+from task_manager.rclpy_tools.futures import result_of
 from task_manager.testing.harness import WaitTimeoutError
 
 

@@ -21,7 +21,7 @@ from task_manager_msgs.action import ExecuteTask
 from test_msgs.action import Fibonacci
 
 from task_manager.client import TaskManagerClient
-from task_manager.ros.futures import result_of
+from task_manager.rclpy_tools.futures import result_of
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task

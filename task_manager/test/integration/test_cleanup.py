@@ -2,7 +2,7 @@
 
 import pytest
 
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.testing.harness import RosHarness
 
 pytestmark = pytest.mark.ros

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 from test_msgs.action import Fibonacci, NestedMessage
 from test_msgs.srv import BasicTypes
 
+from task_manager.core.request_text import request_problem
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import (
@@ -255,7 +256,10 @@ def test_any_name_id_and_source_are_answered_and_echoed(
             assert result.task_id == task_id
         else:
             assert uuid.UUID(result.task_id).version == 4
-        expected = DONE if name == 'fib' else ('ERROR', 'unknown_task')
+        if request_problem(task_id, name, source):  # a control character, or too long
+            expected = ('ERROR', 'invalid_request')
+        else:
+            expected = DONE if name == 'fib' else ('ERROR', 'unknown_task')
         assert (result.task_status, result.error_code) == expected
         sent_ids[result.task_id] += 1
         published = tm.results.wait_until(

@@ -11,7 +11,7 @@ from task_manager_msgs.srv import GetTaskStates
 from test_msgs.action import Fibonacci
 
 from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness, TopicRecorder, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task

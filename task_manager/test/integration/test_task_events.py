@@ -15,7 +15,7 @@ from test_msgs.action import Fibonacci
 from test_msgs.srv import BasicTypes
 
 from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,

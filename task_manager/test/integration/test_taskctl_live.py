@@ -12,7 +12,7 @@ from task_manager_msgs.msg import TaskEvent
 from test_msgs.action import Fibonacci
 
 from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness, WaitTimeoutError
 from task_manager.testing.process import TASKCTL, LaunchTaskManager, action_task
 from task_manager.testing.servers import ScriptedActionServer, publish_feedback_until

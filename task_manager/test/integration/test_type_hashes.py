@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
 
-from task_manager.ros import qos
+from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.process import LaunchTaskManager, action_task
 

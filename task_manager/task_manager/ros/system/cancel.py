@@ -6,12 +6,12 @@ from rclpy.node import Node
 from task_manager_msgs.srv import CancelTasks, StopTasks
 
 from task_manager.core.status import CancelReason, TaskStatus
+from task_manager.core.system_tasks import CANCEL_TASK_ALIAS_SPEC, CANCEL_TASK_SPEC, STOP_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.rclpy_tools.futures import all_completed, resolved
 from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.futures import all_completed, resolved
 from task_manager.ros.message_json import message_from_json
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
-from task_manager.ros.system.specs import CANCEL_TASK_ALIAS_SPEC, CANCEL_TASK_SPEC, STOP_SPEC
 
 
 async def cancel_all(

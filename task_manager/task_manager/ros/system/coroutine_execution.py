@@ -7,7 +7,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from task_manager.core.task import TaskEnd
-from task_manager.ros.futures import wait_for
+from task_manager.rclpy_tools.futures import wait_for
 
 
 class CoroutineExecution:

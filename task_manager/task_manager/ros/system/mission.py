@@ -10,13 +10,13 @@ from task_manager_msgs.msg import SubtaskResult
 from task_manager.core.mission import MissionProgress, SubtaskRefusal, SubtaskRow
 from task_manager.core.names import MISSION, MISSION_SOURCE
 from task_manager.core.status import CancelReason, ErrorCode
+from task_manager.core.system_tasks import MISSION_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import PauseMode
+from task_manager.rclpy_tools.futures import resolved, wait_for
 from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.futures import resolved, wait_for
 from task_manager.ros.message_json import TaskDataError, message_from_json, message_to_dict
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
-from task_manager.ros.system.specs import MISSION_SPEC
 
 
 class MissionExecution(CoroutineExecution):

@@ -8,13 +8,13 @@ from rclpy.task import Future
 from task_manager_msgs.srv import PauseTasks, ResumeTasks
 
 from task_manager.core.status import TaskStatus
+from task_manager.core.system_tasks import PAUSE_SPEC, RESUME_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
+from task_manager.rclpy_tools.futures import all_completed, resolved
 from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.futures import all_completed, resolved
 from task_manager.ros.message_json import message_from_json
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
-from task_manager.ros.system.specs import PAUSE_SPEC, RESUME_SPEC
 
 # One pause or resume of one task for a source: '' when done, else why not.
 TaskStep = Callable[[str, str], Coroutine[Any, Any, str]]

@@ -17,13 +17,13 @@ from task_manager.core.schedule import (
 from task_manager.core.schedule_book import ScheduleState
 from task_manager.core.schedule_request import parse_schedule_request
 from task_manager.core.status import TaskStatus
+from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.scheduler import TaskScheduler
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 from task_manager.ros.system.mission import MissionRunner
-from task_manager.ros.system.specs import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.ros.task_events import stamp
 
 # key: field of ScheduleTask.Request, value: its name in core/schedule.py's requests

@@ -7,10 +7,10 @@ from rclpy.task import Future
 from task_manager_msgs.action import Wait
 
 from task_manager.core.status import TaskStatus
+from task_manager.core.system_tasks import WAIT_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.ros.message_json import message_from_json
-from task_manager.ros.system.specs import WAIT_SPEC
 
 FEEDBACK_PERIOD_SEC = 1.0
 UNTIL_CANCELLED = -1.0

@@ -19,7 +19,7 @@ from rclpy.subscription import Subscription
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
-from task_manager.ros.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 
 
 def action_service_name(action_name: str, service: str) -> str:

@@ -13,7 +13,7 @@ from typing import Any, TypeVar
 from rclpy.node import Node
 from rclpy.task import Future
 
-from task_manager.ros.cleanup import destroy_timer
+from task_manager.rclpy_tools.cleanup import destroy_timer
 
 T = TypeVar('T')
 
