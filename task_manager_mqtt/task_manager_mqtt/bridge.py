@@ -30,7 +30,7 @@ from paho.mqtt.subscribeoptions import SubscribeOptions
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
-from task_manager.protocol.records import declared_json, event_json, iso, task_json
+from task_manager.gateway_json import declared_json, event_json, iso, task_json
 from task_manager_mqtt.connection import (
     RECONNECT_MIN_SEC,
     connect,

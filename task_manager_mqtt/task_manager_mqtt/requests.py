@@ -15,8 +15,8 @@ from typing import Any
 
 from task_manager.client import Subtask, TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.gateway_json import result_json, task_json
 from task_manager.protocol import models
-from task_manager.protocol.records import result_json, task_json
 from task_manager_mqtt.decoding import Decoded, decode, refusal
 
 LOG = logging.getLogger('task_manager_mqtt')

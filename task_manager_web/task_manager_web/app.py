@@ -22,8 +22,8 @@ from fastapi.staticfiles import StaticFiles
 from task_manager.client import Subtask as ClientSubtask
 from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.request_text import text_problem
+from task_manager.gateway_json import declared_json, result_json, task_json
 from task_manager.protocol import models
-from task_manager.protocol.records import declared_json, result_json, task_json
 from task_manager_web.access import Access, Reader, StreamReader, Writer
 from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.errors import ApiError, add_error_handlers

@@ -22,7 +22,7 @@ from typing import Any, TypeVar
 from task_manager.client import TaskEvent, TaskHandle, TaskManagerClient, TaskResult
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
-from task_manager.protocol.records import event_json
+from task_manager.gateway_json import event_json
 
 T = TypeVar('T')
 READ_THREADS = 4

@@ -12,8 +12,8 @@ from task_manager_msgs.msg import TaskState as TaskStateMessage
 
 from task_manager.client import Pause, TaskEvent, TaskEventKind, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
+from task_manager.gateway_json import result_json, task_json
 from task_manager.pauses import PauseMethods, parse_pauses
-from task_manager.protocol.records import result_json, task_json
 
 EPOCH = 1_800_000_000  # 2027-01-15T08:00:00Z
 T0 = datetime.fromtimestamp(EPOCH, UTC)

@@ -10,9 +10,9 @@ from pydantic import ValidationError
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
+from task_manager.gateway_json import event_json, result_json, task_json
 from task_manager.protocol import models
 from task_manager.protocol.__main__ import SCHEMA_FOLDER, schema_documents
-from task_manager.protocol.records import event_json, result_json, task_json
 
 STARTED = datetime(2026, 11, 23, 2, 0, tzinfo=UTC)
 

@@ -1,4 +1,6 @@
-"""The client's records (TaskState, TaskResult, TaskEvent) as protocol JSON (models.Task...).
+"""The client's records (TaskState, TaskResult, TaskEvent) as protocol JSON (models.Task...):
+what the web gateway and the MQTT bridge both send. Kept out of `protocol`, which loads no
+rclpy and no client.
 
 Built as plain dicts, fast enough for every event of a busy robot; the tests check them
 against the JSON Schema files.
