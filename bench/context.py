@@ -19,7 +19,7 @@ from bench.replies import BenchError, Reply, wait_reply
 from bench.report import Report
 from bench.stats import latency_ms
 from task_manager.core.names import INSTANCES_TOPIC
-from task_manager.ros.instances import INSTANCES_QOS
+from task_manager.ros.instances import INSTANCES_SUBSCRIPTION_QOS
 from task_manager_msgs.msg import TaskManagerInstance
 
 WARM_UP_ATTEMPTS = 5
@@ -62,7 +62,7 @@ def wait_announced(client: BenchClient, pid: int, timeout_sec: float) -> None:
 
     node = client.harness.node
     subscription = node.create_subscription(
-        TaskManagerInstance, INSTANCES_TOPIC, on_instance, INSTANCES_QOS
+        TaskManagerInstance, INSTANCES_TOPIC, on_instance, INSTANCES_SUBSCRIPTION_QOS
     )
     try:
         if not announced.wait(timeout_sec):

@@ -31,6 +31,17 @@ INSTANCES_QOS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+# Each subscriber keeps every message until it is taken. The topic has no key: with a depth
+# of 1, a message not yet taken is replaced by the next one from any publisher. A Task
+# Manager's own announcement, published a moment after an older one's had arrived, replaced
+# it: the younger never saw the older and served beside it (DDS acknowledges the replaced
+# message, so it is never sent again).
+INSTANCES_SUBSCRIPTION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_ALL,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+
 
 def this_instance() -> TaskManagerInstance:
     now_ns = time.time_ns()
@@ -61,7 +72,7 @@ class InstanceWatch:
         self.older: Future[TaskManagerInstance] = Future()
         self._publisher = node.create_publisher(TaskManagerInstance, INSTANCES_TOPIC, INSTANCES_QOS)
         self._subscription = node.create_subscription(
-            TaskManagerInstance, INSTANCES_TOPIC, self._on_instance, INSTANCES_QOS
+            TaskManagerInstance, INSTANCES_TOPIC, self._on_instance, INSTANCES_SUBSCRIPTION_QOS
         )
         self._publisher.publish(self.own)
 

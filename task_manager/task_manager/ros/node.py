@@ -26,26 +26,26 @@ from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wait_until_ready
-from task_manager.ros.action_runner import ActionTaskRunner
-from task_manager.ros.action_services_server import ActionServicesServer
-from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.execution import RunnerTimeouts, TaskRunner
-from task_manager.ros.goal_binding import GoalTaskBinding
-from task_manager.ros.history_messages import (
+from task_manager.ros.instances import InstanceWatch
+from task_manager.ros.interfaces import load_interface
+from task_manager.ros.parameters import read_settings, read_task_specs
+from task_manager.ros.recording.history_messages import (
     done_result_msg,
     history_query,
     open_history,
     task_state_from_row,
 )
-from task_manager.ros.instances import InstanceWatch
-from task_manager.ros.interfaces import load_interface
-from task_manager.ros.parameters import read_settings, read_task_specs
-from task_manager.ros.scheduler import TaskScheduler
-from task_manager.ros.service_runner import ServiceTaskRunner
+from task_manager.ros.recording.task_events import TaskEventStream, task_state_msg, to_json
+from task_manager.ros.running.action_runner import ActionTaskRunner
+from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
+from task_manager.ros.running.scheduler import TaskScheduler
+from task_manager.ros.running.service_runner import ServiceTaskRunner
+from task_manager.ros.serving.action_services_server import ActionServicesServer
+from task_manager.ros.serving.goal_binding import GoalTaskBinding
+from task_manager.ros.serving.task_servers import create_task_servers
 from task_manager.ros.system import create_system_runners
 from task_manager.ros.system.schedules import schedule_msg
-from task_manager.ros.task_events import TaskEventStream, task_state_msg, to_json
-from task_manager.ros.task_servers import create_task_servers
 
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
 SHUTDOWN_MARGIN_SEC = 1.0

@@ -9,7 +9,7 @@ from task_manager.core import history_location
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.history import HistoryInUseError
 from task_manager.core.task_spec import TaskSpec, checked_value, parse_task_specs, unknown_keys
-from task_manager.ros.execution import RunnerTimeouts
+from task_manager.ros.running.execution import RunnerTimeouts
 
 # key: node-level parameter, value: (accepted types, default)
 NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {

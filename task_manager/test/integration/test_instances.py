@@ -4,11 +4,20 @@ import re
 import socket
 import subprocess
 from pathlib import Path
+from typing import Any
 
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from task_manager_msgs.msg import TaskManagerInstance
 from test_msgs.action import Fibonacci
 
-from task_manager.ros.instances import INSTANCES_QOS, INSTANCES_TOPIC
+from task_manager.ros.instances import (
+    INSTANCES_QOS,
+    INSTANCES_SUBSCRIPTION_QOS,
+    INSTANCES_TOPIC,
+    InstanceWatch,
+    this_instance,
+)
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import (
@@ -84,7 +93,7 @@ def test_each_task_manager_announces_itself(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     first = _first(ros, launch_task_manager, topic_prefix)
-    instances = ros.record(TaskManagerInstance, INSTANCES_TOPIC, INSTANCES_QOS)
+    instances = ros.record(TaskManagerInstance, INSTANCES_TOPIC, INSTANCES_SUBSCRIPTION_QOS)
 
     announced = instances.wait_until(
         lambda msgs: next((m for m in msgs if m.pid == _pid(first)), None),
@@ -94,3 +103,43 @@ def test_each_task_manager_announces_itself(
 
     assert announced.host == socket.gethostname()
     assert announced.started.sec > 0 and announced.instance_id
+
+
+def test_an_older_announcement_arriving_just_before_the_own_one_is_still_seen(
+    ros: RosHarness,
+) -> None:
+    """The race behind the meeting tests' rare failures, made to happen every time: the older
+    Task Manager's announcement reaches the younger's new subscription before the younger has
+    published its own. With a depth of 1 its own replaced the older's, which was then never
+    seen (and, acknowledged, never sent again)."""
+    older = this_instance()
+    older.started.sec -= 60
+    older_publisher = ros.node.create_publisher(TaskManagerInstance, INSTANCES_TOPIC, INSTANCES_QOS)
+    younger = rclpy.create_node('younger_task_manager')
+    create_publisher = younger.create_publisher
+
+    def publishing_the_older_first(*args: Any, **kwargs: Any) -> Any:
+        publisher = create_publisher(*args, **kwargs)
+        publish_own = publisher.publish
+
+        def publish(own: Any) -> None:
+            older_publisher.publish(older)  # same process: in the subscription when this returns
+            publish_own(own)
+
+        publisher.publish = publish  # type: ignore[method-assign,assignment]
+        return publisher
+
+    younger.create_publisher = publishing_the_older_first  # type: ignore[method-assign]
+    executor = SingleThreadedExecutor()
+    executor.add_node(younger)
+    try:
+        watch = InstanceWatch(younger)
+        executor.spin_until_future_complete(watch.older, timeout_sec=EXIT_TIMEOUT_SEC)
+
+        seen = watch.older.result() if watch.older.done() else None
+        assert seen is not None, 'the younger never saw the older announcement'
+        assert seen.instance_id == older.instance_id
+    finally:
+        executor.shutdown()
+        younger.destroy_node()
+        ros.node.destroy_publisher(older_publisher)

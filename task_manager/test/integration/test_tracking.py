@@ -8,7 +8,7 @@ from task_manager_msgs.srv import GetTaskResults
 from test_msgs.action import Fibonacci
 
 from task_manager.rclpy_tools import qos
-from task_manager.ros.active_tasks import LARGE_LIST, LARGE_LIST_RATE_HZ
+from task_manager.ros.recording.active_tasks import LARGE_LIST, LARGE_LIST_RATE_HZ
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal

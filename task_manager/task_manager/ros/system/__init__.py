@@ -3,9 +3,9 @@ resume, schedule, unschedule and enable_schedule."""
 
 from rclpy.node import Node
 
-from task_manager.ros.dispatcher import TaskDispatcher
-from task_manager.ros.execution import TaskRunner
-from task_manager.ros.scheduler import TaskScheduler
+from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.execution import TaskRunner
+from task_manager.ros.running.scheduler import TaskScheduler
 from task_manager.ros.system.cancel import CancelTasksRunner, StopTasksRunner
 from task_manager.ros.system.mission import MissionRunner
 from task_manager.ros.system.pause import PauseTasksRunner, ResumeTasksRunner

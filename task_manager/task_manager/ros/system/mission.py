@@ -14,8 +14,8 @@ from task_manager.core.system_tasks import MISSION_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import PauseMode
 from task_manager.rclpy_tools.futures import resolved, wait_for
-from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.message_json import TaskDataError, message_from_json, message_to_dict
+from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
 

@@ -1,4 +1,4 @@
-"""system/pause and system/resume: pause and resume tasks by id (see ros/pause_control.py)."""
+"""system/pause and system/resume: pause and resume tasks by id (see running/pause_control.py)."""
 
 from collections.abc import Callable, Coroutine
 from typing import Any
@@ -12,8 +12,8 @@ from task_manager.core.system_tasks import PAUSE_SPEC, RESUME_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.message_json import message_from_json
+from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
 # One pause or resume of one task for a source: '' when done, else why not.

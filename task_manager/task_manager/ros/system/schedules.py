@@ -1,4 +1,4 @@
-"""system/schedule, system/unschedule and system/enable_schedule (see ros/scheduler.py)."""
+"""system/schedule, system/unschedule and system/enable_schedule (see ros/running/scheduler.py)."""
 
 import dataclasses
 import time
@@ -19,12 +19,12 @@ from task_manager.core.schedule_request import parse_schedule_request
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.dispatcher import TaskDispatcher
 from task_manager.ros.message_json import TaskDataError, message_from_json
-from task_manager.ros.scheduler import TaskScheduler
+from task_manager.ros.recording.task_events import stamp
+from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.scheduler import TaskScheduler
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 from task_manager.ros.system.mission import MissionRunner
-from task_manager.ros.task_events import stamp
 
 # key: field of ScheduleTask.Request, value: its name in core/schedule.py's requests
 _RENAMED_FIELDS = {'window_start': 'start', 'window_end': 'end'}

@@ -19,7 +19,7 @@ from task_manager.core.history import (
 )
 from task_manager.core.names import HISTORY_QUERY_LIMIT_DEFAULT as DEFAULT_QUERY_LIMIT
 from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX as MAX_QUERY_LIMIT
-from task_manager.ros.task_events import stamp
+from task_manager.ros.recording.task_events import stamp
 
 
 def done_result_msg(row: HistoryRow) -> TaskDoneResult:

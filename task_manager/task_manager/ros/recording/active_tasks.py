@@ -16,7 +16,7 @@ from rclpy.node import Node
 
 from task_manager.core.registry import TaskRegistry
 from task_manager.core.task import TaskRecord
-from task_manager.ros.turn_publication import TurnPublication
+from task_manager.ros.recording.turn_publication import TurnPublication
 
 LARGE_LIST = 100
 """Entries above which the list's publication rate is bounded."""

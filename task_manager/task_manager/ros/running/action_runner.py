@@ -14,9 +14,9 @@ from task_manager.core.task import TaskEnd, TaskRecord, status_for_action_outcom
 from task_manager.core.task_spec import TaskSpec
 from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import wait_for, wait_until_ready
-from task_manager.ros.execution import RunnerTimeouts
 from task_manager.ros.message_json import message_from_json, message_to_dict
-from task_manager.ros.server_watch import ServerWatch, WatchSettings
+from task_manager.ros.running.execution import RunnerTimeouts
+from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
 # key: terminal GoalStatus value, value: how the server ended the goal
 _OUTCOMES = {

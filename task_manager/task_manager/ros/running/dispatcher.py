@@ -27,14 +27,14 @@ from task_manager.rclpy_tools.futures import (
     result_of,
     wait_for,
 )
-from task_manager.ros import task_log
-from task_manager.ros.active_tasks import ActiveTasksPublication
-from task_manager.ros.execution import Execution, TaskRunner
-from task_manager.ros.history_writer import HistoryWriter
 from task_manager.ros.message_json import TaskDataError
-from task_manager.ros.pause_control import PauseControl
-from task_manager.ros.task_events import TaskEventStream
-from task_manager.ros.task_run import TaskRun
+from task_manager.ros.recording import task_log
+from task_manager.ros.recording.active_tasks import ActiveTasksPublication
+from task_manager.ros.recording.history_writer import HistoryWriter
+from task_manager.ros.recording.task_events import TaskEventStream
+from task_manager.ros.running.execution import Execution, TaskRunner
+from task_manager.ros.running.pause_control import PauseControl
+from task_manager.ros.running.task_run import TaskRun
 
 # How long tasks ended by force at shutdown may take to report their results.
 FORCED_END_TIMEOUT_SEC = 1.0

@@ -6,7 +6,7 @@ from typing import Any
 from rclpy.task import Future
 
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.execution import Execution
+from task_manager.ros.running.execution import Execution
 
 
 @dataclass(eq=False)

@@ -36,7 +36,7 @@ from task_manager.rclpy_tools.action_services import action_service_name
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.futures import resolved
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
-from task_manager.ros.turn_publication import TurnPublication
+from task_manager.ros.recording.turn_publication import TurnPublication
 
 RESULT_TIMEOUT_SEC = 10.0
 LARGE_STATUS = 100

@@ -13,9 +13,9 @@ from task_manager.core.task_spec import TaskSpec
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.futures import wait_for, wait_until_ready
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
-from task_manager.ros.execution import RunnerTimeouts
 from task_manager.ros.message_json import message_from_json, message_to_dict
-from task_manager.ros.server_watch import ServerWatch, WatchSettings
+from task_manager.ros.running.execution import RunnerTimeouts
+from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
 
 class ServiceExecution:

@@ -16,10 +16,10 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskEnd
 from task_manager.core.task_spec import PauseMode
 from task_manager.rclpy_tools.futures import result_of
-from task_manager.ros.task_run import TaskRun
+from task_manager.ros.running.task_run import TaskRun
 
 if TYPE_CHECKING:
-    from task_manager.ros.dispatcher import TaskDispatcher
+    from task_manager.ros.running.dispatcher import TaskDispatcher
 
 
 @runtime_checkable

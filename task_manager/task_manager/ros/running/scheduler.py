@@ -28,7 +28,7 @@ from task_manager.core.schedule_store import ScheduleStore
 from task_manager.core.status import CancelReason
 from task_manager.core.task import TaskRequest
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.dispatcher import TaskDispatcher
+from task_manager.ros.running.dispatcher import TaskDispatcher
 
 # The longest the timer waits before it looks at the wall clock again (see the module doc).
 MAX_TIMER_SEC = 300.0
