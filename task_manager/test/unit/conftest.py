@@ -10,7 +10,7 @@ import pytest
 
 import task_manager.client
 
-PACKAGE = Path(task_manager.client.__file__).parent
+PACKAGE = Path(task_manager.client.__file__).parents[1]  # client/ is a package of it
 
 
 @pytest.fixture(scope='module')

@@ -11,9 +11,10 @@ from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskState as TaskStateMessage
 
 from task_manager.client import Pause, TaskEvent, TaskEventKind, TaskResult, TaskState
+from task_manager.client.pauses import Pauses
+from task_manager.client.records import parse_pauses
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.gateway_json import result_json, task_json
-from task_manager.pauses import PauseMethods, parse_pauses
 
 EPOCH = 1_800_000_000  # 2027-01-15T08:00:00Z
 T0 = datetime.fromtimestamp(EPOCH, UTC)
@@ -143,7 +144,7 @@ def test_task_documents_carry_the_running_time_and_the_time_paused() -> None:
     assert result_json(state.to_result())['paused_sec'] == 2.0
 
 
-class RecordingClient(PauseMethods):
+class RecordingClient:
     """Records what the client would start (run_task), instead of starting it."""
 
     def __init__(self) -> None:
@@ -163,9 +164,10 @@ class RecordingClient(PauseMethods):
 
 def test_pause_and_resume_run_their_system_tasks() -> None:
     client = RecordingClient()
+    pauses = Pauses(client.run_task)
 
-    client.pause(('a', 'b'), source='operator')
-    client.resume(['a'], timeout_sec=3.0)
+    pauses.pause(('a', 'b'), source='operator')
+    pauses.resume(['a'], timeout_sec=3.0)
 
     assert client.started == [
         ('system/pause', {'task_ids': ['a', 'b']}, {'timeout_sec': None, 'source': 'operator'}),

@@ -11,16 +11,18 @@ from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import GetSchedules
 
 from task_manager.client import Subtask, TaskResult
+from task_manager.client.schedule_info import ScheduleInfo, scheduled_next_run
+from task_manager.client.schedules import (
+    Schedules,
+    When,
+    WhenKeywords,
+    iso_8601,
+    schedule_request,
+    when_of,
+)
 from task_manager.core.names import GET_SCHEDULES_SERVICE
 from task_manager.core.schedule import OverlapPolicy
 from task_manager.core.status import ErrorCode, TaskStatus
-from task_manager.schedules import (
-    ScheduleInfo,
-    ScheduleMethods,
-    iso_8601,
-    schedule_request,
-    scheduled_next_run,
-)
 
 PARIS = ZoneInfo('Europe/Paris')
 NIGHT = datetime(2026, 11, 25, 2, 0, tzinfo=PARIS)
@@ -106,6 +108,28 @@ def test_exactly_one_when_is_required(when: dict[str, Any], got: str) -> None:
 def test_bad_values_say_what_is_allowed(options: dict[str, Any], message: str) -> None:
     with pytest.raises(ValueError, match=message):
         schedule_request('x', None, **options)
+
+
+def test_when_is_one_value_or_its_fields_as_keywords() -> None:
+    nightly = When(cron='0 2 * * *', time_zone='Europe/Paris', max_runs=3)
+
+    assert schedule_request('x', None, nightly) == schedule_request(
+        'x', None, cron='0 2 * * *', time_zone='Europe/Paris', max_runs=3
+    )
+    assert when_of(None, {'period': 60}) == When(period=60)
+    assert when_of(nightly, {}) is nightly
+    assert set(WhenKeywords.__annotations__) == set(When.__dataclass_fields__)
+    with pytest.raises(ValueError, match=r'a When or its fields as keywords, not both \(got when'):
+        schedule_request('x', None, nightly, period=60)
+
+
+def test_a_when_is_checked_when_made() -> None:
+    with pytest.raises(ValueError, match='give exactly one of at, delay, period, cron; got none'):
+        When()
+    with pytest.raises(ValueError, match='period must be more than 0 s'):
+        When(period=0)
+    assert When(delay=5).runs_once and When(period=5, max_runs=1).runs_once
+    assert not When(cron='0 2 * * *').runs_once
 
 
 def test_the_next_run_of_a_schedule_result() -> None:
@@ -210,7 +234,7 @@ def test_the_window_and_the_time_of_a_one_shot() -> None:
     assert info.window_end == info.at + timedelta(seconds=10)
 
 
-class RecordingClient(ScheduleMethods):
+class RecordingClient:
     """Records the tasks it would start and the services it would call."""
 
     def __init__(self, response: Any = None) -> None:
@@ -229,17 +253,23 @@ class RecordingClient(ScheduleMethods):
         self.started.append((task_name, task_data, {'timeout_sec': timeout_sec, **options}))
         return TaskResult('id', task_name, TaskStatus.DONE, ErrorCode.NONE, {})
 
-    def _call(
+    def call(
         self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
     ) -> Any:
         self.calls.append((service_type, name, request, timeout_sec))
         return self._response
 
 
+def _schedules(client: RecordingClient) -> Schedules:
+    return Schedules(client.run_task, client.call)
+
+
 def test_schedule_task_runs_system_schedule() -> None:
     client = RecordingClient()
 
-    client.schedule_task('dock', {'bay': 1}, delay=60, schedule_id='soon', source='UI')
+    _schedules(client).schedule_task(
+        'dock', {'bay': 1}, When(delay=60), schedule_id='soon', source='UI'
+    )
 
     ((task_name, data, options),) = client.started
     assert (task_name, options) == ('system/schedule', {'timeout_sec': None, 'source': 'UI'})
@@ -250,7 +280,7 @@ def test_schedule_mission_sends_the_mission_of_start_mission() -> None:
     client = RecordingClient()
     subtasks = [Subtask('nav', {'x': 1.0}), Subtask('dock', '{"bay": 2}', allow_skipping=True)]
 
-    client.schedule_mission(subtasks, cron='0 2 * * *', time_zone='Europe/Paris')
+    _schedules(client).schedule_mission(subtasks, When(cron='0 2 * * *', time_zone='Europe/Paris'))
 
     ((task_name, data, _),) = client.started
     assert (task_name, data['task_name'], data['cron']) == (
@@ -269,10 +299,12 @@ def test_fixed_subtask_ids_are_refused_in_a_repeating_schedule_only() -> None:
     client = RecordingClient()
     subtasks = [Subtask('nav', task_id='leg-1')]
 
+    schedules = _schedules(client)
+
     with pytest.raises(ValueError, match='subtask ids leg-1 would repeat in every run'):
-        client.schedule_mission(subtasks, period=3600)
-    client.schedule_mission(subtasks, delay=10)
-    client.schedule_mission(subtasks, period=3600, max_runs=1)
+        schedules.schedule_mission(subtasks, When(period=3600))
+    schedules.schedule_mission(subtasks, When(delay=10))
+    schedules.schedule_mission(subtasks, When(period=3600, max_runs=1))
 
     assert len(client.started) == 2
 
@@ -280,8 +312,8 @@ def test_fixed_subtask_ids_are_refused_in_a_repeating_schedule_only() -> None:
 def test_unschedule_and_enable_run_their_system_tasks() -> None:
     client = RecordingClient()
 
-    client.unschedule(['a', 'b'])
-    client.enable_schedules(['a'], False, source='UI')
+    _schedules(client).unschedule(['a', 'b'])
+    _schedules(client).enable_schedules(['a'], False, source='UI')
 
     assert [(name, data) for name, data, _ in client.started] == [
         ('system/unschedule', {'schedule_ids': ['a', 'b']}),
@@ -292,9 +324,10 @@ def test_unschedule_and_enable_run_their_system_tasks() -> None:
 def test_schedules_asks_get_schedules() -> None:
     response = GetSchedules.Response(schedules=[_schedule_message()])
     client = RecordingClient(response)
+    schedules = _schedules(client)
 
-    every = client.schedules()
-    some = client.schedules(['nightly', 'other'], timeout_sec=2.0)
+    every = schedules.schedules()
+    some = schedules.schedules(['nightly', 'other'], timeout_sec=2.0)
 
     assert [s.schedule_id for s in every] == [s.schedule_id for s in some] == ['nightly']
     (_, name, request, timeout_sec), second = client.calls

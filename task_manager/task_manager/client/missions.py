@@ -4,7 +4,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from task_manager.message_values import json_text
+from task_manager.client.message_values import json_text
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,42 @@
+"""The Python client of the Task Manager: `TaskManagerClient` and what it returns.
+
+One module per concern, composed by `TaskManagerClient` (task_manager_client.py): the
+connection (connection.py), the tasks it starts (tasks.py, handle.py), watching (watching.py,
+listeners.py), what the Task Manager keeps (history.py, parameters.py), pauses (pauses.py),
+schedules (schedules.py, schedule_info.py), missions (missions.py), the records
+(records.py) and message fields as Python values (message_values.py).
+"""
+
+from task_manager.client.connection import DEFAULT_TIMEOUT_SEC
+from task_manager.client.handle import FeedbackCallback, TaskHandle
+from task_manager.client.history import FINAL_STATUSES
+from task_manager.client.missions import Subtask
+from task_manager.client.records import (
+    ActiveTaskInfo,
+    Pause,
+    TaskEvent,
+    TaskEventKind,
+    TaskResult,
+    TaskState,
+)
+from task_manager.client.schedule_info import ScheduleInfo, scheduled_next_run
+from task_manager.client.schedules import When
+from task_manager.client.task_manager_client import TaskManagerClient
+
+__all__ = [
+    'DEFAULT_TIMEOUT_SEC',
+    'FINAL_STATUSES',
+    'ActiveTaskInfo',
+    'FeedbackCallback',
+    'Pause',
+    'ScheduleInfo',
+    'Subtask',
+    'TaskEvent',
+    'TaskEventKind',
+    'TaskHandle',
+    'TaskManagerClient',
+    'TaskResult',
+    'TaskState',
+    'When',
+    'scheduled_next_run',
+]

@@ -1,0 +1,144 @@
+"""The client's link to the Task Manager: its own context and node, spun by an executor in a
+background thread; the topics it subscribes to and which of them a publisher reaches."""
+
+import threading
+import uuid
+from collections.abc import Callable
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile
+from task_manager_msgs.msg import TaskEvent as TaskEventMessage
+
+from task_manager.client.listeners import Listeners
+from task_manager.client.records import TaskEvent
+from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENTS_TOPIC
+from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.cleanup import destroy_waitables
+
+DEFAULT_TIMEOUT_SEC = 5.0
+# A request is sent again after this long without a reply, then after twice as long, ...:
+# a reply sent before DDS matched this client's reply reader is lost.
+SERVICE_RETRY_SEC = 0.5
+
+
+class Connection:
+    """The client's context, node and executor thread, and what reaches it.
+
+    `lock` is the client's one lock: every helper of the client guards its state with it, and
+    waits on it for what the executor thread brings.
+    """
+
+    def __init__(self, node_name: str, timeout_sec: float) -> None:
+        self.timeout_sec = timeout_sec
+        """How long a call waits when not told (the client's `timeout_sec`)."""
+        self._context = Context()
+        rclpy.init(context=self._context)
+        self.node = rclpy.create_node(f'{node_name}_{uuid.uuid4().hex[:8]}', context=self._context)
+        self.lock = threading.Condition()
+        self.changes = Listeners[bool](self.lock)
+        """Who is told each change of `connected`."""
+        self._matched: set[str] = set()
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._spin_thread = threading.Thread(target=self._spin, daemon=True)
+
+    def start(self) -> None:
+        """Spin the node in the background thread (once the helpers have made their ends)."""
+        self._executor.add_node(self.node)
+        self._spin_thread.start()
+
+    def close(self) -> None:
+        self._executor.shutdown()
+        self._spin_thread.join(timeout=self.timeout_sec)
+        destroy_waitables(self.node)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self._context)
+
+    def _spin(self) -> None:
+        try:
+            self._executor.spin()
+        except Exception:  # the context is shutting down under us
+            if self._context.ok():
+                raise
+
+    def subscribe(
+        self, msg_type: type, topic: str, profile: QoSProfile, callback: Callable[[Any], None]
+    ) -> None:
+        """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us."""
+
+        def matched(info: Any) -> None:
+            with self.lock:
+                was_connected = ACTIVE_TASKS_TOPIC in self._matched
+                if info.current_count > 0:
+                    self._matched.add(topic)
+                else:
+                    self._matched.discard(topic)
+                connected = ACTIVE_TASKS_TOPIC in self._matched
+                listeners = self.changes.copy() if connected != was_connected else []
+                self.lock.notify_all()
+            for listener in listeners:
+                listener.put(connected)
+
+        self.node.create_subscription(
+            msg_type,
+            topic,
+            callback,
+            profile,
+            event_callbacks=SubscriptionEventCallbacks(matched=matched),
+        )
+
+    def is_matched(self, topic: str) -> bool:
+        """Whether a publisher of `topic` reaches this client."""
+        with self.lock:
+            return topic in self._matched
+
+    def wait_matched(self, topics: set[str], timeout_sec: float | None) -> bool:
+        """Wait until a publisher of each of `topics` reaches this client; whether one did."""
+        with self.lock:
+            return self.lock.wait_for(lambda: topics <= self._matched, timeout_sec)
+
+    @property
+    def connected(self) -> bool:
+        """Whether /task_manager/active_tasks reaches this client (see the client's)."""
+        return self.is_matched(ACTIVE_TASKS_TOPIC)
+
+
+class EventFeed:
+    """/task_manager/task_events: subscribed to once, on first use, and who listens to it."""
+
+    def __init__(self, connection: Connection, on_message: Callable[[Any], None]) -> None:
+        self._connection = connection
+        self._on_message = on_message
+        self._subscribed = False
+        self.listeners = Listeners[TaskEvent](connection.lock)
+        """Who gets every event (put by whoever `on_message` is: the client's task tracker)."""
+
+    @property
+    def connected(self) -> bool:
+        return self._connection.is_matched(TASK_EVENTS_TOPIC)
+
+    def subscribe(self) -> None:
+        """Subscribe to /task_manager/task_events, once."""
+        with self._connection.lock:
+            subscribe = not self._subscribed
+            self._subscribed = True
+        if subscribe:
+            self._connection.subscribe(
+                TaskEventMessage, TASK_EVENTS_TOPIC, qos.TASK_EVENTS, self._on_message
+            )
+
+    def follow(self, timeout_sec: float | None = None) -> None:
+        """Subscribe (once); wait until connected, if the Task Manager publishes the events.
+
+        The wait is skipped when no publisher of the events is known: the stream may be off.
+        Our end connects first; the Task Manager's may take a moment more, so an event
+        published just then can be missed (the stream is volatile): the handles cope.
+        """
+        self.subscribe()
+        if self._connection.node.count_publishers(TASK_EVENTS_TOPIC) == 0:
+            return
+        timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
+        self._connection.wait_matched({TASK_EVENTS_TOPIC}, timeout_sec)

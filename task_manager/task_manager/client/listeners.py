@@ -1,0 +1,101 @@
+"""How updates reach whoever waits for them: the executor thread puts each update to the
+listeners of its kind; an iterator drains its own inbox, with bounded waits; a user's callback
+is called, and what it raises is logged, not spread."""
+
+import contextlib
+import queue
+import threading
+import traceback
+from collections.abc import Callable, Iterator
+from enum import Enum
+from typing import Any, Generic, Protocol, TypeAlias, TypeVar
+
+from rclpy.impl.rcutils_logger import RcutilsLogger
+from rclpy.task import Future
+
+T = TypeVar('T')
+T_contra = TypeVar('T_contra', contravariant=True)
+
+
+class End(Enum):
+    """Put in an inbox to end the iteration over it."""
+
+    OF_UPDATES = 'end of updates'
+    """The `until` future of the iteration completed."""
+
+
+# What the executor thread puts for one iterator of updates, and the end marker.
+Inbox: TypeAlias = queue.SimpleQueue[T | End]
+
+
+class Listener(Protocol[T_contra]):
+    """Where the executor thread puts updates of one kind (an inbox may take more kinds)."""
+
+    def put(self, item: T_contra, /) -> None: ...
+
+
+class Callback(Generic[T]):
+    """Hands items to a user's callback; what the callback raises is logged, not spread."""
+
+    def __init__(self, callback: Callable[[T], None], logger: RcutilsLogger) -> None:
+        self._callback = callback
+        self._logger = logger
+
+    def put(self, item: T, /) -> None:
+        try:
+            self._callback(item)
+        except Exception:  # the callback boundary: the executor must go on
+            self._logger.error(f'callback {self._callback!r} failed:\n{traceback.format_exc()}')
+
+
+class Listeners(Generic[T]):
+    """The listeners of one kind of update, guarded by the client's lock."""
+
+    def __init__(self, lock: threading.Condition) -> None:
+        self._lock = lock
+        self._listeners: list[Listener[T]] = []
+
+    def add(self, listener: Listener[T]) -> Callable[[], None]:
+        """Have `listener` get every update from now on; returns what stops it."""
+        with self._lock:
+            self._listeners.append(listener)
+        return lambda: self.remove(listener)
+
+    def remove(self, listener: Listener[T]) -> None:
+        with self._lock:
+            if listener in self._listeners:
+                self._listeners.remove(listener)
+
+    def put(self, item: T) -> None:
+        """Give `item` to every listener, under the lock (so each gets the updates in order)."""
+        with self._lock:
+            for listener in self._listeners:
+                listener.put(item)
+
+    def copy(self) -> list[Listener[T]]:
+        """The listeners now, to give them an update without the lock."""
+        with self._lock:
+            return list(self._listeners)
+
+    @contextlib.contextmanager
+    def listening(self, inbox: Listener[T]) -> Iterator[None]:
+        """Have `inbox` get the updates until the block ends."""
+        stop_listening = self.add(inbox)
+        try:
+            yield
+        finally:
+            stop_listening()
+
+
+def drain(inbox: Inbox[T], timeout_sec: float | None, until: Future[Any] | None) -> Iterator[T]:
+    """What arrives in `inbox`, until `timeout_sec` passes without any or `until` completes."""
+    if until is not None:
+        until.add_done_callback(lambda _: inbox.put(End.OF_UPDATES))
+    while True:
+        try:
+            item = inbox.get(timeout=timeout_sec)
+        except queue.Empty:
+            return
+        if item is End.OF_UPDATES:
+            return
+        yield item

@@ -1,0 +1,244 @@
+"""Schedules: tasks and missions the Task Manager starts at set times, through
+system/schedule, system/unschedule, system/enable_schedule and /task_manager/get_schedules.
+
+When a schedule runs is one value, `When`, the same for a task and a mission; the client's
+methods also take its fields as keywords (`schedule_task('dock', period=3600)`).
+"""
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from typing import Any, TypeAlias, TypedDict, Unpack
+
+from task_manager_msgs.srv import GetSchedules
+
+from task_manager.client.message_values import json_text
+from task_manager.client.missions import Subtask, mission_task_data
+from task_manager.client.records import TaskResult
+from task_manager.client.schedule_info import ScheduleInfo
+from task_manager.client.services import CallService, RunTask
+from task_manager.core.names import ENABLE_SCHEDULE as ENABLE_SCHEDULE_TASK
+from task_manager.core.names import GET_SCHEDULES_SERVICE, MISSION
+from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
+from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
+from task_manager.core.schedule import OverlapPolicy
+
+Moment: TypeAlias = datetime | str
+"""A timezone-aware datetime, or ISO 8601 text with its zone (checked by the Task Manager)."""
+Span: TypeAlias = timedelta | float
+"""A timedelta, or seconds."""
+
+
+@dataclass(frozen=True)
+class When:
+    """When a schedule runs; checked when made: ValueError says what is wrong.
+
+    Exactly one of: `at` (once), `delay` (once, this long from now), `period` (every period,
+    from `window_start` or one period from now), `cron` (5 fields, in `time_zone`, an IANA
+    name; '': UTC). Runs happen only within the window, at most `max_runs` (0: no limit).
+    `overlap`: SKIP (''), BUFFER_ONE, CANCEL_OTHER or ALLOW_ALL, what a run due while the
+    previous one is active does. `misfire_grace`: how late a run missed while the Task
+    Manager was down may still run (None: its default). Datetimes must be timezone-aware.
+    """
+
+    at: Moment | None = None
+    delay: Span | None = None
+    period: Span | None = None
+    cron: str = ''
+    time_zone: str = ''
+    window_start: Moment | None = None
+    window_end: Moment | None = None
+    max_runs: int = 0
+    overlap: str = ''
+    misfire_grace: Span | None = None
+
+    def __post_init__(self) -> None:
+        self.request_fields()  # a When that exists can be sent
+
+    @property
+    def runs_once(self) -> bool:
+        """Whether it runs at most once."""
+        return self.at is not None or self.delay is not None or self.max_runs == 1
+
+    def request_fields(self) -> dict[str, Any]:
+        """Its fields of a ScheduleTask request; ValueError if they make none."""
+        when = {
+            'at': self.at,
+            'delay': self.delay,
+            'period': self.period,
+            'cron': self.cron or None,
+        }
+        given = [name for name, value in when.items() if value is not None]
+        if len(given) != 1:
+            got = ' and '.join(given) if given else 'none'
+            raise ValueError(f'give exactly one of at, delay, period, cron; got {got}')
+        if self.max_runs < 0:
+            raise ValueError(f'max_runs must be 0 (no limit) or more, got {self.max_runs}')
+        start, end, grace = self.window_start, self.window_end, self.misfire_grace
+        return {
+            'at': '' if self.at is None else iso_8601(self.at, 'at'),
+            'delay_sec': 0.0 if self.delay is None else _seconds(self.delay, 'delay'),
+            'period_sec': 0.0 if self.period is None else _seconds(self.period, 'period'),
+            'cron': self.cron.strip(),
+            'time_zone': self.time_zone,
+            'window_start': '' if start is None else iso_8601(start, 'window_start'),
+            'window_end': '' if end is None else iso_8601(end, 'window_end'),
+            'max_runs': self.max_runs,
+            'overlap': _overlap(self.overlap),
+            'misfire_grace_sec': (
+                -1.0 if grace is None else _seconds(grace, 'misfire_grace', zero_allowed=True)
+            ),
+        }
+
+
+class WhenKeywords(TypedDict, total=False):
+    """The fields of When as keywords: `period=3600` stands for `When(period=3600)`."""
+
+    at: Moment | None
+    delay: Span | None
+    period: Span | None
+    cron: str
+    time_zone: str
+    window_start: Moment | None
+    window_end: Moment | None
+    max_runs: int
+    overlap: str
+    misfire_grace: Span | None
+
+
+def when_of(when: When | None, keywords: WhenKeywords) -> When:
+    """`when`, or the When its fields given as keywords make; ValueError for both."""
+    if when is None:
+        return When(**keywords)
+    if keywords:
+        given = ', '.join(keywords)
+        raise ValueError(f'give a When or its fields as keywords, not both (got when and {given})')
+    return when
+
+
+def iso_8601(moment: Moment, name: str) -> str:
+    """`moment` as ISO 8601 with its zone; ValueError for a naive datetime."""
+    if isinstance(moment, str):
+        return moment.strip()
+    if moment.tzinfo is None or moment.utcoffset() is None:
+        raise ValueError(
+            f'{name} {moment.isoformat()} has no time zone; give an aware datetime, e.g. '
+            'datetime(2026, 11, 25, 2, tzinfo=ZoneInfo("Europe/Paris")), or ISO 8601 text '
+            'with its zone'
+        )
+    return moment.isoformat()
+
+
+def _seconds(span: Span, name: str, *, zero_allowed: bool = False) -> float:
+    seconds = span.total_seconds() if isinstance(span, timedelta) else float(span)
+    if not math.isfinite(seconds) or seconds < 0 or (seconds == 0 and not zero_allowed):
+        least = '0 s or more' if zero_allowed else 'more than 0 s'
+        raise ValueError(f'{name} must be {least}, got {seconds:g} s')
+    return seconds
+
+
+def _overlap(text: str) -> str:
+    if not text:
+        return ''
+    try:
+        return OverlapPolicy(text.strip().upper()).value
+    except ValueError:
+        names = ', '.join(OverlapPolicy)
+        raise ValueError(
+            f"overlap {text!r} is not an overlap policy; use one of {names} ('' is SKIP)"
+        ) from None
+
+
+def schedule_request(
+    task_name: str,
+    task_data: dict[str, Any] | str | None,
+    when: When | None = None,
+    *,
+    schedule_id: str = '',
+    **when_keywords: Unpack[WhenKeywords],
+) -> dict[str, Any]:
+    """The task data of system/schedule (a ScheduleTask request); ValueError if it is not one.
+
+    `when`, or its fields as keywords, says when (see When).
+    """
+    return {
+        'schedule_id': schedule_id,
+        'task_name': task_name,
+        'task_data': json_text(task_data),
+        **when_of(when, when_keywords).request_fields(),
+    }
+
+
+class Schedules:
+    """Makes, removes, switches and lists schedules, through `run_task` and `call`."""
+
+    def __init__(self, run_task: RunTask, call: CallService) -> None:
+        self._run_task = run_task
+        self._call = call
+
+    def schedule_task(
+        self,
+        task_name: str,
+        task_data: dict[str, Any] | str | None,
+        when: When,
+        *,
+        schedule_id: str = '',
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> TaskResult:
+        """See TaskManagerClient.schedule_task."""
+        data = schedule_request(task_name, task_data, when, schedule_id=schedule_id)
+        return self._run_task(SCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def schedule_mission(
+        self,
+        subtasks: Sequence[Subtask],
+        when: When,
+        *,
+        schedule_id: str = '',
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> TaskResult:
+        """See TaskManagerClient.schedule_mission."""
+        fixed = [s.task_id for s in subtasks if s.task_id]
+        if fixed and not when.runs_once:
+            raise ValueError(
+                f'subtask ids {", ".join(fixed)} would repeat in every run; leave task_id '
+                'empty in a repeating schedule (each run makes its own)'
+            )
+        data = mission_task_data(subtasks, [s.task_id for s in subtasks])
+        return self.schedule_task(
+            MISSION, data, when, schedule_id=schedule_id, source=source, timeout_sec=timeout_sec
+        )
+
+    def unschedule(
+        self,
+        schedule_ids: Sequence[str],
+        *,
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> TaskResult:
+        """See TaskManagerClient.unschedule."""
+        data = {'schedule_ids': list(schedule_ids)}
+        return self._run_task(UNSCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def enable_schedules(
+        self,
+        schedule_ids: Sequence[str],
+        enabled: bool,
+        *,
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> TaskResult:
+        """See TaskManagerClient.enable_schedules."""
+        data = {'schedule_ids': list(schedule_ids), 'enabled': enabled}
+        return self._run_task(ENABLE_SCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def schedules(
+        self, schedule_ids: Sequence[str] | None = None, timeout_sec: float | None = None
+    ) -> list[ScheduleInfo]:
+        """See TaskManagerClient.schedules."""
+        request = GetSchedules.Request(schedule_ids=list(schedule_ids or []))
+        response = self._call(GetSchedules, GET_SCHEDULES_SERVICE, request, timeout_sec)
+        return [ScheduleInfo.from_message(m) for m in response.schedules]

@@ -1,0 +1,72 @@
+"""How the client's helpers reach the Task Manager: a call of one of its services that only
+read, asked again when a reply is lost, and the shapes of the calls a helper is given."""
+
+import threading
+import time
+from typing import Any, Protocol
+
+from rclpy.client import Client
+from rclpy.task import Future
+
+from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
+from task_manager.client.records import TaskResult
+from task_manager.core.errors import TaskManagerUnavailable
+
+
+class CallService(Protocol):
+    """Call a Task Manager service that only reads; TaskManagerUnavailable if no reply."""
+
+    def __call__(
+        self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
+    ) -> Any: ...
+
+
+class RunTask(Protocol):
+    """Start a task and wait for its result (TaskManagerClient.run_task)."""
+
+    def __call__(
+        self,
+        task_name: str,
+        task_data: dict[str, Any] | str | None = None,
+        *,
+        timeout_sec: float | None = None,
+        **options: Any,
+    ) -> TaskResult: ...
+
+
+class ServiceCalls:
+    """This client's clients of the Task Manager's services, each made on first use."""
+
+    def __init__(self, connection: Connection) -> None:
+        self._connection = connection
+        # key: service name, value: this client's client of it
+        self._clients: dict[str, Client[Any, Any]] = {}
+
+    def call(
+        self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
+    ) -> Any:
+        """Call a Task Manager service that only reads; a lost reply is asked for again."""
+        timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
+        deadline = time.monotonic() + timeout_sec
+        with self._connection.lock:
+            client = self._clients.get(name)
+            if client is None:
+                client = self._clients[name] = self._connection.node.create_client(
+                    service_type, name
+                )
+        if not client.wait_for_service(timeout_sec=timeout_sec):
+            raise TaskManagerUnavailable(f'{name} is not available')
+        answered = threading.Event()
+        calls: list[Future[Any]] = []
+        retry_sec = SERVICE_RETRY_SEC
+        while not answered.is_set() and (remaining_sec := deadline - time.monotonic()) > 0:
+            calls.append(client.call_async(request))
+            calls[-1].add_done_callback(lambda _: answered.set())
+            answered.wait(min(retry_sec, remaining_sec))
+            retry_sec *= 2
+        response = next((c.result() for c in calls if c.done() and c.result() is not None), None)
+        for call in calls:
+            client.remove_pending_request(call)
+        if response is None:
+            raise TaskManagerUnavailable(f'{name} did not answer within {timeout_sec} s')
+        return response
