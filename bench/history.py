@@ -21,7 +21,7 @@ from bench.node_settings import Setting, compare
 from bench.replies import BenchError, Reply, wait_reply
 from bench.report import Row
 from bench.stats import Summary, latency_ms, ratio
-from task_manager.core.history import HistoryQuery, TaskHistory
+from task_manager.core.history.store import HistoryQuery, TaskHistory
 from task_manager.core.names import QUERY_TASK_HISTORY_SERVICE
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord

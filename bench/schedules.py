@@ -36,10 +36,10 @@ from bench.replies import BenchError, wait_reply
 from bench.report import Row
 from bench.startup import READY_LINE
 from bench.stats import ratio, wait_all
-from task_manager.core.history import TaskHistory
+from task_manager.core.history.store import TaskHistory
 from task_manager.core.names import GET_TASK_STATES_SERVICE, RESULTS_TOPIC
-from task_manager.core.schedule import ScheduleSpec, first_fire_time
-from task_manager.core.schedule_book import ScheduleState, run_task_id
+from task_manager.core.schedules.book import ScheduleState, run_task_id
+from task_manager.core.schedules.schedule import ScheduleSpec, first_fire_time
 from task_manager.rclpy_tools import qos
 from task_manager_msgs.msg import TaskDoneResult
 from task_manager_msgs.srv import GetTaskStates

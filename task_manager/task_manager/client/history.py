@@ -10,6 +10,7 @@ from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistor
 from task_manager.client.message_values import stamp_of
 from task_manager.client.records import TaskResult, TaskState
 from task_manager.client.services import CallService
+from task_manager.core.history.stats import TaskStats, task_stats
 from task_manager.core.names import (
     GET_TASK_RESULTS_SERVICE,
     GET_TASK_STATES_SERVICE,
@@ -17,7 +18,6 @@ from task_manager.core.names import (
     QUERY_TASK_HISTORY_SERVICE,
 )
 from task_manager.core.status import TaskStatus
-from task_manager.core.task_stats import TaskStats, task_stats
 
 FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)
 

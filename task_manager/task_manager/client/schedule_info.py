@@ -8,7 +8,7 @@ from typing import Any
 
 from task_manager.client.message_values import datetime_of, datetime_of_json, json_object
 from task_manager.client.records import TaskResult
-from task_manager.core.schedule import OverlapPolicy
+from task_manager.core.schedules.schedule import OverlapPolicy
 from task_manager.core.status import TaskStatus
 
 RUN_SOURCE_PREFIX = 'schedule:'

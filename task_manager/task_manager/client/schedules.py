@@ -22,7 +22,7 @@ from task_manager.core.names import ENABLE_SCHEDULE as ENABLE_SCHEDULE_TASK
 from task_manager.core.names import GET_SCHEDULES_SERVICE, MISSION
 from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
 from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
-from task_manager.core.schedule import OverlapPolicy
+from task_manager.core.schedules.schedule import OverlapPolicy
 
 Moment: TypeAlias = datetime | str
 """A timezone-aware datetime, or ISO 8601 text with its zone (checked by the Task Manager)."""

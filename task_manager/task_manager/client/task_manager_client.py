@@ -32,9 +32,9 @@ from task_manager.client.schedules import Schedules, When, WhenKeywords, when_of
 from task_manager.client.services import ServiceCalls
 from task_manager.client.tasks import Tasks
 from task_manager.client.watching import ActiveTasks, Watch
+from task_manager.core.history.stats import TaskStats
 from task_manager.core.names import CANCEL_TASK, STOP
 from task_manager.core.status import TaskStatus
-from task_manager.core.task_stats import TaskStats
 
 
 class TaskManagerClient:

@@ -9,7 +9,7 @@ from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
 from task_manager_msgs.srv import GetSchedules, GetTaskResults, GetTaskStates, QueryTaskHistory
 
-from task_manager.core.history import HistoryQuery, HistoryRow
+from task_manager.core.history.store import HistoryQuery, HistoryRow
 from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
     EXECUTE_TASK_ACTION,

@@ -5,9 +5,9 @@ from typing import Any
 
 from rclpy.node import Node
 
-from task_manager.core import history_location
 from task_manager.core.errors import ConfigurationError
-from task_manager.core.history import HistoryInUseError
+from task_manager.core.history import location as history_location
+from task_manager.core.history.store import HistoryInUseError
 from task_manager.core.task_spec import TaskSpec, checked_value, parse_task_specs, unknown_keys
 from task_manager.ros.running.execution import RunnerTimeouts
 

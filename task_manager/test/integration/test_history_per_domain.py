@@ -9,7 +9,7 @@ import json
 import time
 from pathlib import Path
 
-from task_manager.core.history import TaskHistory
+from task_manager.core.history.store import TaskHistory
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec

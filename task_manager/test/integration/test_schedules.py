@@ -273,7 +273,11 @@ def test_a_restart_keeps_schedules_and_runs_a_missed_run_once_within_its_grace(
     # The Task Manager stays down past the due times: the scenario, not a synchronisation.
     time.sleep(max(0.0, created + 1.6 - time.time()))
 
-    second, _ = _launch(ros, launch_task_manager, topic_prefix, history_path=str(history))
+    # The missed run starts as the node starts, while DDS may still be discovering this
+    # process's server: the node waits up to server_wait_timeout for it (1 s by default).
+    second, _ = _launch(
+        ros, launch_task_manager, topic_prefix, history_path=str(history), server_wait_timeout=10.0
+    )
     # The catch-up run may end before this test's subscriber of the (volatile) results topic
     # matched the new node: its end is read from the schedule and the history instead.
     _wait_schedule(

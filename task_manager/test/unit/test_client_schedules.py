@@ -21,7 +21,7 @@ from task_manager.client.schedules import (
     when_of,
 )
 from task_manager.core.names import GET_SCHEDULES_SERVICE
-from task_manager.core.schedule import OverlapPolicy
+from task_manager.core.schedules.schedule import OverlapPolicy
 from task_manager.core.status import ErrorCode, TaskStatus
 
 PARIS = ZoneInfo('Europe/Paris')

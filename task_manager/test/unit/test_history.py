@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from task_manager.core.history import (
+from task_manager.core.history.store import (
     SCHEMA_VERSION,
     HistoryError,
     HistoryInUseError,

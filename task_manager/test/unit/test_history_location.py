@@ -5,13 +5,13 @@ from pathlib import Path
 
 import pytest
 
-from task_manager.core.history import HistoryInUseError, HistoryQuery, TaskHistory
-from task_manager.core.history_location import (
+from task_manager.core.history.location import (
     adopt_legacy_history,
     default_history_path,
     legacy_history_path,
     ros_home,
 )
+from task_manager.core.history.store import HistoryInUseError, HistoryQuery, TaskHistory
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec

@@ -12,7 +12,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from task_manager.core.schedule import (
+from task_manager.core.schedules.request import parse_schedule_request
+from task_manager.core.schedules.schedule import (
     CRON_COUNT_LIMIT,
     DEFAULT_MISFIRE_GRACE_SEC,
     OverlapPolicy,
@@ -23,7 +24,6 @@ from task_manager.core.schedule import (
     latest_fire_at_or_before,
     next_fire_after,
 )
-from task_manager.core.schedule_request import parse_schedule_request
 
 PARIS, BERLIN = ZoneInfo('Europe/Paris'), ZoneInfo('Europe/Berlin')
 T0 = datetime(2026, 1, 1, tzinfo=UTC).timestamp()  # a Thursday, 00:00 UTC

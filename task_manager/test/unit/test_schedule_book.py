@@ -10,8 +10,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from task_manager.core.schedule import OverlapPolicy, ScheduleSpec
-from task_manager.core.schedule_book import (
+from task_manager.core.schedules.book import (
     Firing,
     RunAction,
     ScheduleBook,
@@ -20,6 +19,7 @@ from task_manager.core.schedule_book import (
     run_source,
     run_task_id,
 )
+from task_manager.core.schedules.schedule import OverlapPolicy, ScheduleSpec
 
 T0 = datetime(2026, 1, 1, tzinfo=UTC).timestamp()
 DAY, WEEK = 86400, 7 * 86400

@@ -7,9 +7,9 @@ from typing import Any
 
 import pytest
 
-from task_manager.core.schedule import OverlapPolicy, ScheduleSpec
-from task_manager.core.schedule_book import ScheduleState
-from task_manager.core.schedule_store import SCHEDULES_SCHEMA, ScheduleStore
+from task_manager.core.schedules.book import ScheduleState
+from task_manager.core.schedules.schedule import OverlapPolicy, ScheduleSpec
+from task_manager.core.schedules.store import SCHEDULES_SCHEMA, ScheduleStore
 
 T0 = 1_767_225_600.0
 

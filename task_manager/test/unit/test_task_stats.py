@@ -6,8 +6,8 @@ from datetime import UTC, datetime, timedelta
 import pytest
 
 from task_manager.cli.durations import parse_span
+from task_manager.core.history.stats import median, percentile, task_stats
 from task_manager.core.status import TaskStatus
-from task_manager.core.task_stats import median, percentile, task_stats
 
 T0 = datetime(2026, 1, 1, tzinfo=UTC)
 

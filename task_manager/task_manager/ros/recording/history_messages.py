@@ -10,7 +10,7 @@ from task_manager_msgs.msg import TaskDoneResult, TaskState
 from task_manager_msgs.srv import QueryTaskHistory
 
 from task_manager.core.errors import ConfigurationError
-from task_manager.core.history import (
+from task_manager.core.history.store import (
     HistoryError,
     HistoryInUseError,
     HistoryQuery,

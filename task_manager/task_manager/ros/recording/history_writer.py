@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
 
-from task_manager.core.history import TaskHistory
+from task_manager.core.history.store import TaskHistory
 from task_manager.core.task import TaskRecord
 from task_manager.rclpy_tools.cleanup import destroy_timer
 

@@ -13,7 +13,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from task_manager.core.errors import TaskRequestError
-from task_manager.core.history import TaskHistory
+from task_manager.core.history.store import TaskHistory
 from task_manager.core.registry import TaskRegistry
 from task_manager.core.request_text import loggable, request_problem
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus

@@ -14,8 +14,7 @@ from collections.abc import Iterable
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
-from task_manager.core.schedule import ScheduleSpec
-from task_manager.core.schedule_book import (
+from task_manager.core.schedules.book import (
     Firing,
     RunAction,
     ScheduleBook,
@@ -24,7 +23,8 @@ from task_manager.core.schedule_book import (
     run_source,
     run_task_id,
 )
-from task_manager.core.schedule_store import ScheduleStore
+from task_manager.core.schedules.schedule import ScheduleSpec
+from task_manager.core.schedules.store import ScheduleStore
 from task_manager.core.status import CancelReason
 from task_manager.core.task import TaskRequest
 from task_manager.rclpy_tools.futures import all_completed, resolved

@@ -9,13 +9,13 @@ from rclpy.node import Node
 from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import EnableSchedules, ScheduleTask, Unschedule
 
-from task_manager.core.schedule import (
+from task_manager.core.schedules.book import ScheduleState
+from task_manager.core.schedules.request import parse_schedule_request
+from task_manager.core.schedules.schedule import (
     OverlapPolicy,
     ScheduleError,
     ScheduleSpec,
 )
-from task_manager.core.schedule_book import ScheduleState
-from task_manager.core.schedule_request import parse_schedule_request
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
@@ -26,7 +26,7 @@ from task_manager.ros.running.scheduler import TaskScheduler
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 from task_manager.ros.system.mission import MissionRunner
 
-# key: field of ScheduleTask.Request, value: its name in core/schedule.py's requests
+# key: field of ScheduleTask.Request, value: its name in core/schedules/schedule.py's requests
 _RENAMED_FIELDS = {'window_start': 'start', 'window_end': 'end'}
 
 
@@ -131,7 +131,7 @@ class ScheduleTaskRunner:
 
 
 def _field_name(field: str) -> str:
-    """The request's name of a field core/schedule.py names (first of a list of them)."""
+    """The request's name of a field core/schedules/schedule.py names (first of a list of them)."""
     first = field.split(',')[0]
     return {core: msg for msg, core in _RENAMED_FIELDS.items()}.get(first, first)
 

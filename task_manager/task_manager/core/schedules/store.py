@@ -8,8 +8,8 @@ import sqlite3
 from collections.abc import Callable, Iterable
 from contextlib import AbstractContextManager
 
-from task_manager.core.schedule import ScheduleSpec
-from task_manager.core.schedule_book import ScheduleState
+from task_manager.core.schedules.book import ScheduleState
+from task_manager.core.schedules.schedule import ScheduleSpec
 
 # One or more ';'-separated statements, for the history's migrations.
 SCHEDULES_SCHEMA = """

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import IO
 
 from task_manager.core.json_text import compact_json
-from task_manager.core.schedule_store import SCHEDULES_SCHEMA, ScheduleStore
+from task_manager.core.schedules.store import SCHEDULES_SCHEMA, ScheduleStore
 from task_manager.core.task import TaskRecord, pauses_to_json
 
 SCHEMA_VERSION = 2

@@ -10,7 +10,7 @@ from datetime import datetime
 from typing import Any
 from zoneinfo import ZoneInfo
 
-from task_manager.core.schedule import (
+from task_manager.core.schedules.schedule import (
     DEFAULT_MISFIRE_GRACE_SEC,
     MIN_PERIOD_SEC,
     OverlapPolicy,

@@ -13,7 +13,7 @@ import contextlib
 import os
 from pathlib import Path
 
-from task_manager.core.history import lock_history
+from task_manager.core.history.store import lock_history
 
 FOLDER = 'task_manager'
 FILE_NAME = 'history.sqlite'

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from enum import StrEnum
 
-from task_manager.core.schedule import (
+from task_manager.core.schedules.schedule import (
     OverlapPolicy,
     ScheduleSpec,
     first_fire_time,
