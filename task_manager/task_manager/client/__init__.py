@@ -3,7 +3,7 @@
 One module per concern, composed by `TaskManagerClient` (task_manager_client.py): the
 connection (connection.py), the tasks it starts (tasks.py, handle.py), watching (watching.py,
 listeners.py), what the Task Manager keeps (history.py, parameters.py), pauses (pauses.py),
-schedules (schedules.py, schedule_info.py), missions (missions.py), the records
+schedules (schedules.py), missions (missions.py), the records
 (records.py) and message fields as Python values (message_values.py).
 """
 
@@ -19,8 +19,7 @@ from task_manager.client.records import (
     TaskResult,
     TaskState,
 )
-from task_manager.client.schedule_info import ScheduleInfo, scheduled_next_run
-from task_manager.client.schedules import When
+from task_manager.client.schedules import ScheduleInfo, When, scheduled_next_run
 from task_manager.client.task_manager_client import TaskManagerClient
 
 __all__ = [

@@ -27,8 +27,7 @@ from task_manager.client.missions import Subtask
 from task_manager.client.parameters import declared_tasks
 from task_manager.client.pauses import Pauses
 from task_manager.client.records import ActiveTaskInfo, TaskEvent, TaskResult, TaskState
-from task_manager.client.schedule_info import ScheduleInfo
-from task_manager.client.schedules import Schedules, When, WhenKeywords, when_of
+from task_manager.client.schedules import ScheduleInfo, Schedules, When, WhenKeywords, when_of
 from task_manager.client.services import ServiceCalls
 from task_manager.client.tasks import Tasks
 from task_manager.client.watching import ActiveTasks, Watch

@@ -11,13 +11,14 @@ from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import GetSchedules
 
 from task_manager.client import Subtask, TaskResult
-from task_manager.client.schedule_info import ScheduleInfo, scheduled_next_run
 from task_manager.client.schedules import (
+    ScheduleInfo,
     Schedules,
     When,
     WhenKeywords,
     iso_8601,
     schedule_request,
+    scheduled_next_run,
     when_of,
 )
 from task_manager.core.names import GET_SCHEDULES_SERVICE
