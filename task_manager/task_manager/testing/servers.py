@@ -162,6 +162,8 @@ class ScriptedActionServer:
         self._on_goal = on_goal
         self._hop = _ExecutorHop(node)
         self._goals_by_id: dict[bytes, ScriptedGoal] = {}
+        # ids of goals cancelled between their acceptance and their execute callback
+        self._cancelled_before_execution: set[bytes] = set()
         self.server = ActionServer(
             node,
             action_type,
@@ -186,17 +188,31 @@ class ScriptedActionServer:
         return GoalResponse.REJECT
 
     def _cancel(self, goal_handle: Any) -> CancelResponse:
-        goal = self._goals_by_id[bytes(goal_handle.goal_id.uuid)]
-        goal.cancel_requested.set()
+        key = bytes(goal_handle.goal_id.uuid)
+        goal = self._goals_by_id.get(key)
+        if goal is None:  # accepted, but its execute callback has not run yet: applied there
+            self._cancelled_before_execution.add(key)
+            return self._cancel_answer()
+        self._apply_cancel(goal)
+        return self._cancel_answer()
+
+    def _cancel_answer(self) -> CancelResponse:
         if self.cancel_policy is CancelPolicy.REJECT:
             return CancelResponse.REJECT
+        return CancelResponse.ACCEPT
+
+    def _apply_cancel(self, goal: ScriptedGoal) -> None:
+        goal.cancel_requested.set()
         if self.cancel_policy is CancelPolicy.END:
             goal._decide('canceled', None)
-        return CancelResponse.ACCEPT
 
     async def _execute(self, goal_handle: Any) -> Any:
         goal = ScriptedGoal(goal_handle, self._hop)
-        self._goals_by_id[bytes(goal_handle.goal_id.uuid)] = goal
+        key = bytes(goal_handle.goal_id.uuid)
+        self._goals_by_id[key] = goal
+        if key in self._cancelled_before_execution:
+            self._cancelled_before_execution.discard(key)
+            self._apply_cancel(goal)
         self.goals.add(goal)
         if self._on_goal is not None:
             self._on_goal(goal)

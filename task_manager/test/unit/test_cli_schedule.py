@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
-from types import ModuleType, SimpleNamespace
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -43,8 +43,8 @@ class RecordingClient:
 
 
 @pytest.fixture(scope='module')
-def cli(package_root: ModuleType) -> SimpleNamespace:
-    """taskctl's modules (they import the package root: see the package_root fixture)."""
+def cli() -> SimpleNamespace:
+    """taskctl's modules."""
     return SimpleNamespace(
         main=importlib.import_module('task_manager.cli.main'),
         pause=importlib.import_module('task_manager.cli.verbs.pause'),

@@ -6,7 +6,7 @@ import json
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
-from types import ModuleType, SimpleNamespace
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -87,8 +87,8 @@ class FakeClient:
 
 
 @pytest.fixture(scope='module')
-def cli(package_root: ModuleType) -> SimpleNamespace:
-    """taskctl's modules (they import the package root: see the package_root fixture)."""
+def cli() -> SimpleNamespace:
+    """taskctl's modules."""
     return SimpleNamespace(
         main=importlib.import_module('task_manager.cli.main'),
         records=importlib.import_module('task_manager.cli.records'),
