@@ -163,7 +163,8 @@ def test_fast_feedback_is_rate_limited_and_the_latest_comes_before_the_end(
     assert len(feedback) <= span * RATE_HZ + 2, len(feedback)
     assert len(feedback) >= 5
     gaps = [_seconds(b.stamp) - _seconds(a.stamp) for a, b in itertools.pairwise(feedback)]
-    assert min(gaps) >= 0.8 / RATE_HZ, gaps
+    # the last one may come early: a feedback held for its slot goes out as the task ends
+    assert min(gaps[:-1]) >= 0.8 / RATE_HZ, gaps
     # latest wins: the last update the server sent is the last event before ENDED
     assert mine[-2].event == TaskEvent.FEEDBACK
     assert json.loads(mine[-2].task.feedback) == {'sequence': [FAST_FEEDBACK_COUNT]}
