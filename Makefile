@@ -112,7 +112,7 @@ test: install
 	$(VENV)/bin/mypy
 	$(LINT_IMPORTS)
 	$(VENV)/bin/pytest $(INSTANCE_TESTS)
-	$(VENV)/bin/pytest -n 2 --dist loadfile --ignore=$(INSTANCE_TESTS)
+	$(VENV)/bin/pytest -n 2 --dist loadfile --durations=10 --ignore=$(INSTANCE_TESTS)
 
 lint: install
 	$(VENV)/bin/ruff check .

@@ -13,7 +13,8 @@ import logging
 from dataclasses import dataclass
 from typing import Any
 
-from task_manager.client import Subtask, TaskHandle, TaskManagerClient, TaskState
+from task_manager import gateway_requests
+from task_manager.client import TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.gateway_json import result_json, task_json
 from task_manager.protocol import models
@@ -83,7 +84,7 @@ class RequestHandler:
             case models.StartMissionRequest():
                 return self._start_mission(request)
             case models.CancelRequest():
-                result = self.client.cancel_tasks(request.task_ids, source=self.source)
+                result = gateway_requests.cancel_tasks(self.client, request, source=self.source)
                 return {'task': result_json(result)}
             case models.StopRequest():
                 return {'task': result_json(self.client.stop(source=self.source))}
@@ -108,11 +109,8 @@ class RequestHandler:
         if (known := self._known(task_id)) is not None:
             return known
         self.client.wait_until_available()
-        handle = self.client.start_task(
-            request.task_name,
-            request.task_data,
-            task_id=task_id,
-            source=request.source or self.source,
+        handle = gateway_requests.start_task(
+            self.client, request, task_id=task_id, source=request.source or self.source
         )
         return _started(handle)
 
@@ -120,12 +118,9 @@ class RequestHandler:
         task_id = request.task_id or request.request_id
         if (known := self._known(task_id)) is not None:
             return known
-        subtasks = [
-            Subtask(s.task_name, s.task_data, s.allow_skipping, s.task_id) for s in request.subtasks
-        ]
         self.client.wait_until_available()
-        handle, subtask_ids = self.client.start_mission(
-            subtasks, task_id=task_id, source=request.source or self.source
+        handle, subtask_ids = gateway_requests.start_mission(
+            self.client, request, task_id=task_id, source=request.source or self.source
         )
         return {**_started(handle), 'subtask_ids': subtask_ids}
 

@@ -19,7 +19,7 @@ from fastapi import Depends, FastAPI, Query, Request, Response
 from fastapi.responses import FileResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
 
-from task_manager.client import Subtask as ClientSubtask
+from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import declared_json, result_json, task_json
@@ -149,9 +149,9 @@ def _add_routes(app: FastAPI) -> None:
         it ends ERROR with its error code and message.
         """
         handle = await link.start(
-            link.client.start_task,
-            body.task_name,
-            body.task_data,
+            gateway_requests.start_task,
+            link.client,
+            body,
             task_id=body.task_id,
             source=caller.source,
         )
@@ -172,13 +172,10 @@ def _add_routes(app: FastAPI) -> None:
         timeout_sec: WaitSec = WAIT_DEFAULT_SEC,
     ) -> models.Started:
         """Start system/mission with these subtasks; its id and the subtasks' ids at once."""
-        subtasks = [
-            ClientSubtask(s.task_name, s.task_data, s.allow_skipping, s.task_id)
-            for s in body.subtasks
-        ]
         handle, subtask_ids = await link.start(
-            link.client.start_mission,
-            subtasks,
+            gateway_requests.start_mission,
+            link.client,
+            body,
             task_id=body.task_id,
             source=caller.source,
         )
@@ -187,7 +184,9 @@ def _add_routes(app: FastAPI) -> None:
     @app.post('/api/tasks/cancel', tags=['tasks'])
     async def cancel_tasks(body: models.CancelTasks, caller: Writer, link: Link) -> models.Task:
         """system/cancel_task: cancel these tasks, whoever started them; its result."""
-        result = await link.control(link.client.cancel_tasks, body.task_ids, source=caller.source)
+        result = await link.control(
+            gateway_requests.cancel_tasks, link.client, body, source=caller.source
+        )
         return models.Task.model_validate(result_json(result))
 
     @app.post('/api/stop', tags=['tasks'])
