@@ -97,22 +97,16 @@ $(STAMPS)/chromium: | $(PY)
 $(STAMPS)/mosquitto: | $(PY)
 	$(call debian_package,mosquitto,mosquitto,MQTT tests and make fleet)
 
-# `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain), but the
-# tests of two Task Managers meeting on one domain run alone, first: next to the other
-# process's tests, two nodes sometimes never discovered each other within 20 s (3 of 8 runs).
-# Alone it still happens now and then on a machine with many Fast DDS shared-memory files left
-# by killed processes (cause not found; see the session notes).
+# `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain).
 # The layers' contracts (.importlinter), run outside the repository's root: there the colcon
 # folder task_manager/ would pass for the package.
 LINT_IMPORTS := cd $(BUILD) && $(VENV)/bin/lint-imports --config $(CURDIR)/.importlinter
-INSTANCE_TESTS := task_manager/test/integration/test_instances.py
 
 test: install
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/mypy
 	$(LINT_IMPORTS)
-	$(VENV)/bin/pytest $(INSTANCE_TESTS)
-	$(VENV)/bin/pytest -n 2 --dist loadfile --durations=10 --ignore=$(INSTANCE_TESTS)
+	$(VENV)/bin/pytest -n 2 --dist loadfile --durations=10
 
 lint: install
 	$(VENV)/bin/ruff check .
