@@ -9,6 +9,8 @@ NODE_NAME = 'task_manager'
 
 # ---- the node's public ROS interfaces (INTERFACES.md, then ours) --------------------------------
 EXECUTE_TASK_ACTION = '/task_manager/execute_task'
+START_TASK_ACTION = '/task_manager/start_task'
+"""ExecuteTask with options (StartTask): priority, on conflict, timeouts."""
 ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
 TASK_EVENTS_TOPIC = '/task_manager/task_events'
@@ -32,8 +34,10 @@ RESUME = 'system/resume'
 SCHEDULE = 'system/schedule'
 UNSCHEDULE = 'system/unschedule'
 ENABLE_SCHEDULE = 'system/enable_schedule'
+REPRIORITIZE = 'system/reprioritize'
 SYSTEM_TASK_NAMES = frozenset(
     {
+        REPRIORITIZE,
         MISSION,
         CANCEL_TASK,
         CANCEL_TASK_ALIAS,

@@ -8,6 +8,8 @@ class TaskStatus(StrEnum):
 
     RECEIVED = 'RECEIVED'
     """Accepted by the manager, not started on its server yet (e.g. waiting for conflicts)."""
+    QUEUED = 'QUEUED'
+    """Waiting for its resources (on_conflict: queue); still active (not in the original)."""
     IN_PROGRESS = 'IN_PROGRESS'
     """Running on its server."""
     PAUSED = 'PAUSED'
@@ -40,6 +42,14 @@ class ErrorCode(StrEnum):
     UNKNOWN_TASK = 'unknown_task'
     INVALID_REQUEST = 'invalid_request'
     """An id, task name or source with refused characters or too long (request_text.py)."""
+    PREEMPTION_REFUSED = 'preemption_refused'
+    """Its resources are held by a task of higher priority, which goes on."""
+    RESOURCE_BUSY = 'resource_busy'
+    """Its resources are held and it asked not to wait (on_conflict: reject)."""
+    QUEUE_FULL = 'queue_full'
+    """It would have waited, but the queue holds max_queued tasks already."""
+    TIMEOUT = 'timeout'
+    """One of its timeouts fired (timeout_sec, queue_timeout_sec, feedback_timeout_sec)."""
 
 
 class ServerOutcome(StrEnum):
@@ -56,7 +66,9 @@ class CancelReason(StrEnum):
     CLIENT = 'client'
     """The client that started the task cancelled its own request."""
     CONFLICT = 'conflict'
-    """A newer blocking task, or a newer goal of the same non-reentrant task."""
+    """Pre-empted: a newer task of at least its priority needs one of its resources."""
+    TIMEOUT = 'timeout'
+    """One of its timeouts fired."""
     CANCEL_TASK = 'cancel_task'
     """system/cancel_task named the task's id."""
     STOP = 'stop'

@@ -10,13 +10,18 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from task_manager.core.admission.decisions import DecisionKind, DecisionNote
+from task_manager.core.admission.options import RequestOptions
 from task_manager.core.errors import InvalidTransition
 from task_manager.core.status import CancelReason, ErrorCode, ServerOutcome, TaskStatus
 from task_manager.core.task_spec import TaskSpec
 
 # key: status, value: the statuses a task may move to from it
 _ALLOWED_TRANSITIONS: dict[TaskStatus, frozenset[TaskStatus]] = {
-    TaskStatus.RECEIVED: frozenset({TaskStatus.IN_PROGRESS, TaskStatus.ERROR, TaskStatus.CANCELED}),
+    TaskStatus.RECEIVED: frozenset(
+        {TaskStatus.QUEUED, TaskStatus.IN_PROGRESS, TaskStatus.ERROR, TaskStatus.CANCELED}
+    ),
+    TaskStatus.QUEUED: frozenset({TaskStatus.IN_PROGRESS, TaskStatus.ERROR, TaskStatus.CANCELED}),
     TaskStatus.IN_PROGRESS: frozenset(
         {TaskStatus.PAUSED, TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED}
     ),
@@ -39,6 +44,8 @@ class TaskRequest:
     task_data: str
     parent_id: str = ''
     """The mission this task is a subtask of, if any."""
+    options: RequestOptions = field(default_factory=RequestOptions)
+    """The request's own priority, on_conflict and timeouts (StartTask, the gateways)."""
 
 
 @dataclass(frozen=True)
@@ -97,6 +104,14 @@ class TaskRecord:
     """Once ended: its number in the task history (it only grows)."""
     pauses: list[PauseSpan] = field(default_factory=list)
     """Each pause, oldest first; the last one is open while the task is PAUSED."""
+    priority: int = 0
+    """The priority it was admitted with (higher wins); system/reprioritize changes it."""
+    queue_position: int = 0
+    """While QUEUED: its place in the queue, 1 first."""
+    attempt: int = 1
+    """Which attempt runs (a declaration's retry starts it again under the same id)."""
+    decisions: list[DecisionNote] = field(default_factory=list)
+    """Every decision taken about it, oldest first (queued, refused, pre-empted, ...)."""
     feedback_listeners: list[Callable[['TaskRecord'], None]] = field(
         default_factory=list, repr=False
     )
@@ -123,10 +138,23 @@ class TaskRecord:
                 f'task {self.task_id}: cannot go from {self.status} to {status} this way'
             )
 
+    def mark_queued(self, position: int) -> None:
+        self._require(TaskStatus.RECEIVED, TaskStatus.QUEUED)
+        self._move_to(TaskStatus.QUEUED)
+        self.queue_position = position
+
     def mark_started(self, now: float | None = None) -> None:
-        self._require(TaskStatus.RECEIVED, TaskStatus.IN_PROGRESS)
+        if self.status is not TaskStatus.QUEUED:
+            self._require(TaskStatus.RECEIVED, TaskStatus.IN_PROGRESS)
         self._move_to(TaskStatus.IN_PROGRESS)
+        self.queue_position = 0
         self.started_at = time.time() if now is None else now
+
+    def note(self, decision: DecisionKind, reason: str, now: float | None = None) -> DecisionNote:
+        """Keep a decision taken about this task, with its reason."""
+        entry = DecisionNote(time.time() if now is None else now, decision, reason)
+        self.decisions.append(entry)
+        return entry
 
     def mark_paused(self, by: str, now: float | None = None) -> None:
         """Paused at the request of source `by`."""
@@ -161,6 +189,7 @@ class TaskRecord:
         if not status.is_final:
             raise InvalidTransition(f'task {self.task_id}: {status} is not an end status')
         self._move_to(status)
+        self.queue_position = 0
         self.result = result if result is not None else {}
         self.error_code = error_code
         self.ended_at = time.time() if now is None else now

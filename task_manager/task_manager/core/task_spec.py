@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 from enum import StrEnum
 from typing import Any
 
+from task_manager.core.admission.options import OnConflict
+from task_manager.core.admission.retry import NO_RETRY, RetryPolicy
 from task_manager.core.errors import ConfigurationError
 
 DEFAULT_CANCEL_TIMEOUT_SEC = 5.0
@@ -73,6 +75,17 @@ class TaskSpec:
     service_success_field: str = ''
     cancel_timeout_sec: float = DEFAULT_CANCEL_TIMEOUT_SEC
     pause: PauseMode = PauseMode.NONE
+    resources: tuple[str, ...] = ()
+    """What it holds while it runs (besides the implicit slots of blocking and reentrant)."""
+    priority: int = 0
+    on_conflict: OnConflict = OnConflict.PREEMPT
+    timeout_sec: float = 0.0
+    """From start to end; 0: none."""
+    queue_timeout_sec: float = 0.0
+    """The longest wait in the queue; 0: none."""
+    feedback_timeout_sec: float = 0.0
+    """The longest an action may go without feedback; 0: none."""
+    retry: RetryPolicy = NO_RETRY
     parameter_key: str = field(default='', compare=False)
 
     @property

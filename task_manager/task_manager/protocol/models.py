@@ -16,10 +16,13 @@ from task_manager.core.request_text import MAX_LENGTH, is_refused_character
 NAME_MAX = MAX_LENGTH
 """The longest task name, task id or source accepted."""
 
-TaskStatusName = Literal['RECEIVED', 'IN_PROGRESS', 'PAUSED', 'DONE', 'ERROR', 'CANCELED']
+TaskStatusName = Literal[
+    'RECEIVED', 'QUEUED', 'IN_PROGRESS', 'PAUSED', 'DONE', 'ERROR', 'CANCELED'
+]  # fmt: skip
 ErrorCodeName = Literal[
     '', 'duplicate_id', 'task_data_parsing_failed', 'task_start_failed', 'task_cancel_failed',
-    'unknown_task', 'invalid_request',
+    'unknown_task', 'invalid_request', 'preemption_refused', 'resource_busy', 'queue_full',
+    'timeout',
 ]  # fmt: skip
 
 

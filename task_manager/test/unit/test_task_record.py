@@ -21,8 +21,13 @@ from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
 
 RECEIVED, IN_PROGRESS, PAUSED = TaskStatus.RECEIVED, TaskStatus.IN_PROGRESS, TaskStatus.PAUSED
 DONE, ERROR, CANCELED = TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED
+QUEUED = TaskStatus.QUEUED
 FINAL = (DONE, ERROR, CANCELED)
 ALLOWED = {
+    (RECEIVED, QUEUED),
+    (QUEUED, IN_PROGRESS),
+    (QUEUED, ERROR),
+    (QUEUED, CANCELED),
     (RECEIVED, IN_PROGRESS),
     (RECEIVED, ERROR),
     (RECEIVED, CANCELED),
@@ -53,7 +58,9 @@ def make_record(task_id: str = 't1', **spec_options: Any) -> TaskRecord:
 def record_in(status: TaskStatus) -> TaskRecord:
     """A record brought to `status` through allowed steps (started at 2.0, ended at 3.0)."""
     record = make_record()
-    if status is not RECEIVED:
+    if status is QUEUED:
+        record.mark_queued(1)
+    elif status is not RECEIVED:
         record.mark_started(now=2.0)
     if status is PAUSED:
         record.mark_paused('operator', now=2.5)
@@ -71,6 +78,8 @@ def move(record: TaskRecord, status: TaskStatus, now: float) -> None:
         record.mark_started(now=now)
     elif status is PAUSED:
         record.mark_paused('operator', now=now)
+    elif status is QUEUED:
+        record.mark_queued(1)
     else:  # RECEIVED has no method of its own; mark_ended must refuse it like any other step
         record.mark_ended(status, {'n': 1}, ErrorCode.TASK_START_FAILED, now=now)
 
@@ -128,8 +137,8 @@ def test_every_other_transition_is_invalid_and_changes_nothing(
 
 
 def test_forbidden_list_covers_every_other_pair() -> None:
-    assert len(ALL_PAIRS) == 36
-    assert len(FORBIDDEN) == 25
+    assert len(ALL_PAIRS) == 49
+    assert len(FORBIDDEN) == 34
 
 
 @pytest.mark.parametrize('before', [RECEIVED, IN_PROGRESS, PAUSED])

@@ -1,0 +1,229 @@
+"""Who may run: the resources held, the queue, and each request's verdict with its reason.
+
+Rules (docs/deciding-what-runs.md):
+- A request whose resources are free, and wanted by no queued task of at least its priority,
+  starts at once.
+- Otherwise its on_conflict says what happens. `preempt`: it cancels the holders if its
+  priority is at least each one's (refused `preemption_refused` if not, or if a queued task of
+  at least its priority waits for the same resources). `queue`: it waits (refused `queue_full`
+  beyond max_queued). `reject`: refused `resource_busy`.
+- The queue is served by priority, then arrival: a queued task starts once its resources are
+  free and no task ahead of it in the queue still waits for one of them.
+- A subtask may use what its missions hold: a mission claims its subtasks' resources as a unit.
+"""
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from enum import StrEnum
+
+from task_manager.core.admission.claims import Claim, resource_words
+from task_manager.core.admission.options import OnConflict
+from task_manager.core.status import ErrorCode
+
+DEFAULT_MAX_QUEUED = 100
+
+
+class Verdict(StrEnum):
+    START = 'start'
+    QUEUE = 'queue'
+    REFUSE = 'refuse'
+
+
+@dataclass(frozen=True)
+class Preemption:
+    """A holder the new task cancels, and the words its own record keeps."""
+
+    victim: Claim
+    reason: str
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The verdict on one request, and why (empty when it simply starts)."""
+
+    verdict: Verdict
+    reason: str = ''
+    error_code: ErrorCode = ErrorCode.NONE
+    preemptions: tuple[Preemption, ...] = field(default=())
+    position: int = 0
+    """QUEUE: its place in the queue, 1 first."""
+
+
+class Arbiter:
+    """The resources held by running tasks and the tasks queued for theirs."""
+
+    def __init__(self, max_queued: int = DEFAULT_MAX_QUEUED) -> None:
+        self.max_queued = max_queued
+        # key: task id, value: the claim of a task that holds its resources (started or starting)
+        self.holders: dict[str, Claim] = {}
+        # the queued claims, in the order they are served
+        self._queue: list[Claim] = []
+        self._arrivals = 0
+
+    # ---- questions ----------------------------------------------------------------------------
+
+    @property
+    def queued(self) -> list[Claim]:
+        """Queued claims, first served first."""
+        return list(self._queue)
+
+    def position(self, task_id: str) -> int:
+        """1 for the first queued task; 0 when it is not queued."""
+        for index, claim in enumerate(self._queue):
+            if claim.task_id == task_id:
+                return index + 1
+        return 0
+
+    def is_queued(self, task_id: str) -> bool:
+        return any(claim.task_id == task_id for claim in self._queue)
+
+    def blockers(self, claim: Claim) -> list[tuple[Claim, frozenset[str]]]:
+        """Holders that share a resource with `claim`, and what they share."""
+        related = self._lineage(claim)
+        found = []
+        for holder in self.holders.values():
+            shared = holder.resources & claim.resources
+            if shared and holder.task_id not in related:
+                found.append((holder, shared))
+        return found
+
+    # ---- decisions ----------------------------------------------------------------------------
+
+    def decide(self, claim: Claim, on_conflict: OnConflict) -> Decision:
+        """The verdict on a new request; START and QUEUE take effect here."""
+        self._arrivals += 1
+        claim.arrival = self._arrivals
+        holders = self.blockers(claim)
+        ahead = self._queued_ahead(claim)
+        if not holders and not ahead:
+            self.holders[claim.task_id] = claim
+            return Decision(Verdict.START)
+        if on_conflict is OnConflict.QUEUE:
+            return self._enqueue(claim, holders, ahead)
+        if on_conflict is OnConflict.REJECT:
+            return Decision(
+                Verdict.REFUSE,
+                'refused: ' + _busy_words(holders, ahead),
+                ErrorCode.RESOURCE_BUSY,
+            )
+        return self._preempt(claim, holders, ahead)
+
+    def release(self, task_id: str) -> list[Claim]:
+        """A task ended (or left the queue): the queued tasks that start now, in order."""
+        self.holders.pop(task_id, None)
+        self._queue = [claim for claim in self._queue if claim.task_id != task_id]
+        return self._serve_queue()
+
+    def reprioritize(self, task_id: str, priority: int) -> list[Claim] | None:
+        """Change an active task's priority; None when it holds nothing and is not queued.
+
+        A queued task moves in the queue; the queued tasks that may start now are returned.
+        """
+        claim = self.holders.get(task_id) or next(
+            (queued for queued in self._queue if queued.task_id == task_id), None
+        )
+        if claim is None:
+            return None
+        claim.priority = priority
+        self._queue.sort(key=_queue_order)
+        return self._serve_queue()
+
+    # ---- inside -----------------------------------------------------------------------------
+
+    def _lineage(self, claim: Claim) -> set[str]:
+        """The ids of the missions `claim` runs in (their holds are its own)."""
+        lineage: set[str] = set()
+        parent_id = claim.parent_id
+        while parent_id and parent_id not in lineage:
+            lineage.add(parent_id)
+            parent = self.holders.get(parent_id)
+            parent_id = parent.parent_id if parent is not None else ''
+        return lineage
+
+    def _queued_ahead(self, claim: Claim) -> list[tuple[Claim, frozenset[str]]]:
+        """Queued tasks of at least `claim`'s priority that wait for one of its resources."""
+        return [
+            (queued, queued.resources & claim.resources)
+            for queued in self._queue
+            if queued.priority >= claim.priority and queued.resources & claim.resources
+        ]
+
+    def _enqueue(
+        self,
+        claim: Claim,
+        holders: list[tuple[Claim, frozenset[str]]],
+        ahead: list[tuple[Claim, frozenset[str]]],
+    ) -> Decision:
+        if len(self._queue) >= self.max_queued:
+            return Decision(
+                Verdict.REFUSE,
+                f'refused: {_busy_words(holders, ahead)}, and the queue is full '
+                f'(max_queued {self.max_queued})',
+                ErrorCode.QUEUE_FULL,
+            )
+        self._queue.append(claim)
+        self._queue.sort(key=_queue_order)
+        position = self.position(claim.task_id)
+        return Decision(
+            Verdict.QUEUE, f'queued behind {_busy_words(holders, ahead)}', position=position
+        )
+
+    def _preempt(
+        self,
+        claim: Claim,
+        holders: list[tuple[Claim, frozenset[str]]],
+        ahead: list[tuple[Claim, frozenset[str]]],
+    ) -> Decision:
+        stronger = [(h, shared) for h, shared in holders if h.priority > claim.priority]
+        if stronger:
+            holder, shared = max(stronger, key=lambda item: item[0].priority)
+            return Decision(
+                Verdict.REFUSE,
+                f"refused: priority {claim.priority} is below {holder.task_id}'s "
+                f'{holder.priority}, which holds {resource_words(shared)}',
+                ErrorCode.PREEMPTION_REFUSED,
+            )
+        if ahead:
+            queued, shared = ahead[0]
+            return Decision(
+                Verdict.REFUSE,
+                f'refused: {queued.label()} is queued first for {resource_words(shared)}',
+                ErrorCode.PREEMPTION_REFUSED,
+            )
+        preemptions = tuple(
+            Preemption(
+                holder,
+                f'cancelled: pre-empted by {claim.label()} for {resource_words(shared)}',
+            )
+            for holder, shared in holders
+        )
+        for holder, _ in holders:
+            self.holders.pop(holder.task_id, None)
+        self.holders[claim.task_id] = claim
+        victims = ', '.join(p.victim.label() for p in preemptions)
+        return Decision(Verdict.START, f'pre-empts {victims}', preemptions=preemptions)
+
+    def _serve_queue(self) -> list[Claim]:
+        started: list[Claim] = []
+        wanted: set[str] = set()
+        for claim in list(self._queue):
+            if not self.blockers(claim) and not (claim.resources & wanted):
+                self._queue.remove(claim)
+                self.holders[claim.task_id] = claim
+                started.append(claim)
+            else:
+                wanted |= claim.resources
+        return started
+
+
+def _queue_order(claim: Claim) -> tuple[int, int]:
+    return (-claim.priority, claim.arrival)
+
+
+def _busy_words(
+    holders: Iterable[tuple[Claim, frozenset[str]]], ahead: Iterable[tuple[Claim, frozenset[str]]]
+) -> str:
+    """`navigate-12 (priority 5), which holds base; dock-3 (priority 5), queued for base`."""
+    parts = [f'{h.label()}, which holds {resource_words(shared)}' for h, shared in holders]
+    parts += [f'{q.label()}, queued for {resource_words(shared)}' for q, shared in ahead]
+    return '; '.join(parts)
