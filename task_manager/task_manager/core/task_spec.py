@@ -1,5 +1,6 @@
 """Task declarations: what a task is, read from the node's parameters."""
 
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -21,7 +22,28 @@ OPTIONAL_KEYS: dict[str, tuple[tuple[type, ...], Any]] = {
     'service_success_field': ((str,), ''),
     'cancel_timeout': ((int, float), DEFAULT_CANCEL_TIMEOUT_SEC),
     'pause': ((str,), 'none'),
+    'priority': ((int,), 0),
+    'on_conflict': ((str,), OnConflict.PREEMPT.value),
+    'timeout_sec': ((int, float), 0.0),
+    'queue_timeout_sec': ((int, float), 0.0),
+    'feedback_timeout_sec': ((int, float), 0.0),
 }
+TIMEOUT_KEYS = ('timeout_sec', 'queue_timeout_sec', 'feedback_timeout_sec')
+# Optional keys that hold several values, each checked by its own parser.
+COMPOUND_KEYS = ('resources', 'retry')
+# Keys whose value is a map: ROS parameters give it flat (`retry.max_attempts`).
+MAP_KEYS = ('retry',)
+# key: number in a task entry's `retry` map, value: accepted Python types
+RETRY_NUMBER_TYPES: dict[str, tuple[type, ...]] = {
+    'max_attempts': (int,),
+    'initial_delay_sec': (int, float),
+    'multiplier': (int, float),
+    'max_delay_sec': (int, float),
+}
+RETRY_KEYS = (*RETRY_NUMBER_TYPES, 'on_error_codes')
+RESERVED_RESOURCE_PREFIX = '@'
+"""Starts the implicit resources (core/admission/claims.py), which no declaration may name."""
+_RESOURCE_PATTERN = re.compile(r'[A-Za-z0-9_./-]+')
 _INTERFACE_PATTERN = re.compile(r'^(?P<package>\w+)[./](?P<kind>action|srv)[./](?P<name>\w+)$')
 
 
@@ -158,8 +180,99 @@ def parse_task_spec(key: str, entry: Mapping[str, Any]) -> TaskSpec:
         service_success_field=options['service_success_field'],
         cancel_timeout_sec=float(options['cancel_timeout']),
         pause=pause,
+        resources=_resources(f'{label}: {key}.resources', entry.get('resources')),
+        priority=options['priority'],
+        on_conflict=_on_conflict(f'{label}: {key}.on_conflict', options['on_conflict']),
+        **_timeouts(label, key, options, interface),
+        retry=_retry_policy(f'{label}: {key}.retry', entry.get('retry')),
         parameter_key=key,
     )
+
+
+def _resources(what: str, value: Any) -> tuple[str, ...]:
+    """The declared resources, sorted; none when the key is left out."""
+    if value is None:
+        return ()
+    value = _strings(what, value, 'e.g. [base]')
+    for name in value:
+        if name.startswith(RESERVED_RESOURCE_PREFIX):
+            raise ConfigurationError(
+                f'{what}: {name!r} starts with {RESERVED_RESOURCE_PREFIX!r}, which is reserved '
+                "for the implicit resources (blocking, a task's one goal slot)"
+            )
+        if not _RESOURCE_PATTERN.fullmatch(name):
+            raise ConfigurationError(
+                f'{what}: {name!r} is not a resource name (one or more letters, digits and _ . / -)'
+            )
+    twice = sorted({name for name in value if value.count(name) > 1})
+    if twice:
+        raise ConfigurationError(f'{what} names {", ".join(map(repr, twice))} more than once')
+    return tuple(sorted(value))
+
+
+def _strings(what: str, value: Any, example: str) -> list[str]:
+    """`value` if it is a list of strings; else ConfigurationError saying `what` is wrong."""
+    if not isinstance(value, list | tuple) or not all(isinstance(item, str) for item in value):
+        raise ConfigurationError(f'{what} must be a list of strings, {example}, got {value!r}')
+    return list(value)
+
+
+def _on_conflict(what: str, text: str) -> OnConflict:
+    try:
+        return OnConflict(text.strip().lower())
+    except ValueError:
+        allowed = ', '.join(choice.value for choice in OnConflict)
+        raise ConfigurationError(f'{what} must be one of {allowed}, got {text!r}') from None
+
+
+def _timeouts(
+    label: str, key: str, options: Mapping[str, Any], interface: InterfaceName
+) -> dict[str, float]:
+    """The entry's timeouts as floats (0: none); a feedback timeout only for an action."""
+    for name in TIMEOUT_KEYS:
+        if not 0 <= options[name] < math.inf:
+            raise ConfigurationError(
+                f'{label}: {key}.{name} must be a finite number of seconds >= 0 (0: none), '
+                f'got {options[name]!r}'
+            )
+    if options['feedback_timeout_sec'] and interface.kind is not TaskKind.ACTION:
+        raise ConfigurationError(
+            f'{label}: feedback_timeout_sec is only for action tasks (a service sends no '
+            f'feedback), and {interface} is a service'
+        )
+    return {name: float(options[name]) for name in TIMEOUT_KEYS}
+
+
+def _retry_policy(what: str, value: Any) -> RetryPolicy:
+    """The entry's `retry` map as a RetryPolicy; no retry when the key is left out."""
+    if value is None:
+        return NO_RETRY
+    if not isinstance(value, Mapping):
+        raise ConfigurationError(f'{what} must be a map of {", ".join(RETRY_KEYS)}, got {value!r}')
+    unknown = sorted(str(name) for name in value if name not in RETRY_KEYS)
+    if unknown:
+        raise ConfigurationError(
+            f'{what}.{unknown[0]} is not a key of retry; its keys are {", ".join(RETRY_KEYS)}'
+        )
+    if 'max_attempts' not in value:
+        raise ConfigurationError(f'{what}.max_attempts is missing (the attempts in all, >= 1)')
+    values = {
+        name: checked_value(f'{what}.{name}', value[name], types)
+        for name, types in RETRY_NUMBER_TYPES.items()
+        if name in value
+    }
+    codes = _strings(f'{what}.on_error_codes', value.get('on_error_codes', ()), 'e.g. [aborted]')
+    policy = RetryPolicy(
+        max_attempts=values['max_attempts'],
+        initial_delay_sec=float(values.get('initial_delay_sec', NO_RETRY.initial_delay_sec)),
+        multiplier=float(values.get('multiplier', NO_RETRY.multiplier)),
+        max_delay_sec=float(values.get('max_delay_sec', NO_RETRY.max_delay_sec)),
+        on_error_codes=tuple(code.strip().lower() for code in codes),
+    )
+    problem = policy.problem()
+    if problem:
+        raise ConfigurationError(f'{what}.{problem}')
+    return policy
 
 
 def _pause_mode(label: str, key: str, text: str, interface: InterfaceName) -> PauseMode:
@@ -181,9 +294,37 @@ def _pause_mode(label: str, key: str, text: str, interface: InterfaceName) -> Pa
     return mode
 
 
+def nested_entry(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """A task entry as ROS parameters give it, with each map of MAP_KEYS gathered again:
+    `{'retry.max_attempts': 3}` becomes `{'retry': {'max_attempts': 3}}`."""
+    entry: dict[str, Any] = {}
+    maps: dict[str, dict[str, Any]] = {}
+    for name, value in flat.items():
+        head, dot, rest = name.partition('.')
+        if dot and head in MAP_KEYS:
+            maps.setdefault(head, {})[rest] = value
+        else:
+            entry[name] = value
+    for head, inner in maps.items():
+        entry.setdefault(head, inner)  # `retry: 3` beside `retry.x` stays 3, refused as no map
+    return entry
+
+
 def unknown_keys(entry: Mapping[str, Any]) -> list[str]:
-    """Keys of a task entry that the Task Manager does not know (likely typos)."""
-    return sorted(set(entry) - set(REQUIRED_KEYS) - set(OPTIONAL_KEYS))
+    """Keys of a task entry that the Task Manager does not know (likely typos); those inside
+    a map as `retry.<key>`, whether the map is nested or flat."""
+    known = {*REQUIRED_KEYS, *OPTIONAL_KEYS, *COMPOUND_KEYS}
+    unknown: set[str] = set()
+    for name, value in entry.items():
+        head, dot, rest = name.partition('.')
+        if name == 'retry' and isinstance(value, Mapping):
+            unknown.update(f'retry.{inner}' for inner in value if inner not in RETRY_KEYS)
+        elif dot and head == 'retry':
+            if rest not in RETRY_KEYS:
+                unknown.add(name)
+        elif name not in known:
+            unknown.add(name)
+    return sorted(unknown)
 
 
 def parse_task_specs(

@@ -7,9 +7,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from task_manager.core.admission.options import OnConflict
+from task_manager.core.admission.retry import NO_RETRY
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.task_spec import (
     DEFAULT_CANCEL_TIMEOUT_SEC,
+    RETRY_KEYS,
     InterfaceName,
     TaskKind,
     TaskSpec,
@@ -133,6 +136,11 @@ def test_omitted_optional_keys_take_their_defaults() -> None:
     assert spec.cancel_timeout_sec == 5.0 == DEFAULT_CANCEL_TIMEOUT_SEC
     assert isinstance(spec.cancel_timeout_sec, float)
     assert spec.parameter_key == 'fib_key'
+    assert spec.resources == ()
+    assert spec.priority == 0
+    assert spec.on_conflict is OnConflict.PREEMPT
+    assert spec.timeout_sec == spec.queue_timeout_sec == spec.feedback_timeout_sec == 0.0
+    assert spec.retry is NO_RETRY
 
 
 def test_required_strings_are_stripped() -> None:
@@ -340,8 +348,25 @@ def test_unknown_keys_is_empty_for_every_known_key() -> None:
         cancel_reported_as_success=True,
         service_success_field='success',
         cancel_timeout=1,
+        resources=['base'],
+        priority=1,
+        on_conflict='queue',
+        timeout_sec=1,
+        queue_timeout_sec=1,
+        feedback_timeout_sec=0,
+        retry=dict.fromkeys(RETRY_KEYS, 1),
     )
     assert unknown_keys(full) == []
+
+
+def test_unknown_keys_names_typos_inside_retry_nested_or_flat() -> None:
+    nested = entry(retry={'max_attempts': 2, 'max_atempts': 3, 'delay': 1})
+    flat = entry(**{'retry.max_attempts': 2, 'retry.max_atempts': 3, 'retry.delay': 1})
+    assert unknown_keys(nested) == unknown_keys(flat) == ['retry.delay', 'retry.max_atempts']
+
+
+def test_unknown_keys_names_a_misspelt_map_with_its_keys() -> None:
+    assert unknown_keys(entry(**{'retyr.max_attempts': 2})) == ['retyr.max_attempts']
 
 
 # ---- properties ------------------------------------------------------------------------------
