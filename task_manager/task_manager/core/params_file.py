@@ -14,6 +14,12 @@ import yaml
 
 from task_manager.core.errors import ConfigurationError
 
+# key: last part of a parameter's name, value: what to write instead of an empty list
+EMPTY_LIST_HINTS = {
+    'resources': 'leave resources out for a task that holds none',
+    'on_error_codes': 'leave on_error_codes out to retry after any error',
+}
+
 
 def params_files(arguments: list[str]) -> list[Path]:
     """The files given with `--params-file` in a command line."""
@@ -32,6 +38,9 @@ def check_params_file(path: Path) -> None:
         raise ConfigurationError(f'cannot read parameters file {path}: {error}') from error
     for name, value in _leaves(content, ''):
         problem = _problem(value)
+        hint = EMPTY_LIST_HINTS.get(name.rsplit('.', 1)[-1]) if value == [] else None
+        if hint:
+            problem = f'{problem}; {hint}'
         if problem:
             raise ConfigurationError(f'parameter {name!r} in {path}: {problem}')
 

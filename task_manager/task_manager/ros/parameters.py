@@ -5,10 +5,18 @@ from typing import Any
 
 from rclpy.node import Node
 
+from task_manager.core.admission.arbiter import DEFAULT_MAX_QUEUED
+from task_manager.core.admission.priority import parse_source_priorities
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.history import location as history_location
 from task_manager.core.history.store import HistoryInUseError
-from task_manager.core.task_spec import TaskSpec, checked_value, parse_task_specs, unknown_keys
+from task_manager.core.task_spec import (
+    TaskSpec,
+    checked_value,
+    nested_entry,
+    parse_task_specs,
+    unknown_keys,
+)
 from task_manager.ros.running.execution import RunnerTimeouts
 
 # key: node-level parameter, value: (accepted types, default)
@@ -27,7 +35,10 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'history_path': ((str,), None),
     'history_max_results': ((int,), 1_000_000),
     'history_max_age_days': ((int, float), 90.0),
+    'max_queued': ((int,), DEFAULT_MAX_QUEUED),
 }
+SOURCE_PRIORITIES = 'source_priorities'
+"""The map of priorities by source; ROS gives it flat: `source_priorities.joystick`."""
 
 
 POSITIVE_PARAMETERS = (
@@ -54,6 +65,10 @@ class NodeSettings:
     """The SQLite file of the task history; '' keeps it in memory only."""
     history_max_results: int
     history_max_age_days: float
+    max_queued: int
+    """The most tasks waiting in the queue."""
+    source_priorities: dict[str, int]
+    """key: source (or its part before ':'), value: the priority it adds to a request's."""
 
 
 def default_history_path(node: Node) -> str:
@@ -94,6 +109,8 @@ def read_settings(node: Node) -> NodeSettings:
     for name in ('history_max_results', 'history_max_age_days'):
         if values[name] < 0:
             raise ConfigurationError(f'parameter {name!r} must be >= 0 (0: no limit)')
+    if values['max_queued'] < 0:
+        raise ConfigurationError(f"parameter 'max_queued' must be >= 0, got {values['max_queued']}")
     if values['instance_check_timeout'] < 0:
         raise ConfigurationError("parameter 'instance_check_timeout' must be >= 0")
     for name in POSITIVE_PARAMETERS:
@@ -110,6 +127,8 @@ def read_settings(node: Node) -> NodeSettings:
         ),
         history_max_results=values['history_max_results'],
         history_max_age_days=float(values['history_max_age_days']),
+        max_queued=values['max_queued'],
+        source_priorities=read_source_priorities(node),
         timeouts=RunnerTimeouts(
             server_wait_sec=float(values['server_wait_timeout']),
             goal_response_sec=float(values['goal_response_timeout']),
@@ -118,6 +137,17 @@ def read_settings(node: Node) -> NodeSettings:
             server_loss_timeout_sec=float(values['server_loss_timeout']),
         ),
     )
+
+
+def read_source_priorities(node: Node) -> dict[str, int]:
+    """The `source_priorities.<source>` parameters, as a map of source to priority."""
+    if node.has_parameter(SOURCE_PRIORITIES):
+        raise ConfigurationError(
+            f"parameter '{SOURCE_PRIORITIES}' must be a map of source to priority, e.g. "
+            f'{{joystick: 100, CLOUD: 10}}, got {node.get_parameter(SOURCE_PRIORITIES).value!r}'
+        )
+    prefixed = node.get_parameters_by_prefix(SOURCE_PRIORITIES)
+    return parse_source_priorities({name: parameter.value for name, parameter in prefixed.items()})
 
 
 def read_task_specs(node: Node, reserved_names: set[str]) -> list[TaskSpec]:
@@ -133,7 +163,7 @@ def read_task_specs(node: Node, reserved_names: set[str]) -> list[TaskSpec]:
     entries = {}
     for key in task_keys if isinstance(task_keys, list | tuple) else []:
         prefixed = node.get_parameters_by_prefix(key) if isinstance(key, str) else {}
-        entries[key] = {name: parameter.value for name, parameter in prefixed.items()}
+        entries[key] = nested_entry({name: parameter.value for name, parameter in prefixed.items()})
     specs = parse_task_specs(task_keys, entries, reserved_names)
     for spec in specs:
         for unknown in unknown_keys(entries[spec.parameter_key]):

@@ -51,6 +51,26 @@ def test_values_ros_cannot_hold_are_named(tmp_path: Path, value: str, problem: s
     assert "'task_manager.ros__parameters.nav.odd'" in str(raised.value)
 
 
+@pytest.mark.parametrize(
+    ('key', 'hint'),
+    [
+        ('resources', 'leave resources out for a task that holds none'),
+        ('retry:\n        on_error_codes', 'leave on_error_codes out to retry after any error'),
+    ],
+)
+def test_an_empty_list_of_a_task_entry_says_what_to_write_instead(
+    tmp_path: Path, key: str, hint: str
+) -> None:
+    path = _file(tmp_path, f'task_manager:\n  ros__parameters:\n    nav:\n      {key}: []\n')
+
+    with pytest.raises(ConfigurationError) as raised:
+        check_params_file(path)
+
+    assert str(raised.value).endswith(
+        'an empty list has no type; ROS parameters need at least one element; ' + hint
+    )
+
+
 def test_a_valid_file_passes(tmp_path: Path) -> None:
     path = _file(
         tmp_path,
