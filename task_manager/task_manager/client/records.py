@@ -244,6 +244,8 @@ class TaskEventKind(StrEnum):
 
     RECEIVED = 'RECEIVED'
     """The Task Manager received the request (every request has one)."""
+    QUEUED = 'QUEUED'
+    """It waits in the queue for its resources (`reason` says behind whom)."""
     STARTED = 'STARTED'
     """The task started on its server (not for a request refused before starting)."""
     FEEDBACK = 'FEEDBACK'
@@ -252,6 +254,8 @@ class TaskEventKind(StrEnum):
     """system/pause paused the task (its status is PAUSED; it is still active)."""
     RESUMED = 'RESUMED'
     """system/resume resumed the task (its status is IN_PROGRESS again)."""
+    DECIDED = 'DECIDED'
+    """The Task Manager decided something else about it (a new priority, a retry)."""
     ENDED = 'ENDED'
     """The task ended (the last event of a task)."""
 

@@ -40,6 +40,10 @@ class TaskRegistry:
         """Tasks that have started and not ended (IN_PROGRESS or PAUSED)."""
         return [t for t in self.active_tasks_by_id.values() if t.status.is_started]
 
+    def listed(self) -> list[TaskRecord]:
+        """Tasks shown in active_tasks: queued, running or paused."""
+        return [t for t in self.active_tasks_by_id.values() if t.status.is_listed]
+
     def conflicts_of(self, spec: TaskSpec, new_task_id: str) -> list[TaskRecord]:
         """Tasks that must be cancelled before a new task of `spec` may start.
 

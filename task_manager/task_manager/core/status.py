@@ -26,6 +26,11 @@ class TaskStatus(StrEnum):
         return self in (TaskStatus.DONE, TaskStatus.ERROR, TaskStatus.CANCELED)
 
     @property
+    def is_listed(self) -> bool:
+        """Shown in active_tasks: started and not ended, or waiting in the queue."""
+        return self in (TaskStatus.QUEUED, TaskStatus.IN_PROGRESS, TaskStatus.PAUSED)
+
+    @property
     def is_started(self) -> bool:
         """Started and not ended: shown in active_tasks."""
         return self in (TaskStatus.IN_PROGRESS, TaskStatus.PAUSED)

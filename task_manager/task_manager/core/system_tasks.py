@@ -8,6 +8,7 @@ from task_manager.core.names import (
     ENABLE_SCHEDULE,
     MISSION,
     PAUSE,
+    REPRIORITIZE,
     RESUME,
     SCHEDULE,
     STOP,
@@ -50,6 +51,13 @@ PAUSE_SPEC = _system_spec(
 RESUME_SPEC = _system_spec(
     RESUME, TaskKind.SERVICE, 'ResumeTasks', reentrant=True, service_success_field='success'
 )
+REPRIORITIZE_SPEC = _system_spec(
+    REPRIORITIZE,
+    TaskKind.SERVICE,
+    'ReprioritizeTasks',
+    reentrant=True,
+    service_success_field='success',
+)
 SCHEDULE_SPEC = _system_spec(
     SCHEDULE, TaskKind.SERVICE, 'ScheduleTask', reentrant=True, service_success_field='success'
 )
@@ -72,6 +80,7 @@ SYSTEM_SPECS = (
     WAIT_SPEC,
     PAUSE_SPEC,
     RESUME_SPEC,
+    REPRIORITIZE_SPEC,
     SCHEDULE_SPEC,
     UNSCHEDULE_SPEC,
     ENABLE_SCHEDULE_SPEC,

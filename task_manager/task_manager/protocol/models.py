@@ -38,7 +38,9 @@ def _without_refused_characters(text: str) -> str:
 
 Name = Annotated[str, AfterValidator(_without_refused_characters)]
 """A task id, task name or source of a request."""
-EventName = Literal['RECEIVED', 'STARTED', 'FEEDBACK', 'PAUSED', 'RESUMED', 'ENDED']
+EventName = Literal[
+    'RECEIVED', 'QUEUED', 'STARTED', 'FEEDBACK', 'PAUSED', 'RESUMED', 'DECIDED', 'ENDED'
+]  # fmt: skip
 
 
 class _Request(BaseModel):

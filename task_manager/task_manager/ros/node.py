@@ -5,7 +5,7 @@ from typing import Any
 
 from rclpy.node import Node
 from rclpy.task import Future
-from task_manager_msgs.action import ExecuteTask
+from task_manager_msgs.action import ExecuteTask, StartTask
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
 from task_manager_msgs.srv import GetSchedules, GetTaskResults, GetTaskStates, QueryTaskHistory
 
@@ -19,6 +19,7 @@ from task_manager.core.names import (
     NODE_NAME,
     QUERY_TASK_HISTORY_SERVICE,
     RESULTS_TOPIC,
+    START_TASK_ACTION,
     SYSTEM_TASK_NAMES,
 )
 from task_manager.core.task import TaskRecord, TaskRequest
@@ -26,6 +27,7 @@ from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wait_until_ready
+from task_manager.rclpy_tools.task_options import request_options
 from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
@@ -96,7 +98,16 @@ class TaskManagerNode(Node):
         self._events = TaskEventStream(
             self, self.settings.publish_task_events, self.settings.feedback_rate_hz
         )
-        self.dispatcher = TaskDispatcher(self, {}, self, self._spawn, self._events, self.history)
+        self.dispatcher = TaskDispatcher(
+            self,
+            {},
+            self,
+            self._spawn,
+            self._events,
+            self.history,
+            max_queued=self.settings.max_queued,
+            source_priorities=self.settings.source_priorities,
+        )
         self.scheduler = TaskScheduler(self, self.dispatcher, self.history.schedule_store())
         self._runners = [
             *user_runners,
@@ -130,6 +141,13 @@ class TaskManagerNode(Node):
             ExecuteTask,
             EXECUTE_TASK_ACTION,
             execute=self._execute_task,
+            cancel=self._goals.cancel_callback,
+        )
+        self._start_server = ActionServicesServer(
+            self,
+            StartTask,
+            START_TASK_ACTION,
+            execute=self._start_task,
             cancel=self._goals.cancel_callback,
         )
         self._task_servers = (
@@ -294,9 +312,24 @@ class TaskManagerNode(Node):
         goal = goal_handle.request
         request = TaskRequest(goal.task_id, goal.task_name, goal.source, goal.task_data)
         record = await self._goals.run(goal_handle, request)
-        return ExecuteTask.Result(
-            task_id=record.task_id,
-            task_result=result_json(record),
-            task_status=str(record.status),
-            error_code=str(record.error_code),
+        return ExecuteTask.Result(**result_fields(record))
+
+    async def _start_task(self, goal_handle: Any) -> StartTask.Result:
+        """ExecuteTask with options (priority, on_conflict, timeouts): the same result."""
+        goal = goal_handle.request
+        options = request_options(goal.options)
+        request = TaskRequest(
+            goal.task_id, goal.task_name, goal.source, goal.task_data, options=options
         )
+        record = await self._goals.run(goal_handle, request)
+        return StartTask.Result(**result_fields(record))
+
+
+def result_fields(record: TaskRecord) -> dict[str, str]:
+    """The fields of ExecuteTask's (and StartTask's) result."""
+    return dict(
+        task_id=record.task_id,
+        task_result=result_json(record),
+        task_status=str(record.status),
+        error_code=str(record.error_code),
+    )

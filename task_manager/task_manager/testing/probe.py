@@ -6,11 +6,11 @@ from typing import Any
 
 from action_msgs.msg import GoalStatus
 from rclpy.action.client import ClientGoalHandle
-from task_manager_msgs.action import ExecuteTask
-from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult
+from task_manager_msgs.action import ExecuteTask, StartTask
+from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult, TaskOptions
 from unique_identifier_msgs.msg import UUID
 
-from task_manager.core.names import EXECUTE_TASK_ACTION
+from task_manager.core.names import EXECUTE_TASK_ACTION, START_TASK_ACTION
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import (
     RosHarness,
@@ -25,11 +25,13 @@ WARM_UP_ATTEMPTS = 5
 WARM_UP_TIMEOUT_SEC = 2.0
 
 
-def execute_task_client(ros: RosHarness) -> Any:
-    """An ExecuteTask action client with deep queues, so that bursts are not dropped."""
+def execute_task_client(
+    ros: RosHarness, action_type: Any = ExecuteTask, name: str = EXECUTE_TASK_ACTION
+) -> Any:
+    """An ExecuteTask (or StartTask) action client with deep queues: bursts are not dropped."""
     return ros.action_client(
-        ExecuteTask,
-        EXECUTE_TASK_ACTION,
+        action_type,
+        name,
         goal_service_qos_profile=qos.DEEP_RELIABLE,
         result_service_qos_profile=qos.DEEP_RELIABLE,
         cancel_service_qos_profile=qos.DEEP_RELIABLE,
@@ -66,6 +68,7 @@ class TaskManagerProbe:
         self.ros = ros
         self.timeout_sec = timeout_sec
         self.client = execute_task_client(ros)
+        self._start_client: Any = None
         self.results: TopicRecorder = ros.record(
             TaskDoneResult, '/task_manager/results', qos.RESULTS
         )
@@ -89,6 +92,37 @@ class TaskManagerProbe:
         handle = wait_for_future(self.client.send_goal_async(goal), self.timeout_sec, 'goal')
         assert handle.accepted
         return handle
+
+    def start(
+        self,
+        task_name: str,
+        task_data: Any = None,
+        task_id: str = '',
+        source: str = 'test',
+        **options: Any,
+    ) -> Any:
+        """Send a StartTask goal with TaskOptions fields (priority=5 sets has_priority)."""
+        if self._start_client is None:
+            self._start_client = execute_task_client(self.ros, StartTask, START_TASK_ACTION)
+            assert self._start_client.wait_for_server(timeout_sec=self.timeout_sec)
+            warm_up(self._start_client)
+        if 'priority' in options:
+            options['has_priority'] = True
+        data = task_data if isinstance(task_data, str) else json.dumps(task_data or {})
+        goal = StartTask.Goal(
+            task_id=task_id,
+            task_name=task_name,
+            source=source,
+            task_data=data,
+            options=TaskOptions(**options),
+        )
+        handle = wait_for_future(self._start_client.send_goal_async(goal), self.timeout_sec, 'goal')
+        assert handle.accepted
+        return handle
+
+    def run_started(self, task_name: str, task_data: Any = None, **kwargs: Any) -> Any:
+        """StartTask to its end: the result (see start for the options)."""
+        return self.result_of(self.start(task_name, task_data, **kwargs)).result
 
     def result_of(self, goal_handle: Any) -> Any:
         """Wait for a goal's result; returns the wrapped response (.status and .result)."""
@@ -131,5 +165,7 @@ class TaskManagerProbe:
 
     def destroy(self) -> None:
         self.client.destroy()
+        if self._start_client is not None:
+            self._start_client.destroy()
         for recorder in (self.results, self.active):
             self.ros.node.destroy_subscription(recorder.subscription)

@@ -59,7 +59,8 @@ def test_unknown_task_is_an_error_whose_result_lists_the_declared_tasks(
     assert json.loads(response.result.task_result) == {
         'error': "unknown task 'no/such_task'; declared tasks: fib, system/cancel_task, "
         'system/cancel_tasks, system/enable_schedule, system/mission, system/pause, '
-        'system/resume, system/schedule, system/stop, system/unschedule, system/wait'
+        'system/reprioritize, system/resume, system/schedule, system/stop, system/unschedule, '
+        'system/wait'
     }
     assert response.status == GoalStatus.STATUS_ABORTED
     published = tm.wait_result_message('u1')

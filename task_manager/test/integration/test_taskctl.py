@@ -58,7 +58,8 @@ def test_start_waits_and_exits_by_status(
     why = (
         "unknown task 'no/such'; declared tasks: math/fib, system/cancel_task, "
         'system/cancel_tasks, system/enable_schedule, system/mission, system/pause, '
-        'system/resume, system/schedule, system/stop, system/unschedule, system/wait'
+        'system/reprioritize, system/resume, system/schedule, system/stop, system/unschedule, '
+        'system/wait'
     )
     assert json.loads(unknown.stdout)['result'] == {'error': why}
     assert unknown.stderr.strip().splitlines()[-1] == f'unknown_task: {why}'

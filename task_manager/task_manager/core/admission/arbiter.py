@@ -56,6 +56,8 @@ class Arbiter:
         self.max_queued = max_queued
         # key: task id, value: the claim of a task that holds its resources (started or starting)
         self.holders: dict[str, Claim] = {}
+        # key: task id, value: the claim of a holder pre-empted but not yet ended
+        self.displaced: dict[str, Claim] = {}
         # the queued claims, in the order they are served
         self._queue: list[Claim] = []
         self._arrivals = 0
@@ -87,6 +89,26 @@ class Arbiter:
                 found.append((holder, shared))
         return found
 
+    def still_ending(self, claim: Claim) -> list[Claim]:
+        """Pre-empted tasks that have not ended yet and share a resource with `claim`: it
+        starts only once they have (a task pre-empted by a task that was itself pre-empted
+        before it could start is waited for by the newest)."""
+        related = self._lineage(claim)
+        return [
+            ending
+            for ending in self.displaced.values()
+            if ending.resources & claim.resources and ending.task_id not in related
+        ]
+
+    def reinstate(self, task_id: str) -> bool:
+        """A pre-empted task goes on after all (its pre-emptor ended first): it holds its
+        resources again, if no holder has taken one of them meanwhile."""
+        claim = self.displaced.get(task_id)
+        if claim is None or self.blockers(claim):
+            return False
+        self.holders[task_id] = self.displaced.pop(task_id)
+        return True
+
     # ---- decisions ----------------------------------------------------------------------------
 
     def decide(self, claim: Claim, on_conflict: OnConflict) -> Decision:
@@ -111,6 +133,7 @@ class Arbiter:
     def release(self, task_id: str) -> list[Claim]:
         """A task ended (or left the queue): the queued tasks that start now, in order."""
         self.holders.pop(task_id, None)
+        self.displaced.pop(task_id, None)
         self._queue = [claim for claim in self._queue if claim.task_id != task_id]
         return self._serve_queue()
 
@@ -126,7 +149,7 @@ class Arbiter:
             return None
         claim.priority = priority
         self._queue.sort(key=_queue_order)
-        return self._serve_queue()
+        return []
 
     # ---- inside -----------------------------------------------------------------------------
 
@@ -142,11 +165,28 @@ class Arbiter:
 
     def _queued_ahead(self, claim: Claim) -> list[tuple[Claim, frozenset[str]]]:
         """Queued tasks of at least `claim`'s priority that wait for one of its resources."""
-        return [
-            (queued, queued.resources & claim.resources)
-            for queued in self._queue
-            if queued.priority >= claim.priority and queued.resources & claim.resources
-        ]
+        found = []
+        for queued in self._queue:
+            if queued.priority >= claim.priority:
+                shared = self._contended(queued, claim)
+                if shared:
+                    found.append((queued, shared))
+        return found
+
+    def _contended(self, ahead: Claim, claim: Claim) -> frozenset[str]:
+        """What `claim` wants that `ahead`, queued before it, waits for too.
+
+        What a mission of `claim` holds is not `ahead`'s to wait for (unless it runs in that
+        mission too): it comes free only once the mission, and so `claim`, has ended.
+        """
+        shared = ahead.resources & claim.resources
+        if not shared or not claim.parent_id:
+            return shared
+        for mission_id in self._lineage(claim) - self._lineage(ahead):
+            mission = self.holders.get(mission_id)
+            if mission is not None:
+                shared -= mission.resources
+        return shared
 
     def _enqueue(
         self,
@@ -198,20 +238,25 @@ class Arbiter:
             for holder, shared in holders
         )
         for holder, _ in holders:
-            self.holders.pop(holder.task_id, None)
+            self.displaced[holder.task_id] = self.holders.pop(holder.task_id)
         self.holders[claim.task_id] = claim
         victims = ', '.join(p.victim.label() for p in preemptions)
         return Decision(Verdict.START, f'pre-empts {victims}', preemptions=preemptions)
 
     def _serve_queue(self) -> list[Claim]:
         started: list[Claim] = []
+        waiting: list[Claim] = []
         wanted: set[str] = set()
         for claim in list(self._queue):
-            if not self.blockers(claim) and not (claim.resources & wanted):
+            held_back = bool(claim.resources & wanted)
+            if held_back and claim.parent_id:
+                held_back = any(self._contended(ahead, claim) for ahead in waiting)
+            if not held_back and not self.blockers(claim):
                 self._queue.remove(claim)
                 self.holders[claim.task_id] = claim
                 started.append(claim)
             else:
+                waiting.append(claim)
                 wanted |= claim.resources
         return started
 

@@ -24,6 +24,8 @@ class RequestOptions:
     timeout_sec: float | None = None
     queue_timeout_sec: float | None = None
     feedback_timeout_sec: float | None = None
+    error: str = ''
+    """Why the options as sent could not be read (e.g. an unknown on_conflict)."""
 
     @property
     def is_empty(self) -> bool:
@@ -31,6 +33,8 @@ class RequestOptions:
 
     def problem(self) -> str:
         """Why these options are unusable; empty when they are fine."""
+        if self.error:
+            return self.error
         for name in ('timeout_sec', 'queue_timeout_sec', 'feedback_timeout_sec'):
             value = getattr(self, name)
             if value is not None and not 0 <= value < float('inf'):

@@ -18,11 +18,12 @@ from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import IO
 
+from task_manager.core.admission.decisions import decisions_to_json
 from task_manager.core.json_text import compact_json
 from task_manager.core.schedules.store import SCHEDULES_SCHEMA, ScheduleStore
 from task_manager.core.task import TaskRecord, pauses_to_json
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 MEMORY = ':memory:'
 
 _SCHEMA_V1 = """
@@ -55,8 +56,15 @@ ALTER TABLE tasks ADD COLUMN pauses TEXT NOT NULL DEFAULT '[]';
     + SCHEDULES_SCHEMA
 )
 
+# Version 3: each task's priority, attempts and the decisions taken about it (issue 29).
+_SCHEMA_V3 = """
+ALTER TABLE tasks ADD COLUMN priority INTEGER NOT NULL DEFAULT 0;
+ALTER TABLE tasks ADD COLUMN attempt INTEGER NOT NULL DEFAULT 1;
+ALTER TABLE tasks ADD COLUMN decisions TEXT NOT NULL DEFAULT '[]';
+"""
+
 # Each step upgrades the schema from the version before it; index 0 creates version 1.
-_MIGRATIONS = (_SCHEMA_V1, _SCHEMA_V2)
+_MIGRATIONS = (_SCHEMA_V1, _SCHEMA_V2, _SCHEMA_V3)
 
 
 class HistoryError(Exception):
@@ -111,6 +119,10 @@ class HistoryRow:
     paused_sec: float = 0.0
     pauses: str = '[]'
     """JSON list of {"paused", "paused_by", "resumed", "resumed_by"}."""
+    priority: int = 0
+    attempt: int = 1
+    decisions: str = '[]'
+    """JSON list of {"at", "decision", "reason"} (core/admission/decisions.py)."""
 
 
 COLUMNS = tuple(f.name for f in fields(HistoryRow))
@@ -172,6 +184,9 @@ def _row(record: TaskRecord, entry: int, sequence: int | None) -> tuple[object, 
         sequence,
         record.paused_sec(),
         pauses_to_json(record.pauses),
+        record.priority,
+        record.attempt,
+        decisions_to_json(record.decisions),
     )
 
 

@@ -1,11 +1,11 @@
 """When /task_manager/active_tasks goes out: once per executor turn, and for a large list at
 most LARGE_LIST_RATE_HZ times a second.
 
-Every list holds every started task (IN_PROGRESS or PAUSED). A task that ends is shown once
-more with its final status, then left out, as the original does: those two lists go out
-together. The changes of one executor turn share one publication; with more than LARGE_LIST
-entries the changes of up to 1 / LARGE_LIST_RATE_HZ seconds do, so that the cost of a change
-does not grow with the number of tasks. Each change still goes out on its own on
+Every list holds every started task (IN_PROGRESS or PAUSED) and every QUEUED one. A task that
+ends is shown once more with its final status, then left out, as the original does: those two
+lists go out together. The changes of one executor turn share one publication; with more than
+LARGE_LIST entries the changes of up to 1 / LARGE_LIST_RATE_HZ seconds do, so that the cost of
+a change does not grow with the number of tasks. Each change still goes out on its own on
 /task_manager/task_events.
 """
 
@@ -56,10 +56,10 @@ class ActiveTasksPublication:
         self._publication.changed()
 
     def _is_large(self) -> bool:
-        return len(self._registry.started()) + len(self._ended_unpublished) > LARGE_LIST
+        return len(self._registry.listed()) + len(self._ended_unpublished) > LARGE_LIST
 
     def _publish(self) -> None:
-        started = self._registry.started()
+        started = self._registry.listed()
         if self._ended_unpublished:
             self._sink.publish_active(started + self._ended_unpublished)
             self._ended_unpublished = []

@@ -48,6 +48,9 @@ def task_state_from_row(row: HistoryRow) -> TaskState:
         sequence=row.sequence or 0,
         paused_sec=row.paused_sec,
         pauses=row.pauses,
+        priority=row.priority,
+        attempt=row.attempt,
+        decisions=row.decisions,
     )
 
 

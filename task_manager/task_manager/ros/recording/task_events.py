@@ -16,6 +16,7 @@ from rclpy.publisher import Publisher
 from rclpy.timer import Timer
 from task_manager_msgs.msg import TaskEvent, TaskState
 
+from task_manager.core.admission.decisions import DecisionKind, decisions_to_json
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.core.task import TaskRecord, pauses_to_json
@@ -55,7 +56,21 @@ def task_state_msg(record: TaskRecord) -> TaskState:
         sequence=record.sequence or 0,
         paused_sec=record.paused_sec(),
         pauses=pauses_to_json(record.pauses),
+        queue_position=record.queue_position,
+        priority=record.priority,
+        attempt=record.attempt,
+        decisions=decisions_to_json(record.decisions),
     )
+
+
+_ENDING_DECISIONS = (DecisionKind.REFUSED, DecisionKind.PREEMPTED, DecisionKind.TIMEOUT)
+
+
+def end_reason(record: TaskRecord) -> str:
+    """Why the Task Manager ended the task, when it did (refused, pre-empted, timed out)."""
+    if record.decisions and record.decisions[-1].decision in _ENDING_DECISIONS:
+        return record.decisions[-1].reason
+    return ''
 
 
 class TaskEventStream:
@@ -84,9 +99,18 @@ class TaskEventStream:
         record.feedback_listeners.append(self.feedback)
         self._publish(TaskEvent.RECEIVED, record)
 
-    def started(self, record: TaskRecord) -> None:
+    def started(self, record: TaskRecord, reason: str = '') -> None:
         if self._publisher is not None:
-            self._publish(TaskEvent.STARTED, record)
+            self._publish(TaskEvent.STARTED, record, reason)
+
+    def queued(self, record: TaskRecord, reason: str) -> None:
+        if self._publisher is not None:
+            self._publish(TaskEvent.QUEUED, record, reason)
+
+    def decided(self, record: TaskRecord, reason: str) -> None:
+        """A decision that changes no status: a priority changed, a retry planned."""
+        if self._publisher is not None:
+            self._publish(TaskEvent.DECIDED, record, reason)
 
     def paused(self, record: TaskRecord) -> None:
         if self._publisher is not None:
@@ -117,7 +141,7 @@ class TaskEventStream:
             return
         self._release(record)
         self._gates.pop(record.task_id, None)
-        self._publish(TaskEvent.ENDED, record)
+        self._publish(TaskEvent.ENDED, record, end_reason(record))
 
     def _release(self, record: TaskRecord) -> None:
         """Send the held feedback of `record`, if any (its slot has come, or it ends)."""
@@ -128,10 +152,12 @@ class TaskEventStream:
         if gate is not None and gate.release(time.monotonic()):
             self._publish(TaskEvent.FEEDBACK, record)
 
-    def _publish(self, event: str, record: TaskRecord) -> None:
+    def _publish(self, event: str, record: TaskRecord, reason: str = '') -> None:
         assert self._publisher is not None
         if not self._publisher.get_subscription_count():
             return  # nobody listens: building the message is the larger part of the cost
         self._publisher.publish(
-            TaskEvent(event=event, stamp=stamp(time.time()), task=task_state_msg(record))
+            TaskEvent(
+                event=event, stamp=stamp(time.time()), task=task_state_msg(record), reason=reason
+            )
         )

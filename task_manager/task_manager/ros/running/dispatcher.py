@@ -12,6 +12,8 @@ from typing import Any, Protocol
 from rclpy.node import Node
 from rclpy.task import Future
 
+from task_manager.core.admission.arbiter import DEFAULT_MAX_QUEUED, Verdict
+from task_manager.core.admission.decisions import DecisionKind
 from task_manager.core.errors import TaskRequestError
 from task_manager.core.history.store import TaskHistory
 from task_manager.core.registry import TaskRegistry
@@ -31,7 +33,8 @@ from task_manager.ros.message_json import TaskDataError
 from task_manager.ros.recording import task_log
 from task_manager.ros.recording.active_tasks import ActiveTasksPublication
 from task_manager.ros.recording.history_writer import HistoryWriter
-from task_manager.ros.recording.task_events import TaskEventStream
+from task_manager.ros.recording.task_events import TaskEventStream, end_reason
+from task_manager.ros.running.admission_control import AdmissionControl
 from task_manager.ros.running.execution import Execution, TaskRunner
 from task_manager.ros.running.pause_control import PauseControl
 from task_manager.ros.running.task_run import TaskRun
@@ -63,6 +66,8 @@ class TaskDispatcher:
         spawn: Callable[[Coroutine[Any, Any, Any]], Any],
         events: TaskEventStream,
         history: TaskHistory,
+        max_queued: int = DEFAULT_MAX_QUEUED,
+        source_priorities: dict[str, int] | None = None,
     ) -> None:
         self.registry = TaskRegistry()
         self.events = events
@@ -71,7 +76,7 @@ class TaskDispatcher:
         self.node = node
         self._reporter = reporter
         self.spawn = spawn
-        self._log = node.get_logger()
+        self.log = node.get_logger()
         # key: task id, value: the run state of the admitted task, until it ends
         self.runs_by_id: dict[str, TaskRun] = {}
         self._closing_reason = ''
@@ -79,6 +84,12 @@ class TaskDispatcher:
         # completes once no task is active; replaced whenever a task is admitted
         self._idle: Future = completed_future()
         self.pauses = PauseControl(self)
+        self.admission = AdmissionControl(self, max_queued, source_priorities or {})
+
+    @property
+    def closing(self) -> bool:
+        """Shutting down: no new task, no new attempt."""
+        return bool(self._closing_reason)
 
     # ---- running a request -------------------------------------------------------------
 
@@ -98,10 +109,10 @@ class TaskDispatcher:
         try:
             end = await self._start_and_wait(run)
         except TaskRequestError as error:
-            self._log.warning(f'task {record.task_id} ({record.task_name}) failed: {error}')
+            self.log.warning(f'task {record.task_id} ({record.task_name}) failed: {error}')
             end = TaskEnd(TaskStatus.ERROR, {'error': str(error)}, error.error_code)
         except Exception as error:  # the callback boundary: log, fail the task, keep serving
-            self._log.error(f'task {record.task_id} ({record.task_name}) crashed: {error!r}')
+            self.log.error(f'task {record.task_id} ({record.task_name}) crashed: {error!r}')
             end = TaskEnd(
                 TaskStatus.ERROR,
                 {'error': f'the Task Manager failed to run the task: {error!r}'},
@@ -152,15 +163,26 @@ class TaskDispatcher:
             return self._reject(record, ErrorCode.DUPLICATE_TASK_ID, reason), None
         if self._closing_reason:
             return self._reject(record, ErrorCode.TASK_START_FAILED, self._closing_reason), None
+        if problem := request.options.problem():
+            return self._reject(record, ErrorCode.INVALID_REQUEST, problem), None
         try:
             message = runner.parse(request.task_data, task_id)
         except TaskDataError as error:
             code = ErrorCode.TASK_DATA_PARSING_FAILED
             return self._reject(record, code, str(error), error.result), None
+        record.priority = self.admission.priority_of(request, record)
+        claimed = getattr(runner, 'claimed_resources', None)
+        extra = claimed(message) if claimed is not None else frozenset()
+        decision = self.admission.decide(record, request.options, extra)
+        if decision.verdict is Verdict.REFUSE:
+            return self._reject(record, decision.error_code, decision.reason), None
         self.registry.admit(record)
         if self._idle.done():
             self._idle = Future()
-        run = self.runs_by_id[task_id] = TaskRun(record, message)
+        run = self.runs_by_id[task_id] = TaskRun(record, message, options=request.options)
+        run.preemptions = decision.preemptions
+        if decision.verdict is Verdict.QUEUE:
+            self.admission.queue(run, decision)
         return record, run
 
     def _reject(
@@ -172,7 +194,7 @@ class TaskDispatcher:
     ) -> TaskRecord:
         """End a request that will not run: ERROR, its result `{"error": reason}` (and `result`)."""
         task_log.warning(
-            self._log,
+            self.log,
             f'task {loggable(record.task_id)} ({loggable(record.task_name)}) from '
             f'{loggable(record.source)!r} rejected, {code}: {reason}',
         )
@@ -181,27 +203,41 @@ class TaskDispatcher:
 
     async def _start_and_wait(self, run: TaskRun) -> TaskEnd:
         record = run.record
-        if not run.finished.done():  # not cancelled as it was admitted
+        if run.dequeued is not None and not run.finished.done():
+            await resolved(self.node, first_completed([run.dequeued, run.finished]))
+        if not run.finished.done():  # not cancelled as it was admitted (or while queued)
             await self._resolve_conflicts(run)
         if run.finished.done():  # cancelled before it started: it pre-empts nothing
             return result_of(run.finished)
         try:
             execution = await self.start_on_server(run)
         except TaskRequestError as error:
-            if record.cancel_reason is None:
+            if record.cancel_reason is not None:
+                # Cancelled before its server accepted it: it did not run, as its canceller
+                # asked; why it could not have started is kept in its result.
+                return TaskEnd(TaskStatus.CANCELED, {'error': str(error)})
+            end = TaskEnd(TaskStatus.ERROR, {'error': str(error)}, error.error_code)
+            if self.admission.attempt_end(run, end) is not None:
                 raise
-            # Cancelled before its server accepted it: it did not run, as its canceller asked;
-            # why it could not have started is kept in its result.
-            return TaskEnd(TaskStatus.CANCELED, {'error': str(error)})
-        record.mark_started()
-        self.events.started(record)
-        self.history.changed(record)
-        self._log.debug(
-            f'task {record.task_id} ({record.task_name}) from {record.source!r} started'
-        )
-        self.attach(run, execution)
+            await resolved(self.node, run.finished)  # a retry follows
+            return result_of(run.finished)
+        self.began(run, execution)
         await resolved(self.node, run.finished)
         return result_of(run.finished)
+
+    def began(self, run: TaskRun, execution: Execution) -> None:
+        """An attempt runs on its server: the task is IN_PROGRESS (once) and its timeouts armed."""
+        record = run.record
+        if not record.status.is_started:
+            record.mark_started()
+            decided = record.decisions[-1].reason if record.decisions else ''
+            self.events.started(record, decided if run.dequeued or run.preemptions else '')
+            self.history.changed(record)
+            self.log.debug(
+                f'task {record.task_id} ({record.task_name}) from {record.source!r} started'
+            )
+        self.attach(run, execution)
+        self.admission.attempt_started(run)
 
     async def start_on_server(self, run: TaskRun) -> Execution:
         """Start the task on its server (again, on resume); raises TaskRequestError."""
@@ -227,14 +263,27 @@ class TaskDispatcher:
             return
         if run.pausing and end.status is TaskStatus.CANCELED and run.record.cancel_reason is None:
             return  # the pause's own cancel: the task goes on, paused
-        run.settle(end)
+        final = self.admission.attempt_end(run, end)
+        if final is not None:  # else another attempt follows (retry)
+            run.settle(final)
 
     async def _resolve_conflicts(self, run: TaskRun) -> None:
         record = run.record
-        conflicts = self.registry.conflicts_of(record.spec, record.task_id)
+        run.preempted = True
+        conflicts = []
+        for preemption in run.preemptions:
+            victim = self.runs_by_id.get(preemption.victim.task_id)
+            if victim is not None and not victim.finished.done():
+                victim.record.note(DecisionKind.PREEMPTED, preemption.reason)
+                conflicts.append(victim.record)
+        claim = self.admission.arbiter.holders.get(record.task_id)
+        for ending in self.admission.arbiter.still_ending(claim) if claim is not None else []:
+            other = self.runs_by_id.get(ending.task_id)
+            if other is not None and other.record not in conflicts:
+                conflicts.append(other.record)
         if not conflicts:
             return
-        self._log.info(
+        self.log.info(
             f'task {record.task_id} ({record.task_name}) cancels conflicting task(s) '
             + ', '.join(f'{c.task_id} ({c.task_name})' for c in conflicts)
         )
@@ -294,7 +343,7 @@ class TaskDispatcher:
             remaining_sec = timeout_sec - (clock.now() - began).nanoseconds / 1e9
             ok = await execution.cancel(remaining_sec) or run.finished.done()
         if not ok:
-            self._log.warning(
+            self.log.warning(
                 f'task {record.task_id} ({record.task_name}): cancel ({reason}) did not '
                 f'complete within cancel_timeout {timeout_sec} s; the task goes on'
             )
@@ -314,7 +363,7 @@ class TaskDispatcher:
             return True
         for run in list(self.runs_by_id.values()):
             record = run.record
-            self._log.warning(f'task {record.task_id} ({record.task_name}) did not end: {reason}')
+            self.log.warning(f'task {record.task_id} ({record.task_name}) did not end: {reason}')
             run.settle(TaskEnd(TaskStatus.ERROR, {'error': reason}))
         await wait_for(self.node, self._idle, FORCED_END_TIMEOUT_SEC)
         return False
@@ -324,9 +373,13 @@ class TaskDispatcher:
     def _finish(self, run: TaskRun) -> Future[None]:
         """End the task; the future completes once its end is stored and announced."""
         record, end = run.record, result_of(run.finished)
-        was_active = record.status.is_started
-        record.mark_ended(end.status, end.result, end.error_code)
+        was_active = record.status.is_listed
+        result = end.result
+        if end.status is TaskStatus.CANCELED and (reason := end_reason(record)):
+            result = {'reason': reason, **result}
+        record.mark_ended(end.status, result, end.error_code)
         self.registry.remove(record.task_id)
+        self.admission.released(run)
         del self.runs_by_id[record.task_id]
         if was_active:
             self._active.ended(record)
@@ -339,7 +392,7 @@ class TaskDispatcher:
             else ''
         )
         task_log.info(
-            self._log,
+            self.log,
             f'task {record.task_id} ({record.task_name}) from {record.source!r} ended '
             f'{record.status}{ran_sec}' + (f' ({record.error_code})' if record.error_code else ''),
         )

@@ -5,6 +5,8 @@ from typing import Any
 
 from rclpy.task import Future
 
+from task_manager.core.admission.arbiter import Preemption
+from task_manager.core.admission.options import RequestOptions
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.ros.running.execution import Execution
 
@@ -32,6 +34,18 @@ class TaskRun:
     """Completes with True when the cancel in flight ended the task in time."""
     pausing: bool = False
     """A pause is cancelling the server's goal: that goal's CANCELED end is not the task's."""
+    options: RequestOptions = field(default_factory=RequestOptions)
+    """The request's own admission options (priority, on_conflict, timeouts)."""
+    dequeued: Future[None] | None = None
+    """While it is (or was) queued: completes when its turn comes."""
+    preemptions: tuple[Preemption, ...] = ()
+    """The tasks it must cancel before it starts, as the arbiter decided."""
+    preempted: bool = False
+    """Its pre-emptions were carried out (the victims were asked to cancel)."""
+    timeout_reason: str = ''
+    """Set when one of its running timeouts fired: its end is ERROR / timeout."""
+    watches_feedback: bool = False
+    """Its feedback_timeout_sec listener is in place (added once, for every attempt)."""
 
     @property
     def task_id(self) -> str:

@@ -9,6 +9,7 @@ from task_manager.ros.running.scheduler import TaskScheduler
 from task_manager.ros.system.cancel import CancelTasksRunner, StopTasksRunner
 from task_manager.ros.system.mission import MissionRunner
 from task_manager.ros.system.pause import PauseTasksRunner, ResumeTasksRunner
+from task_manager.ros.system.reprioritize import ReprioritizeTasksRunner
 from task_manager.ros.system.schedules import (
     EnableSchedulesRunner,
     ScheduleTaskRunner,
@@ -31,6 +32,7 @@ def create_system_runners(
         WaitRunner(node),
         PauseTasksRunner(node, dispatcher),
         ResumeTasksRunner(node, dispatcher),
+        ReprioritizeTasksRunner(node, dispatcher),
         ScheduleTaskRunner(node, dispatcher, scheduler),
         UnscheduleRunner(node, scheduler),
         EnableSchedulesRunner(node, scheduler),

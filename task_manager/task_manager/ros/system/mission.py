@@ -177,6 +177,16 @@ class MissionRunner:
     async def start(self, message: MissionProgress, record: TaskRecord) -> MissionExecution:
         return MissionExecution(self._node, self._dispatcher, message, record)
 
+    def claimed_resources(self, message: MissionProgress) -> frozenset[str]:
+        """A mission holds its subtasks' declared resources as one unit while it runs."""
+        runners = self._dispatcher.runners_by_name
+        return frozenset(
+            resource
+            for row in message.rows
+            if (runner := runners.get(row.task_name)) is not None
+            for resource in runner.spec.resources
+        )
+
 
 def _invalid_mission(progress: MissionProgress, problems: dict[str, str]) -> TaskDataError:
     field, reason = next(iter(problems.items()))

@@ -1,0 +1,48 @@
+"""system/reprioritize: a new priority for active tasks by id (a queued task moves at once)."""
+
+from typing import Any
+
+from rclpy.node import Node
+from task_manager_msgs.srv import ReprioritizeTasks
+
+from task_manager.core.status import TaskStatus
+from task_manager.core.system_tasks import REPRIORITIZE_SPEC
+from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.ros.message_json import message_from_json
+from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.system.coroutine_execution import CoroutineExecution
+
+
+class ReprioritizeTasksRunner:
+    """Changes the priority of every listed id; an id that is not active is an error."""
+
+    spec = REPRIORITIZE_SPEC
+
+    def __init__(self, node: Node, dispatcher: TaskDispatcher) -> None:
+        self._node = node
+        self._dispatcher = dispatcher
+
+    def parse(self, task_data: str, task_id: str) -> Any:
+        return message_from_json(ReprioritizeTasks.Request, task_data)
+
+    async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
+        return CoroutineExecution(self._node, self._apply(message, record))
+
+    async def _apply(self, message: Any, record: TaskRecord) -> TaskEnd:
+        changed, errors = [], []
+        for task_id in message.task_ids:
+            problem = self._dispatcher.admission.reprioritize(
+                task_id, message.priority, record.source
+            )
+            if problem:
+                errors.append(problem)
+                self._node.get_logger().warning(
+                    f'task {record.task_id} ({record.task_name}): {problem}'
+                )
+            else:
+                changed.append(task_id)
+        success = not errors
+        status = TaskStatus.DONE if success else TaskStatus.ERROR
+        return TaskEnd(
+            status, {'success': success, 'successful_changes': changed, 'errors': errors}
+        )
