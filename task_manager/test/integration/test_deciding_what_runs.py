@@ -235,3 +235,34 @@ def test_a_queued_task_cancelled_by_its_client_never_starts(
     servers['drive'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
     tm.wait_result_message('drive-1')
     assert servers['dock'].goals.items == []
+
+
+def test_a_schedule_runs_its_task_with_the_options_it_was_given(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm, servers = robot(ros, launch_task_manager, topic_prefix)
+    events = events_of(ros)
+    tm.start('drive', {'order': 1}, task_id='drive-1', priority=5)
+    tm.wait_in_progress('drive-1')
+    schedule = {
+        'schedule_id': 'dock-soon',
+        'task_name': 'dock',
+        'task_data': json.dumps({'order': 1}),
+        'delay_sec': 0.2,
+        'options': {'on_conflict': 'queue', 'priority': 2},
+    }
+
+    assert tm.run('system/schedule', schedule).task_status == 'DONE'
+
+    queued = events.wait_until(
+        lambda msgs: next(
+            (m for m in msgs if m.task.task_name == 'dock' and m.event == 'QUEUED'), None
+        ),
+        TIMEOUT_SEC,
+        'the scheduled dock queued',
+    )
+    assert queued.task.priority == 2
+    assert queued.reason == 'queued behind drive-1 (priority 5), which holds base'
+    servers['drive'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
+    servers['dock'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
+    assert wait_event(events, queued.task.task_id, 'ENDED').task.task_status == 'DONE'

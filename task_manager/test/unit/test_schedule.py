@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from task_manager.core.admission.options import OnConflict, RequestOptions
 from task_manager.core.schedules.request import parse_schedule_request
 from task_manager.core.schedules.schedule import (
     CRON_COUNT_LIMIT,
@@ -68,6 +69,24 @@ def test_a_request_keeps_its_fields_and_fills_the_defaults() -> None:
         max_runs=0, overlap=OverlapPolicy.SKIP, misfire_grace_sec=DEFAULT_MISFIRE_GRACE_SEC,
     )  # fmt: skip
     assert s.kind is ScheduleKind.PERIOD
+
+
+def test_a_request_keeps_its_admission_options_and_a_stored_spec_without_them_loads() -> None:
+    options = RequestOptions(priority=5, on_conflict=OnConflict.QUEUE, timeout_sec=30.0)
+
+    s = request(period_sec=60, options=options)
+
+    assert s.options == {'priority': 5, 'on_conflict': 'queue', 'timeout_sec': 30.0}
+    assert ScheduleSpec.from_json(s.to_json()) == s
+    assert RequestOptions.from_dict(s.options) == options
+    stored_before = json.loads(s.to_json())
+    del stored_before['options']
+    assert ScheduleSpec.from_json(json.dumps(stored_before)).options == {}
+
+
+def test_a_request_with_unusable_options_is_refused_naming_them() -> None:
+    with pytest.raises(ScheduleError, match='options: timeout_sec must be a finite number'):
+        request(period_sec=60, options=RequestOptions(timeout_sec=-1.0))
 
 
 def test_a_request_without_an_id_gets_a_new_one_and_keeps_a_given_one() -> None:

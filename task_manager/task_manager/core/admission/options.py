@@ -1,7 +1,8 @@
 """What a request may ask of the admission, beside its declaration's defaults."""
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from enum import StrEnum
+from typing import Any
 
 
 class OnConflict(StrEnum):
@@ -40,3 +41,21 @@ class RequestOptions:
             if value is not None and not 0 <= value < float('inf'):
                 return f'{name} must be a finite number of seconds >= 0, got {value!r}'
         return ''
+
+    def to_dict(self) -> dict[str, Any]:
+        """The options given, as JSON values (what a schedule keeps)."""
+        return {
+            name: str(value) if isinstance(value, OnConflict) else value
+            for name, value in asdict(self).items()
+            if value is not None and name != 'error'
+        }
+
+    @classmethod
+    def from_dict(cls, values: dict[str, Any]) -> 'RequestOptions':
+        """The inverse of to_dict; ValueError names a field that is not one of the options."""
+        known = {'priority', 'on_conflict', 'timeout_sec', 'queue_timeout_sec',
+                 'feedback_timeout_sec'}  # fmt: skip
+        if unknown := sorted(set(values) - known):
+            raise ValueError(f'unknown options {unknown}; known: {sorted(known)}')
+        on_conflict = values.get('on_conflict')
+        return cls(**{**values, 'on_conflict': OnConflict(on_conflict) if on_conflict else None})

@@ -10,6 +10,7 @@ from datetime import datetime
 from typing import Any
 from zoneinfo import ZoneInfo
 
+from task_manager.core.admission.options import RequestOptions
 from task_manager.core.schedules.schedule import (
     DEFAULT_MISFIRE_GRACE_SEC,
     MIN_PERIOD_SEC,
@@ -61,9 +62,18 @@ def parse_schedule_request(
         max_runs=_max_runs(fields),
         overlap=_overlap(_text(fields, 'overlap')),
         misfire_grace_sec=grace if grace >= 0 else DEFAULT_MISFIRE_GRACE_SEC,
+        options=_options(fields),
     )
     _check_window(spec, now, zone)
     return spec
+
+
+def _options(fields: Mapping[str, Any]) -> dict[str, Any]:
+    """How each run is admitted: the request's options, checked (none: the declaration's)."""
+    options = fields.get('options') or RequestOptions()
+    if problem := options.problem():
+        raise ScheduleError('options', f'options: {problem}')
+    return options.to_dict()
 
 
 def _when(fields: Mapping[str, Any], now: float) -> dict[str, Any]:

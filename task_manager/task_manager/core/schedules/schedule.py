@@ -10,7 +10,7 @@ import functools
 import json
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import datetime
 from enum import StrEnum
 from typing import Any
@@ -95,6 +95,8 @@ class ScheduleSpec:
     """0: unlimited."""
     overlap: OverlapPolicy = OverlapPolicy.SKIP
     misfire_grace_sec: float = DEFAULT_MISFIRE_GRACE_SEC
+    options: dict[str, Any] = field(default_factory=dict, hash=False)
+    """How each run is admitted (RequestOptions.to_dict: priority, on_conflict, timeouts)."""
 
     def __post_init__(self) -> None:
         given = (self.at is not None) + (self.period_sec > 0) + bool(self.cron)
@@ -130,7 +132,7 @@ class ScheduleSpec:
     @classmethod
     def from_json(cls, text: str) -> 'ScheduleSpec':
         """The spec stored by to_json; ValueError if it is not one this version can run."""
-        values = load_fields(text, _SPEC_TYPES)
+        values = load_fields(_with_options(text), _SPEC_TYPES)
         values['overlap'] = OverlapPolicy(values['overlap'])
         spec = cls(**values)
         zone_of('time_zone', spec.time_zone)
@@ -146,8 +148,17 @@ _SPEC_TYPES: dict[str, tuple[type, ...]] = {
     'schedule_id': (str,), 'task_name': (str,), 'task_data': (str,), 'created_by': (str,),
     'created': _NUMBER, 'at': _OPTIONAL_NUMBER, 'period_sec': _NUMBER, 'cron': (str,),
     'time_zone': (str,), 'start': _OPTIONAL_NUMBER, 'end': _OPTIONAL_NUMBER, 'max_runs': (int,),
-    'overlap': (str,), 'misfire_grace_sec': _NUMBER,
+    'overlap': (str,), 'misfire_grace_sec': _NUMBER, 'options': (dict,),
 }  # fmt: skip
+
+
+def _with_options(text: str) -> str:
+    """A spec stored before schedules had options (schema 2) runs with none."""
+    data = json.loads(text)
+    if isinstance(data, dict) and 'options' not in data:
+        data['options'] = {}
+        return json.dumps(data)
+    return text
 
 
 def load_fields(text: str, types: Mapping[str, tuple[type, ...]]) -> dict[str, Any]:

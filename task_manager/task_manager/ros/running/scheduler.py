@@ -14,6 +14,7 @@ from collections.abc import Iterable
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
+from task_manager.core.admission.options import RequestOptions
 from task_manager.core.schedules.book import (
     Firing,
     RunAction,
@@ -185,7 +186,13 @@ class TaskScheduler:
         task_id = run_task_id(schedule_id, state.run_count + 1)
         self.book.run_started(schedule_id, task_id, now)
         self._active_runs.setdefault(schedule_id, set()).add(task_id)
-        request = TaskRequest(task_id, spec.task_name, run_source(schedule_id), spec.task_data)
+        request = TaskRequest(
+            task_id,
+            spec.task_name,
+            run_source(schedule_id),
+            spec.task_data,
+            options=RequestOptions.from_dict(spec.options),
+        )
         self._dispatcher.spawn(self._run(schedule_id, request))
 
     async def _run(self, schedule_id: str, request: TaskRequest) -> None:

@@ -1,6 +1,7 @@
 """system/schedule, system/unschedule and system/enable_schedule (see ros/running/scheduler.py)."""
 
 import dataclasses
+import json
 import time
 import uuid
 from typing import Any
@@ -9,6 +10,7 @@ from rclpy.node import Node
 from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import EnableSchedules, ScheduleTask, Unschedule
 
+from task_manager.core.admission.options import RequestOptions
 from task_manager.core.schedules.book import ScheduleState
 from task_manager.core.schedules.request import parse_schedule_request
 from task_manager.core.schedules.schedule import (
@@ -19,6 +21,7 @@ from task_manager.core.schedules.schedule import (
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.rclpy_tools.task_options import request_options, task_options_msg
 from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.recording.task_events import stamp
 from task_manager.ros.running.dispatcher import TaskDispatcher
@@ -60,6 +63,7 @@ def schedule_msg(spec: ScheduleSpec, state: ScheduleState) -> Schedule:
         run_count=state.run_count,
         missed_count=state.missed_count,
         skipped_count=state.skipped_count,
+        options=task_options_msg(RequestOptions.from_dict(spec.options)),
     )
 
 
@@ -86,6 +90,8 @@ class ScheduleTaskRunner:
             _RENAMED_FIELDS.get(name, name): getattr(request, name)
             for name in request.get_fields_and_field_types()
         }
+        request.options.has_priority |= _gives_priority(task_data)
+        fields['options'] = request_options(request.options)
         try:
             spec = parse_schedule_request(fields, '', time.time(), new_schedule_id)
         except ScheduleError as error:
@@ -198,3 +204,10 @@ class EnableSchedulesRunner(_ScheduleIdsRunner):
         return 'changed', self._scheduler.set_enabled(
             list(message.schedule_ids), bool(message.enabled)
         )
+
+
+def _gives_priority(task_data: str) -> bool:
+    """JSON's `"options": {"priority": 0}` gives a priority, though has_priority is left out."""
+    data = json.loads(task_data)  # parsed once already: it is a JSON object
+    options = data.get('options')
+    return isinstance(options, dict) and 'priority' in options
