@@ -2,6 +2,7 @@
 
 from collections.abc import Iterator
 
+from task_manager.core.admission.claims import implied_resources
 from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import ErrorCode
 from task_manager.core.task import TaskRecord
@@ -45,20 +46,22 @@ class TaskRegistry:
         return [t for t in self.active_tasks_by_id.values() if t.status.is_listed]
 
     def conflicts_of(self, spec: TaskSpec, new_task_id: str) -> list[TaskRecord]:
-        """Tasks that must be cancelled before a new task of `spec` may start.
+        """Active tasks that share a resource with a new task of `spec`, in arrival order.
 
-        A non-reentrant task replaces the active tasks of the same name; a blocking task
-        replaces every other active blocking task.
+        With no resources declared these are the original's rules: a non-reentrant task
+        conflicts with the active tasks of its name, a blocking task with every other blocking
+        task (see core/admission/claims.py); the arbiter decides what happens to them.
         """
+        wanted = _resources(spec)
         return [
             record
             for record in self.active_tasks_by_id.values()
-            if record.task_id != new_task_id
-            and (
-                (not spec.reentrant and record.task_name == spec.task_name)
-                or (spec.blocking and record.spec.blocking)
-            )
+            if record.task_id != new_task_id and wanted & _resources(record.spec)
         ]
 
     def cancelled_by_stop(self) -> list[TaskRecord]:
         return [t for t in self.active_tasks_by_id.values() if t.spec.cancel_on_stop]
+
+
+def _resources(spec: TaskSpec) -> frozenset[str]:
+    return implied_resources(spec.task_name, spec.resources, spec.blocking, spec.reentrant)
