@@ -266,3 +266,31 @@ def test_a_schedule_runs_its_task_with_the_options_it_was_given(
     servers['drive'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
     servers['dock'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
     assert wait_event(events, queued.task.task_id, 'ENDED').task.task_status == 'DONE'
+
+
+def test_a_mission_queues_as_one_unit_and_its_subtasks_use_what_it_holds(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm, servers = robot(ros, launch_task_manager, topic_prefix)
+    tm.send('drive', {'order': 1}, task_id='drive-1')
+    tm.wait_in_progress('drive-1')
+    subtasks = [
+        {'task_id': 'm-dock', 'task_name': 'dock', 'task_data': '{"order": 1}'},
+        {'task_id': 'm-photo', 'task_name': 'photo', 'task_data': '{"order": 1}'},
+    ]
+
+    mission = tm.start('system/mission', {'subtasks': subtasks}, task_id='m', on_conflict='queue')
+
+    tm.wait_active(lambda t: ('m', 'QUEUED') in t)
+    servers['drive'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
+    dock = servers['dock'].wait_for_goals(1, TIMEOUT_SEC)[0]
+
+    refused = tm.run_started('drive', {'order': 1}, task_id='late', on_conflict='reject')
+
+    assert refused.error_code == 'resource_busy'
+    assert json.loads(refused.task_result)['error'].startswith(
+        'refused: m (priority 0), which holds base'
+    )
+    dock.succeed()
+    servers['photo'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
+    assert tm.result_of(mission).result.task_status == 'DONE'
