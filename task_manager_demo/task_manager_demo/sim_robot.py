@@ -1,9 +1,11 @@
-"""The simulated robot `sim_robot`: navigate, spin, dock and take photos, as real servers do.
+"""The simulated robot `sim_robot`: navigate, spin, dock, take photos and upload them, as real
+servers do.
 
 One base moves at a time. A timer advances the current motion and publishes its feedback;
 each goal's execute callback is a coroutine awaiting the end of its motion, so no thread
 waits per goal. A new navigate, spin or dock goal pre-empts the running one (ABORTED); a
-cancelled goal stops the robot where it is and ends CANCELED.
+cancelled goal stops the robot where it is and ends CANCELED. The uplink drops as many uploads
+in a row as a request says, so that a task declared with retries shows its attempts.
 """
 
 import math
@@ -24,7 +26,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.task import Future
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
-from task_manager_demo_msgs.srv import TakePhoto
+from task_manager_demo_msgs.srv import TakePhoto, UploadPhotos
 
 from task_manager.discovery import use_quick_discovery
 from task_manager_demo.motion import DriveToPose, Motion, Pose, Speeds, SpinBy
@@ -34,6 +36,7 @@ from task_manager_demo.robot_interface import (
     ROBOT_READY_LOG,
     SPIN_ACTION,
     TAKE_PHOTO_SERVICE,
+    UPLOAD_PHOTOS_SERVICE,
 )
 
 NODE_NAME = 'sim_robot'
@@ -135,7 +138,8 @@ def _goal_is_finite(request: Any) -> bool:
 
 
 class SimRobot(Node):
-    """Serves /navigate_to_pose, /spin, /dock and /take_photo for a robot on a plane.
+    """Serves /navigate_to_pose, /spin, /dock, /take_photo and /upload_photos for a robot on
+    a plane.
 
     Parameters: linear_speed (m/s, 0.5), angular_speed (rad/s, 1.0), update_rate (Hz, 10.0),
     initial_x/_y/_theta (the start pose, the origin), dock_id ("home") and dock_x/_y/_theta
@@ -154,6 +158,8 @@ class SimRobot(Node):
         start = Pose(values['initial_x'], values['initial_y'], values['initial_theta'])
         self.base = Base(start, 1.0 / values['update_rate'])
         self._photos_taken = 0
+        self._photos_uploaded = 0
+        self._uploads_dropped_in_a_row = 0
         self.create_timer(self.base.dt, self.base.tick)
         group = ReentrantCallbackGroup()
         self._action_server(NavigateToPose, NAVIGATE_ACTION, self._navigate, group)
@@ -166,9 +172,13 @@ class SimRobot(Node):
             qos_profile=REQUEST_BURST_QOS,
             callback_group=group,
         )
+        self.create_service(
+            UploadPhotos, UPLOAD_PHOTOS_SERVICE, self._upload_photos, callback_group=group
+        )
         self.get_logger().info(
             f'{ROBOT_READY_LOG} at {self.base.pose}: serving {NAVIGATE_ACTION}, {SPIN_ACTION}, '
-            f'{DOCK_ACTION}, {TAKE_PHOTO_SERVICE} (dock "{self.dock_id}" at {self.dock_pose})'
+            f'{DOCK_ACTION}, {TAKE_PHOTO_SERVICE}, {UPLOAD_PHOTOS_SERVICE} '
+            f'(dock "{self.dock_id}" at {self.dock_pose})'
         )
 
     def _float_parameter(self, name: str, default: float) -> float:
@@ -258,6 +268,24 @@ class SimRobot(Node):
         response.photo_id = f'{camera}-{self._photos_taken:04d}'
         response.message = f'photo {response.photo_id} taken at {self.base.pose}'
         self.get_logger().info(f'take_photo: {response.message}')
+        return response
+
+    def _upload_photos(self, request: UploadPhotos.Request, response: UploadPhotos.Response) -> Any:
+        """Drop the upload until `request.drops` uploads have failed in a row, else upload."""
+        if self._uploads_dropped_in_a_row < request.drops:
+            self._uploads_dropped_in_a_row += 1
+            response.message = (
+                f'the link dropped the upload ({self._uploads_dropped_in_a_row} of '
+                f'{request.drops} in a row)'
+            )
+            self.get_logger().warning(f'upload_photos: {response.message}')
+            return response
+        self._uploads_dropped_in_a_row = 0
+        response.photos_uploaded = self._photos_taken - self._photos_uploaded
+        self._photos_uploaded = self._photos_taken
+        response.success = True
+        response.message = f'{response.photos_uploaded} photo(s) uploaded'
+        self.get_logger().info(f'upload_photos: {response.message}')
         return response
 
     def destroy_node(self) -> None:

@@ -10,7 +10,7 @@ from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from rclpy.client import Client
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
-from task_manager_demo_msgs.srv import TakePhoto
+from task_manager_demo_msgs.srv import TakePhoto, UploadPhotos
 
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager_demo.robot_interface import (
@@ -19,6 +19,7 @@ from task_manager_demo.robot_interface import (
     ROBOT_READY_LOG,
     SPIN_ACTION,
     TAKE_PHOTO_SERVICE,
+    UPLOAD_PHOTOS_SERVICE,
 )
 from task_manager_demo.testing import DemoProcess, FeedbackRecorder, robot_command
 
@@ -58,9 +59,13 @@ class RobotClient:
         self.take_photo: Client[TakePhoto.Request, TakePhoto.Response] = node.create_client(
             TakePhoto, TAKE_PHOTO_SERVICE
         )
+        self.upload_photos: Client[UploadPhotos.Request, UploadPhotos.Response] = (
+            node.create_client(UploadPhotos, UPLOAD_PHOTOS_SERVICE)
+        )
         for client in (self.navigate, self.spin, self.dock):
             assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
         assert self.take_photo.wait_for_service(timeout_sec=TIMEOUT_SEC)
+        assert self.upload_photos.wait_for_service(timeout_sec=TIMEOUT_SEC)
 
     def send(self, client: ActionClient, goal: Any) -> tuple[Any, FeedbackRecorder]:
         feedback = FeedbackRecorder()
@@ -79,6 +84,10 @@ class RobotClient:
     def photo(self, camera: str) -> TakePhoto.Response:
         future = self.take_photo.call_async(TakePhoto.Request(camera=camera))
         return wait_for_future(future, TIMEOUT_SEC, 'take_photo response')
+
+    def upload(self, drops: int) -> UploadPhotos.Response:
+        future = self.upload_photos.call_async(UploadPhotos.Request(drops=drops))
+        return wait_for_future(future, TIMEOUT_SEC, 'upload_photos response')
 
 
 @pytest.fixture(scope='module')
@@ -191,3 +200,21 @@ def test_take_photo_with_the_broken_camera_fails(client: RobotClient) -> None:
     assert not response.success
     assert response.photo_id == ''
     assert 'broken' in response.message
+
+
+def test_the_uplink_drops_uploads_until_as_many_as_asked_failed_in_a_row(
+    client: RobotClient,
+) -> None:
+    assert client.upload(0).success  # whatever came before: nothing left to upload
+    client.photo('front')
+    client.photo('rear')
+
+    dropped = [client.upload(2) for _ in range(2)]
+    uploaded = client.upload(2)
+
+    assert [(r.success, r.message) for r in dropped] == [
+        (False, 'the link dropped the upload (1 of 2 in a row)'),
+        (False, 'the link dropped the upload (2 of 2 in a row)'),
+    ]
+    assert (uploaded.success, uploaded.photos_uploaded) == (True, 2)
+    assert not client.upload(1).success  # dropping again only after a success
