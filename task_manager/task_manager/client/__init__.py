@@ -13,6 +13,7 @@ from task_manager.client.history import FINAL_STATUSES
 from task_manager.client.missions import Subtask
 from task_manager.client.records import (
     ActiveTaskInfo,
+    Decision,
     Pause,
     TaskEvent,
     TaskEventKind,
@@ -26,6 +27,7 @@ __all__ = [
     'DEFAULT_TIMEOUT_SEC',
     'FINAL_STATUSES',
     'ActiveTaskInfo',
+    'Decision',
     'FeedbackCallback',
     'Pause',
     'ScheduleInfo',

@@ -2,6 +2,7 @@
 background thread; the topics it subscribes to and which of them a publisher reaches."""
 
 import threading
+import traceback
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -67,7 +68,19 @@ class Connection:
     def subscribe(
         self, msg_type: type, topic: str, profile: QoSProfile, callback: Callable[[Any], None]
     ) -> None:
-        """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us."""
+        """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us.
+
+        What `callback` raises is logged, not spread: it would end the executor thread, and
+        with it every call of the client.
+        """
+
+        def guarded(message: Any) -> None:
+            try:
+                callback(message)
+            except Exception:  # the callback boundary: the executor thread must go on
+                self.node.get_logger().error(
+                    f'a message of {topic} could not be handled:\n{traceback.format_exc()}'
+                )
 
         def matched(info: Any) -> None:
             with self.lock:
@@ -85,7 +98,7 @@ class Connection:
         self.node.create_subscription(
             msg_type,
             topic,
-            callback,
+            guarded,
             profile,
             event_callbacks=SubscriptionEventCallbacks(matched=matched),
         )

@@ -12,6 +12,7 @@ from task_manager.client.connection import DEFAULT_TIMEOUT_SEC
 from task_manager.client.listeners import Listener
 from task_manager.client.records import TaskResult, TaskState
 from task_manager.core.errors import TaskTimeout
+from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import result_of
 
 FeedbackCallback: TypeAlias = Callable[[dict[str, Any]], None]
@@ -40,6 +41,9 @@ class Tracking:
     """A result that came before the task's ENDED event (see Tasks.complete)."""
     early_result_timer: Timer | None = None
     """The timer that bounds the wait for that event."""
+    server: ActionServicesClient | None = None
+    """The action its goal was sent to (ExecuteTask, or StartTask with options); None for a
+    subtask, which has no goal of its own."""
 
 
 class TaskHandle:
@@ -52,7 +56,7 @@ class TaskHandle:
         self.result_future: Future[TaskResult] = Future()
         """Completes with the TaskResult; awaitable from rclpy coroutines."""
         self.goal_id: bytes | None = None
-        """The id of its ExecuteTask goal, once the Task Manager accepted it."""
+        """The id of its goal (ExecuteTask, or StartTask), once the Task Manager accepted it."""
         self.subtasks: list[TaskHandle] = []
         """Of a mission from `start_mission`: a handle per subtask, in order (else empty)."""
         self.tracking = Tracking()

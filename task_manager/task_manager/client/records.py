@@ -1,11 +1,16 @@
 """The client's records of tasks, from the Task Manager's messages: how a task ended
-(`TaskResult`), its state at one moment (`TaskState`) with its pauses (`Pause`), an entry of
-the active list (`ActiveTaskInfo`) and one change of a task (`TaskEvent`).
+(`TaskResult`), its state at one moment (`TaskState`) with its pauses (`Pause`) and the
+decisions taken about it (`Decision`), an entry of the active list (`ActiveTaskInfo`) and one
+change of a task (`TaskEvent`).
 
 A paused task stays active (status PAUSED); its running time does not count the time paused.
+A status, error code or event kind this client does not know (from a newer Task Manager) is
+mapped to a known one and logged once, never raised: the messages are read on the client's
+executor thread, which must go on.
 """
 
 import json
+import logging
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
@@ -15,6 +20,44 @@ from typing import Any, TypeGuard
 
 from task_manager.client.message_values import datetime_of, datetime_of_epoch, json_object
 from task_manager.core.status import ErrorCode, TaskStatus
+
+LOG = logging.getLogger('task_manager.client')
+# key: (what, the unknown value), noted once logged
+_logged_unknown: set[tuple[str, str]] = set()
+
+
+def _unknown(what: str, text: str, taken_as: str) -> None:
+    """Log, once per value, a value of a newer Task Manager that this client does not know."""
+    if (what, text) not in _logged_unknown:
+        _logged_unknown.add((what, text))
+        LOG.warning(
+            'the Task Manager sent the %s %r, which this client does not know (a newer Task '
+            'Manager?): taken as %r',
+            what,
+            text,
+            taken_as,
+        )
+
+
+def status_of(text: str, ended: bool) -> TaskStatus:
+    """A task status from a message; one this client does not know is ERROR once the task
+    has `ended`, else RECEIVED (active, not started)."""
+    try:
+        return TaskStatus(text)
+    except ValueError:
+        status = TaskStatus.ERROR if ended else TaskStatus.RECEIVED
+        _unknown('task status', text, str(status))
+        return status
+
+
+def error_code_of(text: str) -> ErrorCode:
+    """An error code from a message; one this client does not know is NONE (the result's
+    `error` still says why)."""
+    try:
+        return ErrorCode(text)
+    except ValueError:
+        _unknown('error code', text, '')
+        return ErrorCode.NONE
 
 
 @dataclass(frozen=True)
@@ -80,6 +123,34 @@ def running_time(
 
 
 @dataclass(frozen=True)
+class Decision:
+    """One decision the Task Manager took about a task, and why, in words that name the other
+    party ("queued behind drive-1 (priority 5), which holds base")."""
+
+    at: datetime
+    decision: str
+    """queued, started, refused, preempted, timeout, retry or reprioritized (a newer Task
+    Manager may add others)."""
+    reason: str
+
+
+def parse_decisions(text: str) -> list[Decision]:
+    """The decisions of a TaskState's `decisions` JSON; items that are not decisions are left
+    out."""
+    try:
+        items = json.loads(text or '[]')
+    except json.JSONDecodeError:
+        return []
+    if not isinstance(items, list):
+        return []
+    return [
+        Decision(datetime_of_epoch(item['at']), str(item['decision']), str(item.get('reason', '')))
+        for item in items
+        if isinstance(item, dict) and _is_epoch(item.get('at')) and item.get('decision')
+    ]
+
+
+@dataclass(frozen=True)
 class TaskResult:
     """How a task ended.
 
@@ -126,8 +197,8 @@ class TaskResult:
         return cls(
             task_id=message.task_id,
             task_name=getattr(message, 'task_name', '') or task_name,
-            status=TaskStatus(message.task_status),
-            error_code=ErrorCode(message.error_code),
+            status=status_of(message.task_status, ended=True),
+            error_code=error_code_of(message.error_code),
             result=json_object(message.task_result),
             source=getattr(message, 'source', '') or source,
         )
@@ -181,6 +252,14 @@ class TaskState:
     """Time spent paused (the message's paused_sec)."""
     pauses: list[Pause] = field(default_factory=list)
     """Each pause, oldest first; the last is still open while the task is PAUSED."""
+    queue_position: int = 0
+    """While QUEUED: its place in the queue, 1 first; else 0."""
+    priority: int = 0
+    """The priority the Task Manager decided with (higher wins)."""
+    attempt: int = 1
+    """Which attempt this is, 1 first; more once a declared retry started it again."""
+    decisions: list[Decision] = field(default_factory=list)
+    """Every decision the Task Manager took about it, oldest first (see TaskManagerClient.why)."""
 
     @property
     def is_final(self) -> bool:
@@ -221,21 +300,26 @@ class TaskState:
     @classmethod
     def from_message(cls, message: Any) -> 'TaskState':
         """From a task_manager_msgs/msg/TaskState."""
+        ended_at = datetime_of(message.ended)
         return cls(
             task_id=message.task_id,
             task_name=message.task_name,
-            status=TaskStatus(message.task_status),
+            status=status_of(message.task_status, ended=ended_at is not None),
             source=message.source,
-            error_code=ErrorCode(message.error_code),
+            error_code=error_code_of(message.error_code),
             mission_id=message.mission_id,
             received_at=datetime_of(message.received),
             started_at=datetime_of(message.started),
-            ended_at=datetime_of(message.ended),
+            ended_at=ended_at,
             feedback=json_object(message.feedback) if message.feedback else None,
             result=json_object(message.task_result) if message.task_result else None,
             sequence=message.sequence,
             paused=timedelta(seconds=max(message.paused_sec, 0.0)),
             pauses=parse_pauses(message.pauses),
+            queue_position=message.queue_position,
+            priority=message.priority,
+            attempt=message.attempt or 1,
+            decisions=parse_decisions(message.decisions),
         )
 
 
@@ -255,7 +339,8 @@ class TaskEventKind(StrEnum):
     RESUMED = 'RESUMED'
     """system/resume resumed the task (its status is IN_PROGRESS again)."""
     DECIDED = 'DECIDED'
-    """The Task Manager decided something else about it (a new priority, a retry)."""
+    """The Task Manager decided something else about it (a new priority, a retry); also any
+    change this client does not know (from a newer Task Manager)."""
     ENDED = 'ENDED'
     """The task ended (the last event of a task)."""
 
@@ -269,9 +354,23 @@ class TaskEvent:
     """When the change happened (the Task Manager's wall clock)."""
     task: TaskState
     """The task's state just after the change."""
+    reason: str = ''
+    """Why, when the Task Manager decided it (queued, refused, pre-empted, timed out,
+    retried), naming the other party; '' otherwise."""
 
     @classmethod
     def from_message(cls, message: Any) -> 'TaskEvent':
         """From a task_manager_msgs/msg/TaskEvent."""
         stamp = datetime_of(message.stamp) or datetime.fromtimestamp(0, UTC)
-        return cls(TaskEventKind(message.event), stamp, TaskState.from_message(message.task))
+        task = TaskState.from_message(message.task)
+        return cls(event_kind_of(message.event), stamp, task, message.reason)
+
+
+def event_kind_of(text: str) -> TaskEventKind:
+    """An event kind from a message; one this client does not know is DECIDED (some other
+    change: the event's state says what the task is now)."""
+    try:
+        return TaskEventKind(text)
+    except ValueError:
+        _unknown('event kind', text, str(TaskEventKind.DECIDED))
+        return TaskEventKind.DECIDED

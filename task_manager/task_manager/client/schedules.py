@@ -15,7 +15,7 @@ from task_manager_msgs.srv import GetSchedules
 
 from task_manager.client.message_values import datetime_of, datetime_of_json, json_object, json_text
 from task_manager.client.missions import Subtask, mission_task_data
-from task_manager.client.records import TaskResult
+from task_manager.client.records import TaskResult, status_of
 from task_manager.client.services import CallService, RunTask
 from task_manager.core.names import ENABLE_SCHEDULE as ENABLE_SCHEDULE_TASK
 from task_manager.core.names import GET_SCHEDULES_SERVICE, MISSION
@@ -104,7 +104,9 @@ class ScheduleInfo:
             next_run=datetime_of(message.next_run),
             last_run=datetime_of(message.last_run),
             last_task_id=message.last_task_id,
-            last_status=TaskStatus(message.last_status) if message.last_status else None,
+            last_status=status_of(message.last_status, ended=False)
+            if message.last_status
+            else None,
             run_count=message.run_count,
             missed_count=message.missed_count,
             skipped_count=message.skipped_count,

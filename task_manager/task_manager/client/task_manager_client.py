@@ -8,6 +8,9 @@ Stamps and feedback come from /task_manager/task_events, which a client subscrib
 on first use (starting a task, asking for feedback or events); each event goes to the
 handle of its task by id. A client that joins late asks /task_manager/get_task_states.
 
+A request may carry options (priority, on_conflict, timeouts; None: the task's declaration):
+with any, it goes to /task_manager/start_task, else to ExecuteTask as it always did.
+
 The client holds one helper per concern and hands each what it needs: the connection, the
 tasks it started, the watchers of what the node publishes, the query services, the pauses
 and schedules (which start system tasks through `run_task`).
@@ -26,13 +29,21 @@ from task_manager.client.listeners import Callback
 from task_manager.client.missions import Subtask
 from task_manager.client.parameters import declared_tasks
 from task_manager.client.pauses import Pauses
-from task_manager.client.records import ActiveTaskInfo, TaskEvent, TaskResult, TaskState
+from task_manager.client.records import (
+    ActiveTaskInfo,
+    Decision,
+    TaskEvent,
+    TaskResult,
+    TaskState,
+)
 from task_manager.client.schedules import ScheduleInfo, Schedules, When, WhenKeywords, when_of
 from task_manager.client.services import ServiceCalls
-from task_manager.client.tasks import Tasks
+from task_manager.client.tasks import Tasks, check_priority, request_options
 from task_manager.client.watching import ActiveTasks, Watch
+from task_manager.core.admission.options import OnConflict
+from task_manager.core.errors import TaskManagerError
 from task_manager.core.history.stats import TaskStats
-from task_manager.core.names import CANCEL_TASK, STOP
+from task_manager.core.names import CANCEL_TASK, REPRIORITIZE, STOP
 from task_manager.core.status import TaskStatus
 
 
@@ -116,9 +127,26 @@ class TaskManagerClient:
         *,
         task_id: str = '',
         source: str = 'python',
+        priority: int | None = None,
+        on_conflict: OnConflict | str | None = None,
+        timeout_sec: float | None = None,
+        queue_timeout_sec: float | None = None,
+        feedback_timeout_sec: float | None = None,
     ) -> TaskHandle:
-        """Start a task; returns once the Task Manager has it (accepted, running or ended)."""
-        return self._tasks.start_task(task_name, task_data, task_id, source)
+        """Start a task; returns once the Task Manager has it (accepted, queued, running or
+        ended).
+
+        The options (None: the task's declaration): `priority` (higher wins; it may pre-empt
+        a running task of at most its priority), `on_conflict` (preempt, queue or reject when
+        its resources are busy), `timeout_sec` (start to end), `queue_timeout_sec` (the
+        longest wait in the queue), `feedback_timeout_sec` (an action silent this long is
+        stalled); a timeout that fires ends it ERROR, error code `timeout`. ValueError says
+        what is wrong with one before sending.
+        """
+        options = request_options(
+            priority, on_conflict, timeout_sec, queue_timeout_sec, feedback_timeout_sec
+        )
+        return self._tasks.start_task(task_name, task_data, task_id, source, options)
 
     def run_task(
         self,
@@ -126,24 +154,60 @@ class TaskManagerClient:
         task_data: dict[str, Any] | str | None = None,
         *,
         timeout_sec: float | None = None,
+        task_timeout_sec: float | None = None,
         **options: Any,
     ) -> TaskResult:
-        """Start a task and wait for its result."""
-        return self.start_task(task_name, task_data, **options).result(timeout_sec)
+        """Start a task and wait for its result, at most `timeout_sec` (None: no limit).
+
+        `options` are start_task's keywords, except its `timeout_sec` (the task's own
+        timeout), which is `task_timeout_sec` here.
+        """
+        handle = self.start_task(task_name, task_data, timeout_sec=task_timeout_sec, **options)
+        return handle.result(timeout_sec)
 
     def start_mission(
-        self, subtasks: list[Subtask], *, task_id: str = '', source: str = 'python'
+        self,
+        subtasks: list[Subtask],
+        *,
+        task_id: str = '',
+        source: str = 'python',
+        priority: int | None = None,
+        on_conflict: OnConflict | str | None = None,
+        timeout_sec: float | None = None,
+        queue_timeout_sec: float | None = None,
+        feedback_timeout_sec: float | None = None,
     ) -> tuple[TaskHandle, list[str]]:
         """Start system/mission; returns its handle and the subtask ids (generated if empty).
 
         The handle's `subtasks` are handles of the subtasks (feedback, state, result); one
-        the mission never reached never ends.
+        the mission never reached never ends. The options are start_task's, for the mission
+        as one unit (it queues as one; its subtasks hold their own resources as they run).
         """
-        return self._tasks.start_mission(subtasks, task_id, source)
+        options = request_options(
+            priority, on_conflict, timeout_sec, queue_timeout_sec, feedback_timeout_sec
+        )
+        return self._tasks.start_mission(subtasks, task_id, source, options)
 
     def cancel_tasks(self, task_ids: list[str], *, source: str = 'python') -> TaskResult:
         """Cancel tasks by id through system/cancel_task (whoever started them)."""
         return self.run_task(CANCEL_TASK, {'cancelled_tasks': task_ids}, source=source)
+
+    def reprioritize(
+        self,
+        task_ids: Sequence[str],
+        priority: int,
+        *,
+        source: str = 'python',
+        timeout_sec: float | None = None,
+    ) -> TaskResult:
+        """Give active tasks a new priority through system/reprioritize, and wait for its result.
+
+        A queued task moves in the queue at once; a running one goes on, and its new priority
+        counts for the requests that come after. It ends DONE when every task has it, else
+        ERROR; its result has `successful_changes` and `errors` (one line per other id).
+        """
+        data = {'task_ids': list(task_ids), 'priority': check_priority(priority)}
+        return self.run_task(REPRIORITIZE, data, source=source, timeout_sec=timeout_sec)
 
     def stop(self, *, source: str = 'python') -> TaskResult:
         """system/stop: cancel every task declared with cancel_on_stop."""
@@ -207,6 +271,21 @@ class TaskManagerClient:
         Ids the Task Manager does not know are left out.
         """
         return self._history.task_states(task_ids, timeout_sec)
+
+    def why(self, task_id: str, timeout_sec: float | None = None) -> list[Decision]:
+        """Every decision the Task Manager took about a task, oldest first: queued, started
+        (after a wait, or pre-empting), refused, pre-empted, timed out, retried,
+        reprioritized, each with its reason; empty when it was simply started.
+
+        From its state while it is active, else from the history; TaskManagerError when the
+        Task Manager knows no such task.
+        """
+        states = self._history.task_states([task_id], timeout_sec)
+        if not states:
+            raise TaskManagerError(
+                f'the Task Manager knows no task {task_id!r} (neither active nor in its history)'
+            )
+        return states[0].decisions
 
     def recent_results(self, max_results: int = 0) -> list[TaskResult]:
         """Results the Task Manager has kept (oldest first), including from before we started.

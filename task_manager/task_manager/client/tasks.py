@@ -2,9 +2,14 @@
 with whichever comes first, the ExecuteTask result or the task's message on
 /task_manager/results, and stamped from the task's events.
 
+A request with options (priority, on conflict, timeouts) goes to /task_manager/start_task
+(StartTask: ExecuteTask's goal with TaskOptions, the same result), whose client is made on
+first use; one without goes to ExecuteTask, as it always did.
+
 Each event of /task_manager/task_events goes to the handle of its task by id.
 """
 
+import math
 import queue
 import threading
 import time
@@ -13,7 +18,7 @@ from collections.abc import Iterator
 from typing import Any, TypeVar
 
 from rclpy.task import Future
-from task_manager_msgs.action import ExecuteTask
+from task_manager_msgs.action import ExecuteTask, StartTask
 from task_manager_msgs.msg import TaskDoneResult
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 
@@ -24,6 +29,7 @@ from task_manager.client.message_values import json_text
 from task_manager.client.missions import Subtask, mission_task_data
 from task_manager.client.records import TaskEvent, TaskEventKind, TaskResult
 from task_manager.client.watching import ActiveTasks
+from task_manager.core.admission.options import OnConflict, RequestOptions
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
@@ -32,18 +38,69 @@ from task_manager.core.names import (
     MISSION,
     MISSION_SOURCE,
     RESULTS_TOPIC,
+    START_TASK_ACTION,
     TASK_EVENTS_TOPIC,
 )
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import result_of
+from task_manager.rclpy_tools.task_options import task_options_msg
 
 # How long a result that arrived before its task's ENDED event waits for it (for the stamps).
 # The event is published first, so it is normally there already; this bounds a lost one.
 ENDED_EVENT_GRACE_SEC = 2.0
 
+PRIORITY_MIN, PRIORITY_MAX = -(2**31), 2**31 - 1
+"""A priority is an int32 on the wire."""
+NO_OPTIONS = RequestOptions()
+
 T = TypeVar('T')
+
+
+def check_priority(priority: int) -> int:
+    """`priority`, if an int32; else ValueError saying what is allowed."""
+    if isinstance(priority, bool) or not isinstance(priority, int):
+        raise ValueError(f'priority must be an integer, got {priority!r}')
+    if not PRIORITY_MIN <= priority <= PRIORITY_MAX:
+        raise ValueError(f'priority must be from {PRIORITY_MIN} to {PRIORITY_MAX}, got {priority}')
+    return priority
+
+
+def request_options(
+    priority: int | None = None,
+    on_conflict: OnConflict | str | None = None,
+    timeout_sec: float | None = None,
+    queue_timeout_sec: float | None = None,
+    feedback_timeout_sec: float | None = None,
+) -> RequestOptions:
+    """A request's options (None: the declaration's); ValueError says what is wrong."""
+    mode = None
+    if on_conflict is not None:
+        try:
+            mode = OnConflict(str(on_conflict).strip().lower())
+        except ValueError:
+            allowed = ', '.join(m.value for m in OnConflict)
+            raise ValueError(f'on_conflict must be one of {allowed}, got {on_conflict!r}') from None
+    seconds = {
+        'timeout_sec': timeout_sec,
+        'queue_timeout_sec': queue_timeout_sec,
+        'feedback_timeout_sec': feedback_timeout_sec,
+    }
+    for name, value in seconds.items():
+        if value is None:
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ValueError(f'{name} must be a number of seconds, got {value!r}')
+        if not (value > 0 and math.isfinite(value)):
+            raise ValueError(f'{name} must be a finite number of seconds > 0, got {value!r}')
+    return RequestOptions(
+        priority=None if priority is None else check_priority(priority),
+        on_conflict=mode,
+        timeout_sec=timeout_sec,
+        queue_timeout_sec=queue_timeout_sec,
+        feedback_timeout_sec=feedback_timeout_sec,
+    )
 
 
 class Tasks:
@@ -62,6 +119,8 @@ class Tasks:
         # ExecuteTask through the action's own services: rclpy's ActionClient would also read
         # every status message, which lists every goal the node keeps (see action_services)
         self._execute_task = ActionServicesClient(self._node, ExecuteTask, EXECUTE_TASK_ACTION)
+        self._start_task: ActionServicesClient | None = None
+        """StartTask (a request with options), made on first use."""
         connection.subscribe(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS, self._on_result)
 
     def wait_until_available(self, timeout_sec: float | None, *, events: bool) -> None:
@@ -84,14 +143,23 @@ class Tasks:
     # ---- starting tasks ---------------------------------------------------------------------
 
     def start_task(
-        self, task_name: str, task_data: dict[str, Any] | str | None, task_id: str, source: str
+        self,
+        task_name: str,
+        task_data: dict[str, Any] | str | None,
+        task_id: str,
+        source: str,
+        options: RequestOptions = NO_OPTIONS,
     ) -> TaskHandle:
         """Start a task; returns once the Task Manager has it (accepted, running or ended)."""
         handle = TaskHandle(self, task_id or str(uuid.uuid4()), task_name, source)
-        return self._start(handle, task_data)
+        return self._start(handle, task_data, options)
 
     def start_mission(
-        self, subtasks: list[Subtask], task_id: str, source: str
+        self,
+        subtasks: list[Subtask],
+        task_id: str,
+        source: str,
+        options: RequestOptions = NO_OPTIONS,
     ) -> tuple[TaskHandle, list[str]]:
         """Start system/mission; its handle has a handle per subtask."""
         subtask_ids = [s.task_id or str(uuid.uuid4()) for s in subtasks]
@@ -101,21 +169,29 @@ class Tasks:
             TaskHandle(self, subtask_id, s.task_name, MISSION_SOURCE)
             for s, subtask_id in zip(subtasks, subtask_ids, strict=True)
         ]
-        return self._start(handle, data), subtask_ids
+        return self._start(handle, data, options), subtask_ids
 
-    def _start(self, handle: TaskHandle, task_data: dict[str, Any] | str | None) -> TaskHandle:
+    def _start(
+        self, handle: TaskHandle, task_data: dict[str, Any] | str | None, options: RequestOptions
+    ) -> TaskHandle:
         """Send the goal of `handle` (and follow its events, and those of its subtasks)."""
+        fields = {
+            'task_id': handle.task_id,
+            'task_name': handle.task_name,
+            'source': handle.source,
+            'task_data': json_text(task_data),
+        }
+        if options.is_empty:
+            goal, server = ExecuteTask.Goal(**fields), self._execute_task
+        else:
+            goal = StartTask.Goal(**fields, options=task_options_msg(options))
+            server = self._start_task_server()
+        handle.tracking.server = server
         self.events.follow()
         with self._lock:
             for each in (handle, *handle.subtasks):
                 self._handles_by_id[each.task_id] = each
-        goal = ExecuteTask.Goal(
-            task_id=handle.task_id,
-            task_name=handle.task_name,
-            source=handle.source,
-            task_data=json_text(task_data),
-        )
-        if not self._send_goal(handle, goal):
+        if not self._send_goal(handle, goal, server):
             with self._lock:
                 for each in (handle, *handle.subtasks):
                     self._handles_by_id.pop(each.task_id, None)
@@ -125,7 +201,22 @@ class Tasks:
             )
         return handle
 
-    def _send_goal(self, handle: TaskHandle, goal: ExecuteTask.Goal) -> bool:
+    def _start_task_server(self) -> ActionServicesClient:
+        """The client of StartTask, made on first use and waited for (bounded)."""
+        with self._lock:
+            if self._start_task is None:
+                self._start_task = ActionServicesClient(self._node, StartTask, START_TASK_ACTION)
+            server = self._start_task
+        timeout_sec = self._connection.timeout_sec
+        if not server.wait_for_server(timeout_sec):
+            raise TaskManagerUnavailable(
+                f'no Task Manager answered at {START_TASK_ACTION} within {timeout_sec} s (a '
+                'Task Manager older than request options has none: start without priority, '
+                'on_conflict or timeouts)'
+            )
+        return server
+
+    def _send_goal(self, handle: TaskHandle, goal: Any, server: ActionServicesClient) -> bool:
         """Send the goal until the Task Manager answers (bounded); whether it did.
 
         A request sent just as DDS matches the node's reader can be lost, so the same goal
@@ -134,7 +225,7 @@ class Tasks:
         """
         deadline = time.monotonic() + self._connection.timeout_sec
         retry_sec = SERVICE_RETRY_SEC
-        goal_id, first = self._execute_task.send_goal(goal)
+        goal_id, first = server.send_goal(goal)
         requests = [first]
 
         def answered() -> bool:
@@ -146,7 +237,7 @@ class Tasks:
                 if self._lock.wait_for(answered, min(retry_sec, remaining)):
                     break
                 retry_sec *= 2
-                _, again = self._execute_task.send_goal(goal, goal_id)
+                _, again = server.send_goal(goal, goal_id)
                 again.add_done_callback(
                     lambda f: self._on_goal_response(handle, goal_id, f, retried=True)
                 )
@@ -154,7 +245,7 @@ class Tasks:
             done = answered()
         for request in requests:
             if not request.done():
-                self._execute_task.forget_request(request)
+                server.forget_request(request)
         return done
 
     def cancel(self, handle: TaskHandle, timeout_sec: float) -> bool:
@@ -162,7 +253,8 @@ class Tasks:
         if handle.goal_id is None:
             data = {'cancelled_tasks': [handle.task_id]}
             return self.start_task(CANCEL_TASK, data, '', 'python').result().ok
-        response = _wait(self._execute_task.cancel(handle.goal_id), timeout_sec)
+        server = handle.tracking.server or self._execute_task
+        response = _wait(server.cancel(handle.goal_id), timeout_sec)
         return response is not None and len(response.goals_canceling) > 0
 
     # ---- feedback ---------------------------------------------------------------------------
@@ -209,9 +301,12 @@ class Tasks:
                 handle.goal_id = goal_id
                 self._lock.notify_all()
         if refused:
-            self._complete(handle, _refused(handle), final=True)
+            with_options = handle.tracking.server is self._start_task
+            action = START_TASK_ACTION if with_options else EXECUTE_TASK_ACTION
+            self._complete(handle, _refused(handle, action), final=True)
             return
-        self._execute_task.get_result(goal_id).add_done_callback(
+        server = handle.tracking.server or self._execute_task
+        server.get_result(goal_id).add_done_callback(
             lambda f: self._complete(
                 handle,
                 TaskResult.from_message(result_of(f).result, handle.task_name, handle.source),
@@ -295,13 +390,13 @@ class Tasks:
             self._complete(handle, early_result, final=True)
 
 
-def _refused(handle: TaskHandle) -> TaskResult:
+def _refused(handle: TaskHandle, action: str) -> TaskResult:
     return TaskResult(
         task_id=handle.task_id,
         task_name=handle.task_name,
         status=TaskStatus.ERROR,
         error_code=ErrorCode.TASK_START_FAILED,
-        result={'error': f'{EXECUTE_TASK_ACTION} rejected the goal'},
+        result={'error': f'{action} rejected the goal'},
         source=handle.source,
     )
 

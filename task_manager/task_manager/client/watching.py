@@ -11,10 +11,9 @@ from task_manager_msgs.msg import ActiveTaskArray
 
 from task_manager.client.connection import Connection, EventFeed
 from task_manager.client.listeners import Callback, Inbox, Listeners, drain
-from task_manager.client.records import ActiveTaskInfo, TaskEvent, TaskResult
+from task_manager.client.records import ActiveTaskInfo, TaskEvent, TaskResult, status_of
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import ACTIVE_TASKS_TOPIC
-from task_manager.core.status import TaskStatus
 from task_manager.rclpy_tools import qos
 
 T = TypeVar('T')
@@ -46,7 +45,7 @@ class ActiveTasks:
 
     def _on_active(self, message: ActiveTaskArray) -> None:
         active = [
-            ActiveTaskInfo(t.task_id, t.task_name, TaskStatus(t.task_status), t.source)
+            ActiveTaskInfo(t.task_id, t.task_name, status_of(t.task_status, ended=False), t.source)
             for t in message.active_tasks
         ]
         with self._connection.lock:
