@@ -149,7 +149,7 @@ class Arbiter:
             return None
         claim.priority = priority
         self._queue.sort(key=_queue_order)
-        return []
+        return self._serve_queue()
 
     # ---- inside -----------------------------------------------------------------------------
 
