@@ -12,7 +12,7 @@ from datetime import UTC, datetime
 from functools import cache
 from typing import Any
 
-from task_manager.client import TaskEvent, TaskResult, TaskState
+from task_manager.client import Decision, TaskEvent, TaskResult, TaskState
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.task_spec import parse_interface_name
 from task_manager.protocol.models import DeclaredTask
@@ -46,7 +46,18 @@ def task_json(state: TaskState) -> dict[str, Any]:
         'feedback': state.feedback,
         'result': state.result if state.is_final else None,
         'sequence': state.sequence,
+        'priority': state.priority,
+        'queue_position': state.queue_position,
+        'attempt': state.attempt,
+        'decisions': decisions_json(state.decisions),
     }
+
+
+def decisions_json(decisions: list[Decision]) -> list[dict[str, Any]]:
+    """Decision documents, oldest first."""
+    return [
+        {'at': iso(each.at), 'decision': each.decision, 'reason': each.reason} for each in decisions
+    ]
 
 
 def result_json(result: TaskResult) -> dict[str, Any]:
@@ -73,6 +84,7 @@ def event_json(event: TaskEvent) -> dict[str, Any]:
         'event': str(event.kind),
         'stamp': iso(event.stamp),
         'task': task_json(event.task),
+        'reason': event.reason,
     }
 
 

@@ -8,13 +8,15 @@ of the ROS interfaces.
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, RootModel
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, RootModel, StrictFloat, StrictInt
 
 from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, IDS_MAX
 from task_manager.core.request_text import MAX_LENGTH, is_refused_character
 
 NAME_MAX = MAX_LENGTH
 """The longest task name, task id or source accepted."""
+PRIORITY_MIN, PRIORITY_MAX = -(2**31), 2**31 - 1
+"""A priority is an int32 on the wire."""
 
 TaskStatusName = Literal[
     'RECEIVED', 'QUEUED', 'IN_PROGRESS', 'PAUSED', 'DONE', 'ERROR', 'CANCELED'
@@ -47,7 +49,32 @@ class _Request(BaseModel):
     model_config = ConfigDict(extra='forbid')
 
 
-class StartTask(_Request):
+Priority = Annotated[StrictInt, Field(ge=PRIORITY_MIN, le=PRIORITY_MAX)]
+Seconds = Annotated[StrictFloat, Field(gt=0, allow_inf_nan=False)]
+OnConflictName = Literal['preempt', 'queue', 'reject']
+
+
+class _Options(_Request):
+    """How a start is admitted and bounded; each left out takes the task's declaration."""
+
+    priority: Priority | None = Field(
+        None, description='Higher wins; it pre-empts only tasks of at most its priority.'
+    )
+    on_conflict: OnConflictName | None = Field(
+        None, description='When its resources are busy: pre-empt their holders, wait, or fail.'
+    )
+    timeout_sec: Seconds | None = Field(
+        None, description='From start to end; then it is cancelled, ERROR / timeout.'
+    )
+    queue_timeout_sec: Seconds | None = Field(
+        None, description='The longest wait in the queue; then ERROR / timeout, never started.'
+    )
+    feedback_timeout_sec: Seconds | None = Field(
+        None, description='An action without feedback this long is stalled: ERROR / timeout.'
+    )
+
+
+class StartTask(_Options):
     """Start one task. Its source is not the request's to say: the web gateway sets it (`WEB`),
     so that the history says who started it."""
 
@@ -67,8 +94,9 @@ class Subtask(_Request):
     allow_skipping: bool = Field(False, description='Its failure does not end the mission.')
 
 
-class StartMission(_Request):
-    """Start system/mission: its subtasks one after another (source: as StartTask)."""
+class StartMission(_Options):
+    """Start system/mission: its subtasks one after another (source: as StartTask). The
+    options are the mission's, as one unit (it queues as one)."""
 
     subtasks: list[Subtask] = Field(min_length=1, max_length=IDS_MAX)
     task_id: Name = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
@@ -78,6 +106,13 @@ class CancelTasks(_Request):
     """Cancel tasks by id, whoever started them."""
 
     task_ids: list[Name] = Field(min_length=1, max_length=IDS_MAX)
+
+
+class Reprioritize(_Request):
+    """system/reprioritize: a new priority for active tasks (a queued one moves at once)."""
+
+    task_ids: list[Name] = Field(min_length=1, max_length=IDS_MAX)
+    priority: Priority
 
 
 class HistoryQuery(_Request):
@@ -92,6 +127,17 @@ class HistoryQuery(_Request):
     after_sequence: int = Field(0, ge=0, description='Only tasks with a greater sequence.')
     limit: int = Field(100, ge=1, le=HISTORY_QUERY_LIMIT_MAX)
     oldest_first: bool = Field(False, description='By sequence, to resume after the last seen.')
+
+
+class Decision(BaseModel):
+    """One decision the Task Manager took about a task, and why."""
+
+    at: datetime
+    decision: str = Field(
+        examples=['queued', 'started', 'refused', 'preempted', 'timeout', 'retry',
+                  'reprioritized'],
+    )  # fmt: skip
+    reason: str = Field(examples=['queued behind drive-1 (priority 5), which holds base'])
 
 
 class Task(BaseModel):
@@ -114,6 +160,12 @@ class Task(BaseModel):
     feedback: dict[str, Any] | None = Field(None, description='The latest feedback.')
     result: dict[str, Any] | None = Field(None, description='Once ended.')
     sequence: int = Field(0, description='Once ended: its number in the history; else 0.')
+    priority: int = Field(0, description='The priority it was admitted with (higher wins).')
+    queue_position: int = Field(0, description='While QUEUED: its place, 1 first; else 0.')
+    attempt: int = Field(1, description='Which attempt, 1 first (more once retried).')
+    decisions: list[Decision] = Field(
+        default_factory=list, description='Why it was queued, refused, pre-empted, ...'
+    )
 
 
 class TaskEvent(BaseModel):
@@ -122,6 +174,7 @@ class TaskEvent(BaseModel):
     event: EventName
     stamp: datetime
     task: Task
+    reason: str = Field('', description='Why, when the Task Manager decided it; else empty.')
 
 
 class Started(BaseModel):
@@ -204,8 +257,27 @@ class HistoryRequest(HistoryQuery, _Addressed):
     op: Literal['history']
 
 
+class ReprioritizeRequest(Reprioritize, _Addressed):
+    """`reprioritize`: system/reprioritize of these ids."""
+
+    op: Literal['reprioritize']
+
+
+class WhyRequest(_Addressed):
+    """`why`: every decision the Task Manager took about a task, active or ended."""
+
+    op: Literal['why']
+    task_id: Name = Field(min_length=1, max_length=NAME_MAX)
+
+
 RequestBody = Annotated[
-    StartTaskRequest | StartMissionRequest | CancelRequest | StopRequest | HistoryRequest,
+    StartTaskRequest
+    | StartMissionRequest
+    | CancelRequest
+    | StopRequest
+    | HistoryRequest
+    | ReprioritizeRequest
+    | WhyRequest,
     Field(discriminator='op'),
 ]
 
@@ -226,9 +298,11 @@ class Reply(BaseModel):
         False, description='The task id was known: nothing started, `task` is that task.'
     )
     task: Task | None = Field(
-        None, description='start: its latest state; cancel, stop: the system task, ended.'
+        None,
+        description='start: its latest state; cancel, stop, reprioritize: the system task, ended.',
     )
     tasks: list[Task] | None = Field(None, description='history: the tasks found.')
+    decisions: list[Decision] | None = Field(None, description="why: the task's, oldest first.")
     error: ErrorDetail | None = Field(None, description='When ok is false.')
 
 
@@ -295,7 +369,9 @@ DOCUMENTS: dict[str, type[BaseModel]] = {
     'start_task': StartTask,
     'start_mission': StartMission,
     'cancel_tasks': CancelTasks,
+    'reprioritize': Reprioritize,
     'history_query': HistoryQuery,
+    'decision': Decision,
     'task': Task,
     'task_event': TaskEvent,
     'started': Started,
