@@ -91,21 +91,18 @@ def test_an_unusable_option_is_refused_naming_it(body: dict[str, Any], field: st
 def test_reprioritize_and_why_are_requests_of_the_mqtt_protocol() -> None:
     reprioritize = {'op': 'reprioritize', 'request_id': 'r1', 'task_ids': ['a'], 'priority': 4}
     why = {'op': 'why', 'request_id': 'r2', 'task_id': 'a'}
-    reply = {
-        'request_id': 'r2',
-        'ok': True,
-        'op': 'why',
-        'decisions': [{'at': '2026-11-23T02:00:00Z', 'decision': 'queued', 'reason': REASON}],
-    }
+    decision = {'at': '2026-11-23T02:00:00Z', 'decision': 'queued', 'reason': REASON}
+    reply = {'request_id': 'r2', 'ok': True, 'op': 'why', 'decisions': [decision]}
 
     for document in (reprioritize, why):
         validator('mqtt_request').validate(document)
     validator('mqtt_reply').validate(reply)
     assert isinstance(models.RobotRequest.model_validate(why).root, models.WhyRequest)
-    assert models.RobotRequest.model_validate(reprioritize).root.priority == 4
+    raised = models.RobotRequest.model_validate(reprioritize).root
+    assert isinstance(raised, models.ReprioritizeRequest) and raised.priority == 4
     validator('reprioritize').validate({'task_ids': ['a'], 'priority': -1})
     for bad in ({'task_ids': [], 'priority': 1}, {'task_ids': ['a']}):
         assert not validator('reprioritize').is_valid(bad)
     assert not validator('mqtt_request').is_valid({**why, 'task_id': ''})
-    validator('decision').validate(reply['decisions'][0])
-    assert models.Decision.model_validate(reply['decisions'][0]).at == QUEUED_AT
+    validator('decision').validate(decision)
+    assert models.Decision.model_validate(decision).at == QUEUED_AT
