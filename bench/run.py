@@ -15,6 +15,7 @@ from pathlib import Path
 import rclpy
 
 from bench import (
+    admission,
     concurrency,
     config,
     dispatch,
@@ -49,6 +50,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'web': web.run,
     'mqtt': mqtt.run,
     # last: they restart the node for each phase, then once more with the default parameters
+    'admission': admission.run,
     'events': events.run,
     'history': history.run,
     'schedules': schedules.run,
