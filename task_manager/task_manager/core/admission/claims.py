@@ -31,15 +31,18 @@ def implied_resources(
 
 
 def resource_words(resources: Iterable[str]) -> str:
-    """Resources as an operator reads them: `base, camera`, `blocking`, `its one goal slot`."""
+    """Resources as an operator reads them: the declared ones (`base, camera`); the implicit
+    ones only when no declared one is shared (`the blocking slot`, `the one goal slot of X`)."""
+    resources = sorted(resources)
+    declared = [resource for resource in resources if not resource.startswith('@')]
+    if declared:
+        return ', '.join(declared)
     words = []
-    for resource in sorted(resources):
+    for resource in resources:
         if resource == BLOCKING:
             words.append('the blocking slot')
         elif resource.startswith(_TASK_SLOT):
             words.append(f'the one goal slot of {resource[len(_TASK_SLOT) :]}')
-        else:
-            words.append(resource)
     return ', '.join(words)
 
 
