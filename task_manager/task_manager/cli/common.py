@@ -13,6 +13,8 @@ import typer
 from rich.console import Console
 
 from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, TaskStatus
+from task_manager.client.tasks import PRIORITY_MAX, PRIORITY_MIN
+from task_manager.core.admission.options import OnConflict
 
 EXIT_DONE = 0
 EXIT_ERROR = 1
@@ -37,6 +39,81 @@ progress = Console(stderr=True)
 def source_option() -> Any:
     """`--source`: who asks, as every verb that sends the Task Manager a request takes it."""
     return typer.Option('CLI', '--source', help='Who asks (the source recorded): CLI, CLOUD, ...')
+
+
+def check_priority(value: int | None) -> int | None:
+    """A priority option or argument: an int32."""
+    if value is not None and not PRIORITY_MIN <= value <= PRIORITY_MAX:
+        raise typer.BadParameter(f'must be from {PRIORITY_MIN} to {PRIORITY_MAX}, got {value}')
+    return value
+
+
+def priority_option() -> Any:
+    """`--priority N`: the request's own priority, as every verb that starts a task takes it."""
+    return typer.Option(
+        None,
+        '--priority',
+        callback=check_priority,
+        metavar='N',
+        help='Its priority (higher wins; it pre-empts only tasks of at most its priority); '
+        'default: the declared one',
+    )
+
+
+ON_CONFLICT_CHOICES = tuple(mode.value for mode in OnConflict)
+
+
+def _on_conflict(value: str | None) -> str | None:
+    if value is None:
+        return None
+    if value.strip().lower() not in ON_CONFLICT_CHOICES:
+        allowed = ', '.join(ON_CONFLICT_CHOICES)
+        raise typer.BadParameter(f'{value!r} is not one of {allowed}')
+    return value.strip().lower()
+
+
+def on_conflict_option() -> Any:
+    return typer.Option(
+        None,
+        '--on-conflict',
+        callback=_on_conflict,
+        metavar='[' + '|'.join(ON_CONFLICT_CHOICES) + ']',
+        help='When its resources are busy: preempt, queue or reject; default: the declared one',
+    )
+
+
+def _positive_seconds(value: float | None) -> float | None:
+    if value is not None and not 0 < value < float('inf'):
+        raise typer.BadParameter(f'must be a number of seconds > 0, got {value:g}')
+    return value
+
+
+def seconds_option(flag: str, what: str) -> Any:
+    """A timeout of the request, in seconds (> 0); default: the declared one."""
+    return typer.Option(
+        None,
+        flag,
+        callback=_positive_seconds,
+        metavar='SEC',
+        help=f'{what}, then it ends ERROR (timeout); default: the declared one',
+    )
+
+
+def request_options(
+    priority: int | None,
+    on_conflict: str | None,
+    timeout: float | None,
+    queue_timeout: float | None,
+    feedback_timeout: float | None,
+) -> dict[str, Any]:
+    """The options of a start, as the client's keywords (None: the declaration's)."""
+    return {
+        'priority': priority,
+        'on_conflict': on_conflict,
+        'timeout_sec': timeout,
+        'queue_timeout_sec': queue_timeout,
+        'feedback_timeout_sec': feedback_timeout,
+    }
 
 
 @contextmanager
@@ -142,11 +219,14 @@ def result_json(result: TaskResult) -> str:
 
 
 def finish(result: TaskResult) -> None:
-    """Print a task's result as JSON (and why it failed on stderr); exit with its status' code."""
+    """Print a task's result as JSON (and why it failed, or was pre-empted, on stderr); exit
+    with its status' code."""
     output.print_json(result_json(result))
-    if result.error_message:
+    reason = result.result.get('reason')
+    why = result.error_message or (reason if isinstance(reason, str) else '')
+    if why:
         what = result.error_code or result.status
-        progress.print(f'{what}: {result.error_message}', markup=False, soft_wrap=True)
+        progress.print(f'{what}: {why}', markup=False, soft_wrap=True)
     raise typer.Exit(EXIT_CODES[result.status])
 
 

@@ -10,6 +10,7 @@ from datetime import datetime
 from typing import Any
 
 from task_manager import ActiveTaskInfo, Pause, TaskResult, TaskState
+from task_manager.client import Decision
 from task_manager.pauses import paused_time
 
 # key: a property of a declared task in taskctl's JSON, value: its default
@@ -72,9 +73,16 @@ def history_data(state: TaskState) -> dict[str, Any]:
     }
 
 
+def decision_data(decision: Decision) -> dict[str, Any]:
+    """One decision the Task Manager took about a task (`taskctl why`)."""
+    return {'at': iso(decision.at), 'decision': decision.decision, 'reason': decision.reason}
+
+
 def active_data(task: ActiveTaskInfo | TaskState, now: datetime) -> dict[str, Any]:
     """An active task (`taskctl active`) at `now`: `duration_sec` is how long it has run so far
-    (the clock stops while it is paused). Without its stamps, they are null."""
+    (the clock stops while it is paused); `queue_position` is 0 unless it is QUEUED. Without
+    its state (stamps, priority, place in the queue), those are null."""
+    known = isinstance(task, TaskState)
     state = (
         task
         if isinstance(task, TaskState)
@@ -92,6 +100,9 @@ def active_data(task: ActiveTaskInfo | TaskState, now: datetime) -> dict[str, An
         'duration_sec': None if elapsed is None else elapsed.total_seconds(),
         'paused_sec': paused_time(state.pauses, state.paused, now).total_seconds(),
         'pauses': pauses_data(state.pauses),
+        'priority': state.priority if known else None,
+        'queue_position': state.queue_position if known else None,
+        'attempt': state.attempt if known else None,
     }
 
 

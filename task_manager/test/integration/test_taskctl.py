@@ -149,6 +149,9 @@ def test_active_results_and_tasks(
         'mission_id': '',
         'paused_sec': 0.0,
         'pauses': [],
+        'priority': 0,
+        'queue_position': 0,
+        'attempt': 1,
     }
     assert stamps['received_at'] <= stamps['started_at'] and stamps['duration_sec'] >= 0
     lines = [json.loads(line) for line in results.stdout.splitlines()]

@@ -11,15 +11,17 @@ from typing import Any
 
 import pytest
 import typer
+from rich.console import Console
 from typer.testing import CliRunner
 
-from task_manager.client import ActiveTaskInfo, Pause, TaskResult, TaskState
+from task_manager.cli.common import time_text
+from task_manager.client import ActiveTaskInfo, Decision, Pause, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
 
 T0 = datetime(2026, 11, 25, 8, 0, tzinfo=UTC)
 VERBS = (
-    'start', 'mission', 'cancel', 'stop', 'pause', 'resume', 'active', 'results', 'history',
-    'stats', 'tasks', 'schedule',
+    'start', 'mission', 'cancel', 'stop', 'pause', 'resume', 'reprioritize', 'why', 'active',
+    'results', 'history', 'stats', 'tasks', 'schedule',
 )  # fmt: skip
 SCHEDULE_VERBS = ('add', 'list', 'remove', 'disable', 'enable')
 
@@ -94,7 +96,7 @@ def cli() -> SimpleNamespace:
         records=importlib.import_module('task_manager.cli.records'),
         verbs=[
             importlib.import_module(f'task_manager.cli.verbs.{name}')
-            for name in ('watch', 'history', 'tasks')
+            for name in ('watch', 'history', 'tasks', 'decisions')
         ],
     )
 
@@ -177,6 +179,9 @@ def test_active_json_a_line_per_task_and_a_list_per_change_with_watch(run: Any) 
         'duration_sec': None,
         'paused_sec': 0.0,
         'pauses': [],
+        'priority': 0,
+        'queue_position': 0,
+        'attempt': 1,
     }
 
     once = run(client, 'active', '--json')
@@ -259,3 +264,61 @@ def test_a_result_without_stamps_has_null_times(cli: SimpleNamespace) -> None:
         None,
     ]
     assert (data['error_code'], data['paused_sec']) == ('unknown_task', 0.0)
+
+
+def test_an_active_queued_task_has_its_place_and_priority(cli: SimpleNamespace) -> None:
+    queued = TaskState(
+        'dock-1', 'dock', TaskStatus.QUEUED, 'CLI', received_at=_at(1), queue_position=2, priority=3
+    )
+    bare = ActiveTaskInfo('dock-1', 'dock', TaskStatus.QUEUED, 'CLI')
+    console = Console(width=120, record=True, file=open('/dev/null', 'w'))  # noqa: SIM115
+
+    console.print(cli.verbs[0].active_table([queued, bare]))
+
+    data = cli.records.active_data(queued, now=_at(10))
+    assert (data['status'], data['queue_position'], data['priority'], data['attempt']) == (
+        'QUEUED',
+        2,
+        3,
+        1,
+    )
+    assert [cli.records.active_data(bare, now=_at(10))[k] for k in ('priority', 'attempt')] == [
+        None,
+        None,
+    ]
+    rows = [line.split('│')[3:7] for line in console.export_text().splitlines() if 'dock-1' in line]
+    assert [[cell.strip() for cell in row] for row in rows] == [
+        ['QUEUED #2', 'CLI', '', '3'],
+        ['QUEUED', 'CLI', '', ''],
+    ]
+
+
+def test_why_prints_a_line_per_decision_or_json(run: Any) -> None:
+    at = datetime.now(UTC).replace(microsecond=0)
+    decisions = [
+        Decision(at, 'queued', 'queued behind drive-1 (priority 5), which holds base'),
+        Decision(at + timedelta(seconds=4), 'started', 'its turn came after drive-1 ended'),
+    ]
+    client = FakeClient(why=decisions)
+
+    lines = run(client, 'why', 'dock-1')
+    as_json = run(client, 'why', 'dock-1', '--json')
+    nothing = run(FakeClient(why=[]), 'why', 'quick')
+
+    assert (lines.exit_code, lines.stderr) == (0, '')
+    local = time_text(at)
+    assert lines.stdout.splitlines()[0] == (
+        f'{local}  queued         queued behind drive-1 (priority 5), which holds base'
+    )
+    later = time_text(at + timedelta(seconds=4))
+    assert (
+        lines.stdout.splitlines()[1] == f'{later}  started        its turn came after drive-1 ended'
+    )
+    assert client.calls[0] == ('why', ('dock-1',), {})
+    assert _lines(as_json.stdout)[0] == {
+        'at': at.isoformat(),
+        'decision': 'queued',
+        'reason': 'queued behind drive-1 (priority 5), which holds base',
+    }
+    assert (nothing.exit_code, nothing.stdout) == (0, '')
+    assert 'quick: no decision taken' in nothing.stderr

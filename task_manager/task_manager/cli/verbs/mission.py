@@ -17,8 +17,12 @@ from task_manager.cli.common import (
     duration_text,
     feedback_text,
     finish,
+    on_conflict_option,
     output,
+    priority_option,
     progress,
+    request_options,
+    seconds_option,
     source_option,
 )
 
@@ -113,11 +117,22 @@ def mission(
     task_id: str = typer.Option('', '--id', help='Mission id; generated when empty'),
     source: str = source_option(),
     no_wait: bool = typer.Option(False, '--no-wait', help='Print the mission id and exit'),
+    priority: int | None = priority_option(),
+    on_conflict: str | None = on_conflict_option(),
+    timeout: float | None = seconds_option('--timeout', 'The longest the mission may run'),
+    queue_timeout: float | None = seconds_option('--queue-timeout', 'The longest it may queue'),
+    feedback_timeout: float | None = seconds_option(
+        '--feedback-timeout', 'The longest it may go without feedback'
+    ),
 ) -> None:
-    """Run system/mission; show each subtask's progress. Exit 0 only when it ends DONE."""
+    """Run system/mission; show each subtask's progress. Exit 0 only when it ends DONE.
+
+    The options are those of the mission as one unit (it queues as one).
+    """
     subtasks = load_subtasks(path)
+    options = request_options(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
     with connected(ctx, events=not no_wait) as client:
-        handle, _ = client.start_mission(subtasks, task_id=task_id, source=source)
+        handle, _ = client.start_mission(subtasks, task_id=task_id, source=source, **options)
         if no_wait:
             output.print(handle.task_id)
             return

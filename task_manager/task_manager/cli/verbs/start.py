@@ -9,16 +9,20 @@ from rich.live import Live
 from rich.spinner import Spinner
 from rich.text import Text
 
-from task_manager import TaskHandle, TaskManagerClient, TaskResult
+from task_manager import TaskHandle, TaskManagerClient, TaskResult, TaskStatus
 from task_manager.cli.common import (
     EXIT_INTERRUPTED,
     connected,
     duration_text,
     feedback_text,
     finish,
+    on_conflict_option,
     output,
     parse_json_object,
+    priority_option,
     progress,
+    request_options,
+    seconds_option,
     source_option,
 )
 
@@ -32,14 +36,22 @@ def start(
     task_id: str = typer.Option('', '--id', help='Task id; generated when empty'),
     source: str = source_option(),
     no_wait: bool = typer.Option(False, '--no-wait', help='Print the id once started, and exit'),
+    priority: int | None = priority_option(),
+    on_conflict: str | None = on_conflict_option(),
+    timeout: float | None = seconds_option('--timeout', 'The longest it may run'),
+    queue_timeout: float | None = seconds_option('--queue-timeout', 'The longest it may queue'),
+    feedback_timeout: float | None = seconds_option(
+        '--feedback-timeout', 'The longest an action may go without feedback'
+    ),
 ) -> None:
     """Start a task; print its result JSON. Exit 0 only when it ends DONE.
 
     While it runs, a terminal's stderr shows its status, elapsed time and latest feedback.
     """
     data = parse_json_object(task_data, 'task data')
+    options = request_options(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
     with connected(ctx, events=not no_wait) as client:
-        handle = client.start_task(task_name, data, task_id=task_id, source=source)
+        handle = client.start_task(task_name, data, task_id=task_id, source=source, **options)
         if no_wait:
             output.print(handle.task_id)
             return
@@ -59,13 +71,20 @@ class LiveLine:
         elapsed = duration_text(timedelta(seconds=time.monotonic() - self._started))
         parts = [
             f'{self._handle.task_name} {self._handle.task_id}',
-            str(state.status) if state is not None else '',
+            status_text(state.status, state.queue_position) if state is not None else '',
             elapsed,
             feedback_text(self._handle.latest_feedback),
         ]
         line = Text('  '.join(p for p in parts if p), no_wrap=True, overflow='ellipsis')
         self._spinner.update(text=line)
         return self._spinner
+
+
+def status_text(status: TaskStatus, queue_position: int) -> str:
+    """A status, with the place in the queue of a QUEUED task: `QUEUED #2`."""
+    if status is TaskStatus.QUEUED and queue_position:
+        return f'{status} #{queue_position}'
+    return str(status)
 
 
 def follow(client: TaskManagerClient, handle: TaskHandle) -> TaskResult:

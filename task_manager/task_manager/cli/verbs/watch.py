@@ -21,6 +21,7 @@ from task_manager import (
 )
 from task_manager.cli.common import connected, duration_text, output, time_text
 from task_manager.cli.records import active_data, json_line, result_data
+from task_manager.cli.verbs.start import status_text
 
 ActiveRow: TypeAlias = ActiveTaskInfo | TaskState
 ACTIVE_JSON_HELP = (
@@ -28,20 +29,26 @@ ACTIVE_JSON_HELP = (
 )
 
 
+STATUS_STYLES = {TaskStatus.PAUSED: 'yellow', TaskStatus.QUEUED: 'cyan'}
+
+
 def active_table(tasks: Sequence[ActiveRow]) -> Table:
     """The active tasks; `running for` needs their stamps (TaskState rows), and stops while
-    a task is PAUSED."""
+    a task is PAUSED; a QUEUED task shows its place in the queue (`QUEUED #2`)."""
     table = Table(title=f'active tasks ({len(tasks)})')
-    for column in ('id', 'task', 'status', 'source', 'running for'):
+    for column in ('id', 'task', 'status', 'source', 'running for', 'priority'):
         table.add_column(column)
     for task in tasks:
-        elapsed = task.elapsed() if isinstance(task, TaskState) else None
+        state = task if isinstance(task, TaskState) else None
+        elapsed = state.elapsed() if state is not None else None
+        position = state.queue_position if state is not None else 0
         table.add_row(
             task.task_id,
             task.task_name,
-            Text(str(task.status), style='yellow' if task.status is TaskStatus.PAUSED else ''),
+            Text(status_text(task.status, position), style=STATUS_STYLES.get(task.status, '')),
             task.source,
             duration_text(elapsed) if elapsed is not None else '',
+            str(state.priority) if state is not None else '',
         )
     return table
 
@@ -52,7 +59,8 @@ class StampedActiveTasks:
     First every active task from /task_manager/get_task_states (the latest list on the
     topic may reach a new subscriber after older ones); then the topic's lists, with the
     stamps of each task asked for once, and again when its status changes (a start, a pause
-    or resume, its end).
+    or resume, its end), and at each change while it is QUEUED (its place moves as others
+    leave the queue or change priority).
     """
 
     def __init__(self, client: TaskManagerClient) -> None:
@@ -65,7 +73,9 @@ class StampedActiveTasks:
         stale = [
             t.task_id
             for t in tasks
-            if t.task_id not in self._states or t.status is not self._states[t.task_id].status
+            if t.task_id not in self._states
+            or t.status is not self._states[t.task_id].status
+            or t.status is TaskStatus.QUEUED
         ]
         if stale:
             self._states.update((s.task_id, s) for s in self._client.task_states(stale))
