@@ -22,7 +22,7 @@ from fastapi.staticfiles import StaticFiles
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.request_text import text_problem
-from task_manager.gateway_json import declared_json, result_json, task_json
+from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
 from task_manager_web.access import Access, Reader, StreamReader, Writer
 from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
@@ -145,8 +145,10 @@ def _add_routes(app: FastAPI) -> None:
     ) -> models.Started:
         """Start a task: 202 with its id at once, or 200 with its end (wait=true).
 
-        A task the Task Manager refuses (unknown, bad task_data, ...) is no HTTP error:
-        it ends ERROR with its error code and message.
+        The options (priority, on_conflict, timeout_sec, queue_timeout_sec,
+        feedback_timeout_sec) are the task's declaration's when left out. A task the Task
+        Manager refuses (unknown, bad task_data, a busy resource, ...) is no HTTP error: it
+        ends ERROR with its error code and message.
         """
         handle = await link.start(
             gateway_requests.start_task,
@@ -171,7 +173,10 @@ def _add_routes(app: FastAPI) -> None:
         wait: Wait = False,
         timeout_sec: WaitSec = WAIT_DEFAULT_SEC,
     ) -> models.Started:
-        """Start system/mission with these subtasks; its id and the subtasks' ids at once."""
+        """Start system/mission with these subtasks; its id and the subtasks' ids at once.
+
+        Its options are a start's, for the mission as one unit (it queues as one).
+        """
         handle, subtask_ids = await link.start(
             gateway_requests.start_mission,
             link.client,
@@ -189,6 +194,15 @@ def _add_routes(app: FastAPI) -> None:
         )
         return models.Task.model_validate(result_json(result))
 
+    @app.post('/api/tasks/reprioritize', tags=['tasks'])
+    async def reprioritize(body: models.Reprioritize, caller: Writer, link: Link) -> models.Task:
+        """system/reprioritize: a new priority for these active tasks (a queued one moves in
+        the queue at once); its result, with `successful_changes` and `errors`."""
+        result = await link.control(
+            gateway_requests.reprioritize, link.client, body, source=caller.source
+        )
+        return models.Task.model_validate(result_json(result))
+
     @app.post('/api/stop', tags=['tasks'])
     async def stop(caller: Writer, link: Link) -> models.Task:
         """system/stop: cancel every task declared cancel_on_stop; its result."""
@@ -200,6 +214,17 @@ def _add_routes(app: FastAPI) -> None:
         """Every active task, with its stamps and latest feedback."""
         states = await link.read(link.client.task_states)
         return [models.Task.model_validate(task_json(s)) for s in states]
+
+    # before /api/tasks/{task_id:path}, which would take `ID/why` for an id
+    @app.get('/api/tasks/{task_id:path}/why', tags=['state'])
+    async def why(task_id: str, _: Reader, link: Link) -> list[models.Decision]:
+        """Every decision the Task Manager took about a task, active or ended, oldest first:
+        why it was queued, refused, pre-empted, timed out, retried or reprioritized."""
+        refused = text_problem('task_id', task_id) is not None
+        decisions = None if refused else await link.read(gateway_requests.why, link.client, task_id)
+        if decisions is None:
+            raise ApiError(404, 'unknown_task_id', f'the Task Manager knows no task {task_id!r}')
+        return [models.Decision.model_validate(d) for d in decisions_json(decisions)]
 
     @app.get('/api/tasks/{task_id:path}', tags=['state'])
     async def task(task_id: str, _: Reader, link: Link) -> models.Task:
