@@ -178,16 +178,29 @@ class FleetClient:
         *,
         task_id: str = '',
         source: str = '',
+        **options: Any,
     ) -> FleetTask:
-        """Start a task on a robot; its reply and result come to the FleetTask."""
-        fields = {'task_name': task_name, 'task_data': task_data or {}}
+        """Start a task on a robot; its reply and result come to the FleetTask.
+
+        `options`: the start's priority, on_conflict, timeout_sec, queue_timeout_sec and
+        feedback_timeout_sec (left out: the robot's declaration of the task).
+        """
+        fields = {'task_name': task_name, 'task_data': task_data or {}, **options}
         return self._start(robot_id, 'start_task', fields, task_id, source)
 
     def start_mission(
-        self, robot_id: str, subtasks: list[Document], *, task_id: str = '', source: str = ''
+        self,
+        robot_id: str,
+        subtasks: list[Document],
+        *,
+        task_id: str = '',
+        source: str = '',
+        **options: Any,
     ) -> FleetTask:
-        """Start a mission: `subtasks` as StartMission's (task_name, task_data, allow_skipping)."""
-        return self._start(robot_id, 'start_mission', {'subtasks': subtasks}, task_id, source)
+        """Start a mission: `subtasks` as StartMission's (task_name, task_data, allow_skipping);
+        `options` as start_task's, of the mission as one unit."""
+        fields = {'subtasks': subtasks, **options}
+        return self._start(robot_id, 'start_mission', fields, task_id, source)
 
     def cancel(
         self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
@@ -200,6 +213,20 @@ class FleetClient:
         """system/stop on the robot; its ended Task document."""
         reply = self.request(robot_id, 'stop')
         return _outcome(reply, timeout_sec, f'reply of {robot_id}')['task']
+
+    def reprioritize(
+        self, robot_id: str, task_ids: list[str], priority: int, timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/reprioritize on the robot; its ended Task document (`successful_changes`,
+        `errors` in its result)."""
+        reply = self.request(robot_id, 'reprioritize', task_ids=task_ids, priority=priority)
+        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['task']
+
+    def why(self, robot_id: str, task_id: str, timeout_sec: float = TIMEOUT_SEC) -> list[Document]:
+        """Every decision the robot's Task Manager took about a task (Decision documents,
+        oldest first); FleetError `unknown_task_id` when it knows no such task."""
+        reply = self.request(robot_id, 'why', task_id=task_id)
+        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['decisions']
 
     def history(
         self, robot_id: str, timeout_sec: float = TIMEOUT_SEC, **filters: Any

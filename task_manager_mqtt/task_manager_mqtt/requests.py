@@ -5,7 +5,8 @@ a bad one with a usable request_id gets an error reply naming what is wrong and 
 allowed (`invalid_request`, `payload_too_large`, `nesting_too_deep`, `retained_request`),
 one without is a dead letter (see Answer). No Task Manager is `task_manager_unavailable`.
 A start whose task id the Task Manager already knows starts nothing: the reply is that
-task, with `duplicate: true`. Whatever happens, `answer` returns one Answer.
+task, with `duplicate: true`; `why` of a task it does not know is `unknown_task_id`.
+Whatever happens, `answer` returns one Answer.
 """
 
 import contextlib
@@ -16,12 +17,20 @@ from typing import Any
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
-from task_manager.gateway_json import result_json, task_json
+from task_manager.gateway_json import decisions_json, result_json, task_json
 from task_manager.protocol import models
 from task_manager_mqtt.decoding import Decoded, decode, refusal
 
 LOG = logging.getLogger('task_manager_mqtt')
 NODE_WAIT_SEC = 5.0
+
+
+class Refusal(Exception):  # noqa: N818 - an answer, not a failure of the bridge
+    """A request the bridge answers with an error reply (an ErrorDetail document)."""
+
+    def __init__(self, code: str, message: str, field: str = '') -> None:
+        super().__init__(message)
+        self.detail = refusal(code, message, field)
 
 
 @dataclass(frozen=True)
@@ -67,6 +76,8 @@ class RequestHandler:
             return {'request_id': request_id, 'ok': True, 'op': op, **self._run(decoded.request)}
         except TaskManagerUnavailable as error:
             return _error_reply(decoded, refusal('task_manager_unavailable', str(error)))
+        except Refusal as refused:
+            return _error_reply(decoded, refused.detail)
         except Exception as error:  # one line, a reply; the bridge goes on
             LOG.error('request %r (%s) failed: %s: %s', request_id, op, type(error).__name__, error)
             message = f'the bridge failed: {type(error).__name__}'
@@ -91,6 +102,16 @@ class RequestHandler:
             case models.HistoryRequest():
                 filters = request.model_dump(exclude={'request_id', 'op'})
                 return {'tasks': [task_json(s) for s in self.client.history(**filters)]}
+            case models.ReprioritizeRequest():
+                self.client.wait_until_available()
+                result = gateway_requests.reprioritize(self.client, request, source=self.source)
+                return {'task': result_json(result)}
+            case models.WhyRequest():
+                decisions = gateway_requests.why(self.client, request.task_id)
+                if decisions is None:
+                    message = f'the Task Manager knows no task {request.task_id!r}'
+                    raise Refusal('unknown_task_id', message, 'task_id')
+                return {'decisions': decisions_json(decisions)}
         raise AssertionError(f'unhandled request {request!r}')
 
     def _wait_for_node_once(self) -> None:
