@@ -1,16 +1,24 @@
 """The dashboard in a real headless Chromium (Debian's), against a real gateway and node.
 
-Playwright drives the browser at /usr/bin/chromium; it never downloads one.
+Playwright drives the browser at /usr/bin/chromium; it never downloads one. The node serves
+the gateways' tests' robot (`fib`, `instant`) and `drive`, a task on resource `base` that
+queues (on_conflict: queue) behind a drive running.
 """
 
 import shutil
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import httpx
 import pytest
+import yaml
 from playwright.sync_api import Browser, Page, expect, sync_playwright
+from test_msgs.action import Fibonacci
 
-from task_manager.testing.gateway import TIMEOUT_SEC, Robot
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, ScriptedRobot
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.process import action_task, write_params_file
+from task_manager.testing.servers import ScriptedActionServer
 from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
@@ -27,6 +35,34 @@ CHROMIUM_ARGS = [
     '--disable-sync',
 ]
 EXPECT_TIMEOUT_MS = int(TIMEOUT_SEC * 1000)
+
+
+def drive_topic(tmp_path: Path) -> str:
+    return f'/d{abs(hash(tmp_path)) % 10**8}/drive'
+
+
+@pytest.fixture
+def drive(ros: RosHarness, tmp_path: Path) -> Iterator[ScriptedActionServer]:
+    """The server of the task `drive`."""
+    server = ScriptedActionServer(ros.node, Fibonacci, drive_topic(tmp_path))
+    yield server
+    server.destroy()
+
+
+@pytest.fixture
+def start_robot(
+    ros: RosHarness, tmp_path: Path, drive: ScriptedActionServer
+) -> Iterator[Callable[[], Robot]]:
+    """The gateways' robot (see ScriptedRobot), with `drive` declared too."""
+    robot = ScriptedRobot(ros, tmp_path)
+    parameters = yaml.safe_load(robot.params.read_text())['task_manager']['ros__parameters']
+    parameters['tasks'].append('drive')
+    parameters['drive'] = action_task(
+        'drive', drive_topic(tmp_path), resources=['base'], on_conflict='queue'
+    )
+    write_params_file(robot.params, parameters)
+    yield robot.start
+    robot.close()
 
 
 @pytest.fixture(scope='module')
@@ -157,3 +193,71 @@ def test_the_api_docs_render_under_the_content_security_policy(
     expect(page.locator('.models')).to_contain_text('StartTask')
     context.close()
     assert not errors, errors
+
+
+def test_queued_tasks_show_their_place_and_priority_which_the_operator_changes_or_cancels(
+    page: Page, drive: ScriptedActionServer, api: httpx.Client
+) -> None:
+    for task_id in ('drive-1', 'drive-2', 'drive-3'):
+        start = {'task_name': 'drive', 'task_data': {'order': 1}, 'task_id': task_id}
+        assert api.post('/api/tasks/start', json=start).status_code == 202
+    (running,) = drive.wait_for_goals(1, TIMEOUT_SEC)
+    rows = page.locator('#active tbody tr')
+    second, third = (rows.and_(page.locator(f'[data-task-id="drive-{n}"]')) for n in (2, 3))
+    expect(second.locator('.badge')).to_have_text('QUEUED')
+    expect(second.locator('.queue-position')).to_have_text('#1')
+    expect(third.locator('.queue-position')).to_have_text('#2')
+    expect(second.locator('.priority-value')).to_have_text('0')
+    expect(second.locator('.reason')).to_contain_text('queued behind drive-1')
+
+    third.locator('button.reprioritize').click()
+    page.fill('#priority-input', '5')
+    page.click('#priority-set')
+
+    expect(page.locator('#message')).to_have_text('Priority of drive-3: 5')
+    expect(third.locator('.priority-value')).to_have_text('5')
+    expect(third.locator('.queue-position')).to_have_text('#1')
+    expect(second.locator('.queue-position')).to_have_text('#2')
+    expect(rows.nth(1)).to_have_attribute('data-task-id', 'drive-3')  # the queue in its order
+
+    second.locator('button.cancel').click()
+
+    history_row = page.locator('#history tbody tr[data-task-id="drive-2"]')
+    expect(history_row).to_contain_text('CANCELED')
+    expect(third.locator('.queue-position')).to_have_text('#1')
+    assert not running.cancel_requested.is_set()  # the running drive goes on
+    running.succeed()
+    expect(third.locator('.badge')).to_have_text('IN_PROGRESS')
+    drive.wait_for_goals(2, TIMEOUT_SEC)[1].succeed()
+    expect(page.locator('#history tbody tr[data-task-id="drive-3"]')).to_contain_text('DONE')
+
+
+def test_the_start_form_sends_a_priority_and_what_to_do_on_a_conflict(
+    page: Page, drive: ScriptedActionServer, api: httpx.Client
+) -> None:
+    start = {'task_name': 'drive', 'task_data': {'order': 1}, 'task_id': 'drive-1'}
+    assert api.post('/api/tasks/start', json=start).status_code == 202
+    (running,) = drive.wait_for_goals(1, TIMEOUT_SEC)
+    page.select_option('#task-select', 'drive')
+
+    page.select_option('#start-on-conflict', 'reject')
+    page.click('#start-button')
+
+    expect(page.locator('#message')).to_contain_text('Started drive: ')
+    refused_id = page.locator('#message').inner_text().rsplit(' ', 1)[-1]
+    refused = page.locator(f'#history tbody tr[data-task-id="{refused_id}"]')
+    expect(refused).to_contain_text('ERROR')
+    expect(refused).to_contain_text('drive-1')  # the reason names the holder of base
+
+    page.select_option('#start-on-conflict', '')
+    page.fill('#start-priority', '7')
+    page.click('#start-button')
+
+    expect(page.locator('#message')).not_to_contain_text(refused_id)
+    queued_id = page.locator('#message').inner_text().rsplit(' ', 1)[-1]
+    queued = page.locator(f'#active tbody tr[data-task-id="{queued_id}"]')
+    expect(queued.locator('.badge')).to_have_text('QUEUED')
+    expect(queued.locator('.priority-value')).to_have_text('7')
+    running.succeed()
+    expect(queued.locator('.badge')).to_have_text('IN_PROGRESS')
+    drive.wait_for_goals(2, TIMEOUT_SEC)[1].succeed()

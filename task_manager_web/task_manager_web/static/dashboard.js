@@ -8,6 +8,9 @@ const RECONNECT_MIN_MS = 500;
 const RECONNECT_MAX_MS = 5000;
 const MISSIONS_KEPT = 5;
 const HISTORY_ROWS = 100;
+// Other tasks' queue positions move without an event of theirs: the active list is read again
+// this long after an event that may have moved them (one read for a burst of events).
+const QUEUE_REREAD_MS = 150;
 
 const state = {
   token: '',
@@ -16,6 +19,8 @@ const state = {
   declared: [],
   nodeConnected: false,
   streamOpen: false,
+  queueReread: null,     // the pending timer of rereadQueue, or null
+  priorityTaskId: '',    // the task whose priority the dialog changes
 };
 
 const $ = (selector) => document.querySelector(selector);
@@ -167,7 +172,32 @@ function onTaskEvent(event) {
     const pausedAt = event.event === 'PAUSED' ? Date.parse(event.stamp) : state.tasks.get(task.task_id)?.pausedAt;
     state.tasks.set(task.task_id, task.status === 'PAUSED' ? { ...task, pausedAt } : task);
   }
+  if (event.event !== 'FEEDBACK' && [...state.tasks.values()].some((each) => each.status === 'QUEUED')) {
+    rereadQueueSoon();
+  }
   renderActive();
+}
+
+function rereadQueueSoon() {
+  if (state.queueReread !== null) return;
+  state.queueReread = setTimeout(rereadQueue, QUEUE_REREAD_MS);
+}
+
+// Takes the queue positions and priorities of the tasks still queued from a fresh active list;
+// anything else an event may have changed since the list was read is left as the events say.
+async function rereadQueue() {
+  state.queueReread = null;
+  try {
+    for (const fresh of await api('/api/active')) {
+      const shown = state.tasks.get(fresh.task_id);
+      if (shown?.status === 'QUEUED' && fresh.status === 'QUEUED') {
+        state.tasks.set(fresh.task_id, { ...shown, queue_position: fresh.queue_position, priority: fresh.priority });
+      }
+    }
+    renderActive();
+  } catch (error) {
+    console.debug('queue positions:', error);
+  }
 }
 
 function dropEnded(taskId) {
@@ -195,9 +225,12 @@ async function refreshAll() {
 
 // ---- active tasks and missions -------------------------------------------------------------
 
-// Running time: time paused (paused_sec) does not count.
+// Running time: time paused (paused_sec) does not count. A queued task: its time waiting.
 function elapsed(task) {
   if (task.duration_sec != null) return formatSeconds(task.duration_sec);
+  if (task.status === 'QUEUED' && task.received) {
+    return `waiting ${formatSeconds(Math.max(0, (Date.now() - Date.parse(task.received)) / 1000))}`;
+  }
   if (!task.started) return '';
   if (task.status === 'PAUSED' && !task.pausedAt) return 'paused';
   const end = task.status === 'PAUSED' ? task.pausedAt : (task.ended ? Date.parse(task.ended) : Date.now());
@@ -232,21 +265,67 @@ function statusBadge(status) {
   return element('span', { class: `badge status-${status}`, text: status });
 }
 
+// The latest decision about a task ("queued behind drive-1 (priority 5), which holds base").
+function latestReason(task) {
+  const decisions = Array.isArray(task.decisions) ? task.decisions : [];
+  return decisions.length ? String(decisions.at(-1).reason || '') : '';
+}
+
+function decisionTrail(task) {
+  const decisions = Array.isArray(task.decisions) ? task.decisions : [];
+  return decisions.map((each) => `${each.decision}: ${each.reason}`).join('\n');
+}
+
+// Running and paused tasks first, as they came; then the queue, in its order.
+function activeOrder(tasks) {
+  const queued = tasks.filter((task) => task.status === 'QUEUED' && !task.endedAt);
+  queued.sort((a, b) => (a.queue_position || Infinity) - (b.queue_position || Infinity));
+  return [...tasks.filter((task) => !queued.includes(task)), ...queued];
+}
+
+function statusCell(task, shown) {
+  const cell = element('td', { class: 'status' }, statusBadge(shown));
+  if (task.status === 'QUEUED' && !task.endedAt && task.queue_position) {
+    cell.append(' ', element('span', {
+      class: 'queue-position', text: `#${task.queue_position}`, title: `position ${task.queue_position} in the queue`,
+    }));
+  }
+  if (task.attempt > 1) cell.append(' ', element('span', { class: 'attempt', text: `attempt ${task.attempt}` }));
+  return cell;
+}
+
+function priorityCell(task) {
+  const cell = element('td', { class: 'priority' }, element('span', { class: 'priority-value', text: String(task.priority ?? 0) }));
+  if (!task.endedAt) {
+    cell.append(' ', element('button', {
+      class: 'reprioritize', type: 'button', text: 'change', title: `change the priority of ${task.task_id}`,
+      onclick: () => askPriority(task),
+    }));
+  }
+  return cell;
+}
+
 function renderActive() {
   const body = $('#active tbody');
   const live = state.streamOpen && state.nodeConnected;
-  const rows = [...state.tasks.values()].map((task) => {
+  const rows = activeOrder([...state.tasks.values()]).map((task) => {
     const shown = live || task.endedAt ? task.status : 'STALE';
     const cancel = task.endedAt ? '' : element('button', {
       class: 'cancel', type: 'button', text: 'Cancel', onclick: () => cancelTask(task.task_id),
     });
-    return element('tr', { class: task.endedAt ? 'ended' : '', 'data-task-id': task.task_id },
+    const queued = task.status === 'QUEUED' && !task.endedAt;
+    const classes = [task.endedAt ? 'ended' : '', queued ? 'queued' : ''].filter(Boolean).join(' ');
+    const feedback = feedbackText(task);
+    return element('tr', { class: classes, 'data-task-id': task.task_id, 'data-status': task.status },
       element('td', { text: task.task_name }),
       element('td', { class: 'id', text: task.task_id, title: task.task_id }),
       element('td', { text: task.source }),
-      element('td', {}, statusBadge(shown)),
+      statusCell(task, shown),
+      priorityCell(task),
       element('td', { class: 'elapsed', text: elapsed(task) }),
-      element('td', { class: 'feedback', text: feedbackText(task) }),
+      element('td', {
+        class: feedback ? 'feedback' : 'feedback reason', text: feedback || latestReason(task), title: decisionTrail(task),
+      }),
       element('td', {}, cancel));
   });
   body.replaceChildren(...rows);
@@ -293,6 +372,30 @@ async function cancelTask(taskId) {
     say(`Cancel of ${taskId}: ${result.status}${result.error_message ? ` (${result.error_message})` : ''}`);
   } catch (error) {
     say(`Cancel failed: ${error.message}`, true);
+  }
+}
+
+// The dialog is outside the table, which is drawn again at every event: what the operator
+// types there survives the updates.
+function askPriority(task) {
+  state.priorityTaskId = task.task_id;
+  $('#priority-task').textContent = task.task_id;
+  $('#priority-input').value = String(task.priority ?? 0);
+  $('#priority-dialog').showModal();
+  $('#priority-input').select();
+}
+
+async function setPriority(event) {
+  event.preventDefault();
+  const taskId = state.priorityTaskId;
+  const priority = Number($('#priority-input').value);
+  $('#priority-dialog').close();
+  try {
+    const result = await api('/api/tasks/reprioritize', { method: 'POST', json: { task_ids: [taskId], priority } });
+    const failed = result.status !== 'DONE';
+    say(`Priority of ${taskId}: ${failed ? result.status : priority}${result.error_message ? ` (${result.error_message})` : ''}`, failed);
+  } catch (error) {
+    say(`Priority change failed: ${error.message}`, true);
   }
 }
 
@@ -391,11 +494,23 @@ function collectTaskData() {
   return data;
 }
 
+// The start's options the operator gave; each left empty takes the task's declaration.
+function startOptions() {
+  const options = {};
+  const priority = $('#start-priority').value.trim();
+  if (priority !== '') options.priority = Number(priority);
+  if ($('#start-on-conflict').value) options.on_conflict = $('#start-on-conflict').value;
+  const timeout = $('#start-timeout').value.trim();
+  if (timeout !== '' && Number(timeout) > 0) options.timeout_sec = Number(timeout);
+  return options;
+}
+
 async function startTask(event) {
   event.preventDefault();
   const taskName = $('#task-select').value;
   try {
-    const started = await api('/api/tasks/start', { method: 'POST', json: { task_name: taskName, task_data: collectTaskData() } });
+    const request = { task_name: taskName, task_data: collectTaskData(), ...startOptions() };
+    const started = await api('/api/tasks/start', { method: 'POST', json: request });
     say(`Started ${taskName}: ${started.task_id}`);
   } catch (error) {
     say(`Could not start ${taskName}: ${error.message}`, true);
@@ -424,7 +539,7 @@ function historyRow(task) {
     element('td', { text: task.task_name }),
     element('td', { class: 'id', text: task.task_id }),
     element('td', { text: task.source }),
-    element('td', {}, statusBadge(task.status)),
+    statusCell(task, task.status),
     element('td', { text: task.ended ? new Date(task.ended).toLocaleString() : '' }),
     element('td', { text: task.duration_sec == null ? '' : formatSeconds(task.duration_sec) }),
     element('td', { class: 'result', text: task.error_message || compactJson(task.result ?? {}), title: JSON.stringify(task.result ?? {}) }));
@@ -464,6 +579,8 @@ function main() {
     window.location.reload();
   });
   $('#stop').addEventListener('click', stopAll);
+  $('#priority-form').addEventListener('submit', setPriority);
+  $('#priority-cancel').addEventListener('click', () => $('#priority-dialog').close());
   $('#task-select').addEventListener('change', renderFields);
   $('#start-form').addEventListener('submit', startTask);
   $('#history-filters').addEventListener('submit', (event) => { event.preventDefault(); loadHistory().catch((error) => say(error.message, true)); });
