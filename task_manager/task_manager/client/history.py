@@ -42,11 +42,16 @@ class History:
         # key: task id, value: its kept state (the latest task of that id)
         ids = sorted({r.task_id for r in results})
         states = {s.task_id: s for s in self.task_states(ids, None)}
+        # key: task id, value: the index of its newest result, the one that state is of (an id
+        # may be used again once its task ended: the older results keep no stamps)
+        newest = {result.task_id: index for index, result in enumerate(results)}
         return [
             result.with_stamps_of(state)
-            if (state := states.get(result.task_id)) is not None and state.is_final
+            if newest[result.task_id] == index
+            and (state := states.get(result.task_id)) is not None
+            and state.is_final
             else result
-            for result in results
+            for index, result in enumerate(results)
         ]
 
     def history(

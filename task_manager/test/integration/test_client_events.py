@@ -195,3 +195,24 @@ def test_without_the_event_stream_results_have_no_stamps_and_feedback_ends_with_
     assert not client.events_connected
     assert feedback == [] and handle.state is None
     assert result.ok and (result.started_at, result.ended_at, result.duration) == (None, None, None)
+
+
+def test_recent_results_stamp_only_the_newest_task_of_an_id_used_again(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    server = _launch(ros, launch_task_manager, topic_prefix)
+    client.wait_until_available()
+    first = client.start_task('fib', {'order': 1}, task_id='again')
+    server.wait_for_goals(1, TIMEOUT_SEC)[0].succeed(Fibonacci.Result(sequence=[1]))
+    first.result(TIMEOUT_SEC)
+    second = client.start_task('fib', {'order': 2}, task_id='again')
+    server.wait_for_goals(2, TIMEOUT_SEC)[1].succeed(Fibonacci.Result(sequence=[2]))
+    newest = second.result(TIMEOUT_SEC)
+
+    older, newer = [r for r in client.recent_results() if r.task_id == 'again']
+
+    assert (older.result, older.ended_at) == ({'sequence': [1]}, None)
+    assert newer.result == {'sequence': [2]} and newer.ended_at == newest.ended_at
