@@ -8,6 +8,7 @@ from action_msgs.msg import GoalStatus
 from task_manager_msgs.msg import TaskEvent
 from test_msgs.action import Fibonacci
 
+from task_manager.client import TaskManagerClient
 from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness, TopicRecorder
@@ -294,3 +295,22 @@ def test_a_mission_queues_as_one_unit_and_its_subtasks_use_what_it_holds(
     dock.succeed()
     servers['photo'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
     assert tm.result_of(mission).result.task_status == 'DONE'
+
+
+def test_the_places_in_the_queue_move_up_when_the_first_queued_task_starts(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm, servers = robot(ros, launch_task_manager, topic_prefix)
+    tm.send('drive', {'order': 1}, task_id='drive-1')
+    tm.wait_in_progress('drive-1')
+    for name in ('a', 'b', 'c'):
+        tm.start('dock', {'order': 1}, task_id=name, on_conflict='queue')
+    tm.wait_active(lambda t: ('c', 'QUEUED') in t)
+
+    servers['drive'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
+    tm.wait_in_progress('a')
+
+    with TaskManagerClient('test_queue_places', timeout_sec=TIMEOUT_SEC) as client:
+        client.wait_until_available()
+        places = {s.task_id: s.queue_position for s in client.task_states(['a', 'b', 'c'])}
+    assert places == {'a': 0, 'b': 1, 'c': 2}

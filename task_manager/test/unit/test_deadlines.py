@@ -1,5 +1,7 @@
 """Deadlines: every timeout on one clock, the earliest first, replaced or cleared by key."""
 
+import functools
+
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -44,7 +46,7 @@ def test_only_the_latest_deadline_of_each_key_fires_once_when_due(
     fired: list[int] = []
     latest: dict[int, float] = {}
     for key, at in sets:
-        deadlines.set(key, at, lambda key=key: fired.append(key))
+        deadlines.set(key, at, functools.partial(fired.append, key))
         latest[key] = at
 
     for action in deadlines.pop_due(now):

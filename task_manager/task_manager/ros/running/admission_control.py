@@ -107,8 +107,9 @@ class AdmissionControl:
             if victim is not None and not victim.finished.done():  # never pre-empted after all
                 self.arbiter.reinstate(victim.task_id)
         was_queued = self.arbiter.is_queued(task_id)
-        self._start_queued(self.arbiter.release(task_id))
-        if was_queued:
+        started = self.arbiter.release(task_id)
+        self._start_queued(started)
+        if was_queued or started:  # the queue moved: every waiting task's place changes
             self._update_positions()
 
     def reprioritize(self, task_id: str, priority: int, source: str) -> str:
