@@ -61,3 +61,6 @@ def test_an_upload_the_link_drops_three_times_ends_error_after_three_attempts(
     assert result.result['message'] == 'the link dropped the upload (3 of 3 in a row)'
     (state,) = client.task_states(['upload-2'])
     assert state.attempt == 3
+    assert state.decisions[-1].reason == (
+        'gave up: attempt 3 of 3 ended ERROR (its server failed it); no attempt left'
+    )

@@ -206,10 +206,12 @@ class AdmissionControl:
         cancelled = record.cancel_reason is not None and not timed_out
         if end.status is not TaskStatus.ERROR or cancelled or self._dispatcher.closing:
             return False
+        what = str(end.error_code) or 'its server failed it'
         if not policy.retries(record.attempt, end.error_code):
+            if policy.max_attempts > 1:
+                record.note(DecisionKind.RETRY, self._no_retry_reason(record, what))
             return False
         delay_sec = policy.delay_sec(record.attempt)
-        what = str(end.error_code) or 'its server failed it'
         reason = (
             f'retry: attempt {record.attempt} of {policy.max_attempts} ended ERROR ({what}); '
             f'attempt {record.attempt + 1} in {delay_sec:g} s'
@@ -226,6 +228,17 @@ class AdmissionControl:
             record.task_id, _RETRY, delay_sec, lambda: self._dispatcher.spawn(self._again(run))
         )
         return True
+
+    @staticmethod
+    def _no_retry_reason(record: TaskRecord, what: str) -> str:
+        policy = record.spec.retry
+        if record.attempt >= policy.max_attempts:
+            return (
+                f'gave up: attempt {record.attempt} of {policy.max_attempts} ended ERROR '
+                f'({what}); no attempt left'
+            )
+        codes = ', '.join(policy.on_error_codes)
+        return f'no retry: ended ERROR ({what}), which is not among on_error_codes ({codes})'
 
     async def _again(self, run: TaskRun) -> None:
         if run.finished.done():
