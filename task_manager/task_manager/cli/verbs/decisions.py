@@ -60,4 +60,7 @@ def why(
     for decision in decisions:
         print(json_line(decision_data(decision)) if as_json else decision_line(decision))
     if not decisions:
-        progress.print(f'{task_id}: no decision taken; nothing stood in its way', markup=False)
+        progress.print(
+            f'{task_id}: no decision taken about its resources, priority, timeouts or retries',
+            markup=False,
+        )
