@@ -9,7 +9,9 @@ from typing import Any
 
 __all__ = [
     'ActiveTaskInfo',
+    'Decision',
     'ErrorCode',
+    'OnConflict',
     'OverlapPolicy',
     'Pause',
     'ScheduleInfo',
@@ -31,6 +33,8 @@ __all__ = [
 # key: public name, value: the module that defines it
 _DEFINED_IN = {
     'ActiveTaskInfo': 'task_manager.client.records',
+    'Decision': 'task_manager.client.records',
+    'OnConflict': 'task_manager.core.admission.options',
     'Subtask': 'task_manager.client.missions',
     'Pause': 'task_manager.client.records',
     'ScheduleInfo': 'task_manager.client.schedules',
