@@ -17,12 +17,14 @@ from task_manager.client.message_values import datetime_of, datetime_of_json, js
 from task_manager.client.missions import Subtask, mission_task_data
 from task_manager.client.records import TaskResult, status_of
 from task_manager.client.services import CallService, RunTask
+from task_manager.core.admission.options import RequestOptions
 from task_manager.core.names import ENABLE_SCHEDULE as ENABLE_SCHEDULE_TASK
 from task_manager.core.names import GET_SCHEDULES_SERVICE, MISSION
 from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
 from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
 from task_manager.core.schedules.schedule import OverlapPolicy
 from task_manager.core.status import TaskStatus
+from task_manager.rclpy_tools.task_options import request_options
 
 RUN_SOURCE_PREFIX = 'schedule:'
 """The source of a schedule's runs: this and the schedule id."""
@@ -44,6 +46,8 @@ class ScheduleInfo:
     task_name: str
     """The task each run starts (system/mission for a mission)."""
     task_data: dict[str, Any]
+    options: dict[str, Any]
+    """The options each run is started with (RequestOptions.to_dict); empty: the declaration's."""
     created_by: str
     """The source of the system/schedule task that created it."""
     description: str
@@ -88,6 +92,7 @@ class ScheduleInfo:
             schedule_id=message.schedule_id,
             task_name=message.task_name,
             task_data=json_object(message.task_data),
+            options=request_options(message.options).to_dict(),
             created_by=message.created_by,
             description=message.description,
             at=datetime_of(message.at),
@@ -245,18 +250,25 @@ def schedule_request(
     when: When | None = None,
     *,
     schedule_id: str = '',
+    options: RequestOptions | None = None,
     **when_keywords: Unpack[WhenKeywords],
 ) -> dict[str, Any]:
     """The task data of system/schedule (a ScheduleTask request); ValueError if it is not one.
 
-    `when`, or its fields as keywords, says when (see When).
+    `when`, or its fields as keywords, says when (see When); `options`, how each run is
+    admitted (None or empty: the declaration's).
     """
-    return {
+    request = {
         'schedule_id': schedule_id,
         'task_name': task_name,
         'task_data': json_text(task_data),
         **when_of(when, when_keywords).request_fields(),
     }
+    if options is not None and not options.is_empty:
+        # JSON, as the request travels in system/schedule's task data; a `priority` key
+        # there sets has_priority
+        request['options'] = options.to_dict()
+    return request
 
 
 class Schedules:
@@ -275,9 +287,12 @@ class Schedules:
         schedule_id: str = '',
         source: str = 'python',
         timeout_sec: float | None = None,
+        options: RequestOptions | None = None,
     ) -> TaskResult:
         """See TaskManagerClient.schedule_task."""
-        data = schedule_request(task_name, task_data, when, schedule_id=schedule_id)
+        data = schedule_request(
+            task_name, task_data, when, schedule_id=schedule_id, options=options
+        )
         return self._run_task(SCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
 
     def schedule_mission(
@@ -288,6 +303,7 @@ class Schedules:
         schedule_id: str = '',
         source: str = 'python',
         timeout_sec: float | None = None,
+        options: RequestOptions | None = None,
     ) -> TaskResult:
         """See TaskManagerClient.schedule_mission."""
         fixed = [s.task_id for s in subtasks if s.task_id]
@@ -298,7 +314,13 @@ class Schedules:
             )
         data = mission_task_data(subtasks, [s.task_id for s in subtasks])
         return self.schedule_task(
-            MISSION, data, when, schedule_id=schedule_id, source=source, timeout_sec=timeout_sec
+            MISSION,
+            data,
+            when,
+            schedule_id=schedule_id,
+            source=source,
+            timeout_sec=timeout_sec,
+            options=options,
         )
 
     def unschedule(

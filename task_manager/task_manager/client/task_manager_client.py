@@ -391,15 +391,26 @@ class TaskManagerClient:
         schedule_id: str = '',
         source: str = 'python',
         timeout_sec: float | None = None,
+        priority: int | None = None,
+        on_conflict: OnConflict | str | None = None,
+        task_timeout_sec: float | None = None,
+        queue_timeout_sec: float | None = None,
+        feedback_timeout_sec: float | None = None,
         **when_keywords: Unpack[WhenKeywords],
     ) -> TaskResult:
         """Schedule a task through system/schedule; its result has `schedule_id` and
         `next_run` (see scheduled_next_run), or `message` saying why it was refused.
 
         `when` (a When), or its fields as keywords (`period=3600`, `cron='0 2 * * *'`, ...),
-        says when it runs; ValueError says what is wrong before sending.
+        says when it runs; ValueError says what is wrong before sending. `timeout_sec` is
+        the longest wait for system/schedule's result. Each run is started with start_task's
+        options (None: the task's declaration), the run's own timeout being
+        `task_timeout_sec` here, as in run_task.
         """
         when = when_of(when, when_keywords)
+        options = request_options(
+            priority, on_conflict, task_timeout_sec, queue_timeout_sec, feedback_timeout_sec
+        )
         return self._schedules.schedule_task(
             task_name,
             task_data,
@@ -407,6 +418,7 @@ class TaskManagerClient:
             schedule_id=schedule_id,
             source=source,
             timeout_sec=timeout_sec,
+            options=options,
         )
 
     def schedule_mission(
@@ -417,16 +429,30 @@ class TaskManagerClient:
         schedule_id: str = '',
         source: str = 'python',
         timeout_sec: float | None = None,
+        priority: int | None = None,
+        on_conflict: OnConflict | str | None = None,
+        task_timeout_sec: float | None = None,
+        queue_timeout_sec: float | None = None,
+        feedback_timeout_sec: float | None = None,
         **when_keywords: Unpack[WhenKeywords],
     ) -> TaskResult:
         """Schedule system/mission with these subtasks, as schedule_task does.
 
         Each run makes its own subtask ids; a subtask id given is refused for a schedule that
-        may run more than once, since two runs cannot share task ids.
+        may run more than once, since two runs cannot share task ids. The options are
+        schedule_task's, for each run's mission as one unit (as start_mission's).
         """
         when = when_of(when, when_keywords)
+        options = request_options(
+            priority, on_conflict, task_timeout_sec, queue_timeout_sec, feedback_timeout_sec
+        )
         return self._schedules.schedule_mission(
-            subtasks, when, schedule_id=schedule_id, source=source, timeout_sec=timeout_sec
+            subtasks,
+            when,
+            schedule_id=schedule_id,
+            source=source,
+            timeout_sec=timeout_sec,
+            options=options,
         )
 
     def unschedule(

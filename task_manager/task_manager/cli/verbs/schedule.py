@@ -11,10 +11,14 @@ from task_manager import ScheduleInfo, TaskResult, scheduled_next_run
 from task_manager.cli.common import (
     EXIT_CODES,
     connected,
+    on_conflict_option,
     output,
     parse_json_object,
+    priority_option,
     progress,
     report_each,
+    request_options,
+    seconds_option,
     source_option,
     time_text,
 )
@@ -105,6 +109,28 @@ def schedule_options(
     return options
 
 
+def run_options(
+    priority: int | None,
+    on_conflict: str | None,
+    timeout: float | None,
+    queue_timeout: float | None,
+    feedback_timeout: float | None,
+) -> dict[str, Any]:
+    """The options of each run, as schedule_task's keywords (its `timeout_sec` is the wait
+    for system/schedule, so a run's own timeout is `task_timeout_sec`)."""
+    options = request_options(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
+    options['task_timeout_sec'] = options.pop('timeout_sec')
+    return options
+
+
+def options_text(options: dict[str, Any]) -> str:
+    """A schedule's run options in one cell: `priority=2 on_conflict=queue`; '' for none."""
+    return ' '.join(
+        f'{name}={value:g}' if isinstance(value, float) else f'{name}={value}'
+        for name, value in options.items()
+    )
+
+
 def scheduled_line(result: TaskResult) -> str:
     """`<schedule id>  next run <time>` for a schedule made; '' for a refusal."""
     if not result.ok:
@@ -162,9 +188,21 @@ def add(
         None, '--mission', help='Schedule a mission: a YAML or JSON file as taskctl mission reads'
     ),
     source: str = source_option(),
+    priority: int | None = priority_option(),
+    on_conflict: str | None = on_conflict_option(),
+    timeout: float | None = seconds_option('--timeout', 'The longest a run may run'),
+    queue_timeout: float | None = seconds_option('--queue-timeout', 'The longest a run may queue'),
+    feedback_timeout: float | None = seconds_option(
+        '--feedback-timeout', 'The longest an action may go without feedback'
+    ),
 ) -> None:
-    """Schedule a task (or --mission): print its schedule id and next run. Exit 1 if refused."""
-    options = schedule_options(
+    """Schedule a task (or --mission): print its schedule id and next run. Exit 1 if refused.
+
+    Each run is started with --priority, --on-conflict and the timeouts given, as taskctl
+    start takes them (default: the task's declaration).
+    """
+    options = run_options(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
+    options |= schedule_options(
         at=at,
         delay=delay,
         every=every,
@@ -203,6 +241,7 @@ def schedule_data(info: ScheduleInfo) -> dict[str, Any]:
         'schedule_id': info.schedule_id,
         'task_name': info.task_name,
         'task_data': info.task_data,
+        'options': info.options,
         'created_by': info.created_by,
         'description': info.description,
         'at': iso(info.at),
@@ -227,10 +266,13 @@ def schedule_data(info: ScheduleInfo) -> dict[str, Any]:
 
 
 def schedules_table(schedules: list[ScheduleInfo]) -> Table:
-    """One row per schedule: what, when, its next and last run, its counts."""
+    """One row per schedule: what, when, its next and last run, its counts; its run options
+    in a column of their own when one has some."""
     table = Table(title=f'schedules ({len(schedules)})')
+    with_options = any(info.options for info in schedules)
     columns = ('id', 'task', 'when', 'next run', 'last run', 'last status')
-    for column in (*columns, 'runs/missed/skipped', 'enabled'):
+    option_columns = ['options'] if with_options else []
+    for column in (*columns, 'runs/missed/skipped', 'enabled', *option_columns):
         table.add_column(column)
     for info in schedules:
         table.add_row(
@@ -242,6 +284,7 @@ def schedules_table(schedules: list[ScheduleInfo]) -> Table:
             '' if info.last_status is None else str(info.last_status),
             f'{info.run_count}/{info.missed_count}/{info.skipped_count}',
             'yes' if info.enabled else 'no',
+            *([options_text(info.options)] if with_options else []),
         )
     return table
 
