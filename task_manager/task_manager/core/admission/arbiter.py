@@ -10,6 +10,10 @@ Rules (docs/deciding-what-runs.md):
 - The queue is served by priority, then arrival: a queued task starts once its resources are
   free and no task ahead of it in the queue still waits for one of them.
 - A subtask may use what its missions hold: a mission claims its subtasks' resources as a unit.
+  A task queued for what a mission holds does not hold back the mission's subtasks.
+- A pre-empted task is still ending until it is released: whoever starts on one of its
+  resources waits for it (`still_ending`); if its pre-emptor gives up before it has cancelled
+  it, it holds its resources again (`reinstate`).
 """
 
 from collections.abc import Iterable
@@ -58,6 +62,8 @@ class Arbiter:
         self.holders: dict[str, Claim] = {}
         # key: task id, value: the claim of a holder pre-empted but not yet ended
         self.displaced: dict[str, Claim] = {}
+        # key: the id of a displaced task, value: the id of the task that pre-empted it
+        self._preempted_by: dict[str, str] = {}
         # the queued claims, in the order they are served
         self._queue: list[Claim] = []
         self._arrivals = 0
@@ -102,11 +108,18 @@ class Arbiter:
 
     def reinstate(self, task_id: str) -> bool:
         """A pre-empted task goes on after all (its pre-emptor ended first): it holds its
-        resources again, if no holder has taken one of them meanwhile."""
+        resources again, if no holder has taken one of them meanwhile.
+
+        Its pre-emptor may still hold them (it is released after): it is giving them back.
+        """
         claim = self.displaced.get(task_id)
-        if claim is None or self.blockers(claim):
+        if claim is None:
+            return False
+        preemptor = self._preempted_by.get(task_id)
+        if any(holder.task_id != preemptor for holder, _ in self.blockers(claim)):
             return False
         self.holders[task_id] = self.displaced.pop(task_id)
+        self._preempted_by.pop(task_id, None)
         return True
 
     # ---- decisions ----------------------------------------------------------------------------
@@ -134,6 +147,7 @@ class Arbiter:
         """A task ended (or left the queue): the queued tasks that start now, in order."""
         self.holders.pop(task_id, None)
         self.displaced.pop(task_id, None)
+        self._preempted_by.pop(task_id, None)
         self._queue = [claim for claim in self._queue if claim.task_id != task_id]
         return self._serve_queue()
 
@@ -239,6 +253,7 @@ class Arbiter:
         )
         for holder, _ in holders:
             self.displaced[holder.task_id] = self.holders.pop(holder.task_id)
+            self._preempted_by[holder.task_id] = claim.task_id
         self.holders[claim.task_id] = claim
         victims = ', '.join(p.victim.label() for p in preemptions)
         return Decision(Verdict.START, f'pre-empts {victims}', preemptions=preemptions)
