@@ -11,18 +11,24 @@ Whatever happens, `answer` returns one Answer.
 
 import contextlib
 import logging
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.core.status import TaskStatus
 from task_manager.gateway_json import decisions_json, result_json, task_json
 from task_manager.protocol import models
 from task_manager_mqtt.decoding import Decoded, decode, refusal
 
 LOG = logging.getLogger('task_manager_mqtt')
 NODE_WAIT_SEC = 5.0
+
+
+REMEMBERED_STARTS = 1000
+"""Tasks the bridge started whose id it remembers, for requests delivered again."""
 
 
 class Refusal(Exception):  # noqa: N818 - an answer, not a failure of the bridge
@@ -50,6 +56,9 @@ class RequestHandler:
         self.source = source
         self.max_payload_bytes = max_payload_bytes
         self._waited_for_node = False
+        # key: task id, value: the handle of a task this bridge started (the latest ones): a
+        # request delivered again may come before the node has admitted the first one
+        self._started: OrderedDict[str, TaskHandle] = OrderedDict()
 
     def answer(self, payload: bytes, retained: bool = False) -> Answer:
         """The reply to the request message `payload`, or why it is a dead letter."""
@@ -133,6 +142,7 @@ class RequestHandler:
         handle = gateway_requests.start_task(
             self.client, request, task_id=task_id, source=request.source or self.source
         )
+        self._remember(handle)
         return _started(handle)
 
     def _start_mission(self, request: models.StartMissionRequest) -> dict[str, Any]:
@@ -143,15 +153,32 @@ class RequestHandler:
         handle, subtask_ids = gateway_requests.start_mission(
             self.client, request, task_id=task_id, source=request.source or self.source
         )
+        self._remember(handle)
         return {**_started(handle), 'subtask_ids': subtask_ids}
 
     def _known(self, task_id: str) -> dict[str, Any] | None:
         """The reply to a start of a task id the Task Manager knows (active or ended)."""
         states = self.client.task_states([task_id])
-        if not states:
+        handle = self._started.get(task_id)
+        if not states and handle is None:
             return None
         LOG.info('task %r is known already (a request delivered again?): nothing started', task_id)
-        return {'task_id': task_id, 'duplicate': True, 'task': task_json(states[0])}
+        state = states[0] if states else handle_state(handle)
+        return {'task_id': task_id, 'duplicate': True, 'task': task_json(state)}
+
+    def _remember(self, handle: TaskHandle) -> None:
+        self._started[handle.task_id] = handle
+        self._started.move_to_end(handle.task_id)
+        while len(self._started) > REMEMBERED_STARTS:
+            self._started.popitem(last=False)
+
+
+def handle_state(handle: Any) -> TaskState:
+    """What the bridge knows of a task it started: its latest event, else RECEIVED."""
+    state: TaskState | None = handle.state
+    if state is not None:
+        return state
+    return TaskState(handle.task_id, handle.task_name, TaskStatus.RECEIVED, handle.source)
 
 
 def _started(handle: TaskHandle) -> dict[str, Any]:
