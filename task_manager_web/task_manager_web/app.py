@@ -18,17 +18,19 @@ from typing import Annotated, Any, Literal
 from fastapi import Depends, FastAPI, Query, Request, Response
 from fastapi.responses import FileResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
+from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
-from task_manager_web.access import Access, Reader, StreamReader, Writer
+from task_manager_web.access import Access, Caller, Credentials, Reader, StreamReader, Writer
 from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.errors import ApiError, add_error_handlers
 from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
 from task_manager_web.history_csv import history_csv
+from task_manager_web.metrics import GatewayMetrics, RequestMetrics, node_snapshot
 from task_manager_web.node_link import EventStream, NodeLink
 from task_manager_web.read_bound import ReadBound
 
@@ -53,6 +55,8 @@ class Settings:
     """The names a request's Host header may give (its port is not compared)."""
     max_reads_per_client: int = MAX_READS_PER_CLIENT
     """Reads in flight per client (the token's holder, or an address without it); more: 429."""
+    metrics_without_token: bool = False
+    """GET /metrics without the token (else it needs it, even with read_without_token)."""
 
 
 def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient]) -> FastAPI:
@@ -62,9 +66,11 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
         client = await asyncio.to_thread(make_client)
         app.state.link = NodeLink(client, asyncio.get_running_loop())
+        stop_counting = metrics.watch(client)
         try:
             yield
         finally:
+            stop_counting()
             app.state.link.close()
             await asyncio.to_thread(client.close)
 
@@ -80,11 +86,15 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
     add_error_handlers(app)
     access = Access(settings.token, settings.read_without_token, settings.source)
     app.state.access = access
+    metrics = GatewayMetrics()
+    app.state.metrics = metrics
+    app.state.metrics_without_token = settings.metrics_without_token
     # the last added is the outermost
     app.add_middleware(
         BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
     )
     app.add_middleware(ReadBound, access=access, max_reads=settings.max_reads_per_client)
+    app.add_middleware(RequestMetrics, metrics=metrics)
     app.add_middleware(FrontDoor, allowed_hosts=settings.allowed_hosts)
     _add_routes(app)
     app.mount('/static', StaticFiles(directory=str(STATIC)), name='static')
@@ -102,6 +112,18 @@ async def _link(request: Request) -> NodeLink:
 
 
 Link = Annotated[NodeLink, Depends(_link)]
+
+
+async def _metrics_reader(request: Request, credentials: Credentials) -> Caller | None:
+    """The token's holder (the token is needed even with --read-without-token), or None
+    with --metrics-without-token."""
+    if request.app.state.metrics_without_token:
+        return None
+    access: Access = request.app.state.access
+    return access.writer(credentials.credentials if credentials else None)
+
+
+MetricsReader = Annotated[Caller | None, Depends(_metrics_reader)]
 Wait = Annotated[bool, Query(description='Answer once the task ended (bounded by timeout_sec).')]
 WaitSec = Annotated[
     float, Query(gt=0, le=WAIT_MAX_SEC, description='The longest wait, with wait=true.')
@@ -122,6 +144,22 @@ def _add_routes(app: FastAPI) -> None:
     async def health(link: Link) -> dict[str, Any]:
         """Whether the gateway reaches a Task Manager (no token needed)."""
         return {'connected': link.connected, 'event_streams': link.stream_count}
+
+    @app.get(
+        '/metrics',
+        tags=['state'],
+        response_class=Response,
+        responses={200: {'content': {CONTENT_TYPE_LATEST: {}}}},
+    )
+    async def metrics(_: MetricsReader, link: Link, request: Request) -> Response:
+        """Prometheus metrics (text format): the tasks ended by name and status, their
+        durations, the active, paused and queued counts, the schedules' runs and misses, and
+        this gateway's requests. Needs the token unless --metrics-without-token."""
+        gateway_metrics: GatewayMetrics = request.app.state.metrics
+        snapshot = await node_snapshot(link)
+        # no await from here to the exposition: another scrape cannot come in between
+        gateway_metrics.set_node(link.connected, snapshot)
+        return Response(generate_latest(gateway_metrics.registry), media_type=CONTENT_TYPE_LATEST)
 
     @app.get('/api/tasks', tags=['tasks'])
     async def declared_tasks(_: Reader, link: Link) -> list[models.DeclaredTask]:

@@ -38,6 +38,11 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         '--read-without-token', action='store_true', help='let anyone read; writing still needs it'
     )
     parser.add_argument(
+        '--metrics-without-token',
+        action='store_true',
+        help='let anyone read GET /metrics (a Prometheus scraper without the token)',
+    )
+    parser.add_argument(
         '--source',
         default='WEB',
         help='source of the tasks started, cancelled and stopped here; requests cannot set it '
@@ -118,6 +123,7 @@ def main(argv: list[str] | None = None) -> None:
     settings = Settings(
         token=token,
         read_without_token=arguments.read_without_token,
+        metrics_without_token=arguments.metrics_without_token,
         source=arguments.source,
         max_body_bytes=arguments.max_body_bytes,
         max_reads_per_client=arguments.max_reads_per_client,
