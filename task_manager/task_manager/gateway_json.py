@@ -1,4 +1,5 @@
-"""The client's records (TaskState, TaskResult, TaskEvent) as protocol JSON (models.Task...):
+"""The client's records (TaskState, TaskResult, TaskEvent, ScheduleInfo) as protocol JSON
+(models.Task...):
 what the web gateway and the MQTT bridge both send. Kept out of `protocol`, which loads no
 rclpy and no client.
 
@@ -12,7 +13,7 @@ from datetime import UTC, datetime
 from functools import cache
 from typing import Any
 
-from task_manager.client import Decision, TaskEvent, TaskResult, TaskState
+from task_manager.client import Decision, ScheduleInfo, TaskEvent, TaskResult, TaskState
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.task_spec import parse_interface_name
 from task_manager.protocol.models import DeclaredTask
@@ -105,3 +106,33 @@ def _goal_schema(msg_interface: str) -> dict[str, Any]:
     except (ImportError, ConfigurationError, TypeError) as error:
         LOG.warning('no task_data schema for %s: %s', msg_interface, error)
         return {}
+
+
+def schedule_json(schedule: ScheduleInfo) -> dict[str, Any]:
+    """A Schedule document."""
+    return {
+        'schedule_id': schedule.schedule_id,
+        'task_name': schedule.task_name,
+        'task_data': schedule.task_data,
+        'options': schedule.options,
+        'created_by': schedule.created_by,
+        'description': schedule.description,
+        'at': iso(schedule.at),
+        'period_sec': None if schedule.period is None else schedule.period.total_seconds(),
+        'cron': schedule.cron,
+        'time_zone': schedule.time_zone,
+        'window_start': iso(schedule.window_start),
+        'window_end': iso(schedule.window_end),
+        'max_runs': schedule.max_runs,
+        'overlap': str(schedule.overlap),
+        'misfire_grace_sec': schedule.misfire_grace.total_seconds(),
+        'enabled': schedule.enabled,
+        'created': iso(schedule.created),
+        'next_run': iso(schedule.next_run),
+        'last_run': iso(schedule.last_run),
+        'last_task_id': schedule.last_task_id,
+        'last_status': None if schedule.last_status is None else str(schedule.last_status),
+        'run_count': schedule.run_count,
+        'missed_count': schedule.missed_count,
+        'skipped_count': schedule.skipped_count,
+    }

@@ -4,7 +4,15 @@ thing for the same document. They block: call them from a worker thread."""
 
 from typing import Any
 
-from task_manager.client import Decision, Subtask, TaskHandle, TaskManagerClient, TaskResult
+from task_manager.client import (
+    Decision,
+    ScheduleInfo,
+    Subtask,
+    TaskHandle,
+    TaskManagerClient,
+    TaskResult,
+    When,
+)
 from task_manager.protocol import models
 
 # the fields of a start's options: the same names as the client's keywords
@@ -13,7 +21,9 @@ OPTION_FIELDS = frozenset(
 )
 
 
-def options_of(request: models.StartTask | models.StartMission) -> dict[str, Any]:
+def options_of(
+    request: models.StartTask | models.StartMission | models.ScheduleTask,
+) -> dict[str, Any]:
     """The options a start gives (priority, on_conflict, timeouts), as the client's keywords;
     those left out take the task's declaration."""
     return request.model_dump(include=set(OPTION_FIELDS), exclude_none=True)
@@ -62,3 +72,71 @@ def why(client: TaskManagerClient, task_id: str) -> list[Decision] | None:
     such task (neither active nor in its history)."""
     states = client.task_states([task_id])
     return states[0].decisions if states else None
+
+
+def pause(client: TaskManagerClient, request: models.PauseTasks, *, source: str) -> TaskResult:
+    """system/pause of the request's ids; its result (`successful_pauses`, `errors`)."""
+    return client.pause(request.task_ids, source=source)
+
+
+def resume(client: TaskManagerClient, request: models.ResumeTasks, *, source: str) -> TaskResult:
+    """system/resume of the request's ids; its result (`successful_resumes`, `errors`)."""
+    return client.resume(request.task_ids, source=source)
+
+
+def when_of(request: models.ScheduleTask) -> When:
+    """When the request's schedule runs."""
+    return When(
+        at=request.at,
+        delay=request.delay_sec,
+        period=request.period_sec,
+        cron=request.cron,
+        time_zone=request.time_zone,
+        window_start=request.window_start,
+        window_end=request.window_end,
+        max_runs=request.max_runs,
+        overlap=request.overlap,
+        misfire_grace=request.misfire_grace_sec,
+    )
+
+
+def schedule(client: TaskManagerClient, request: models.ScheduleTask, *, source: str) -> TaskResult:
+    """system/schedule of the request's task or mission, each run with the request's options;
+    its result (`schedule_id`, `next_run`, `message`)."""
+    options = options_of(request)
+    # the client's `timeout_sec` is its wait for system/schedule; a run's is task_timeout_sec
+    if 'timeout_sec' in options:
+        options['task_timeout_sec'] = options.pop('timeout_sec')
+    when = when_of(request)
+    if request.subtasks is not None:
+        subtasks = [
+            Subtask(s.task_name, s.task_data, s.allow_skipping, s.task_id) for s in request.subtasks
+        ]
+        return client.schedule_mission(
+            subtasks, when, schedule_id=request.schedule_id, source=source, **options
+        )
+    return client.schedule_task(
+        request.task_name,
+        request.task_data,
+        when,
+        schedule_id=request.schedule_id,
+        source=source,
+        **options,
+    )
+
+
+def enable_schedule(
+    client: TaskManagerClient, schedule_id: str, request: models.EnableSchedule, *, source: str
+) -> ScheduleInfo | None:
+    """system/enable_schedule of one schedule; the schedule then, None when there is none."""
+    result = client.enable_schedules([schedule_id], request.enabled, source=source)
+    if schedule_id not in result.result.get('changed', []):
+        return None
+    found = client.schedules([schedule_id])
+    return found[0] if found else None
+
+
+def unschedule(client: TaskManagerClient, schedule_id: str, *, source: str) -> TaskResult | None:
+    """system/unschedule of one schedule; its result, None when there is no such schedule."""
+    result = client.unschedule([schedule_id], source=source)
+    return result if schedule_id in result.result.get('removed', []) else None

@@ -31,7 +31,8 @@ from task_manager_web.errors import ApiError, add_error_handlers
 from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
 from task_manager_web.history_csv import history_csv
 from task_manager_web.metrics import GatewayMetrics, RequestMetrics, node_snapshot
-from task_manager_web.node_link import EventStream, NodeLink
+from task_manager_web.node_link import EventStream, Link, NodeLink
+from task_manager_web.operator_routes import add_operator_routes
 from task_manager_web.read_bound import ReadBound
 
 KEEPALIVE_SEC = 15.0
@@ -97,6 +98,7 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
     app.add_middleware(RequestMetrics, metrics=metrics)
     app.add_middleware(FrontDoor, allowed_hosts=settings.allowed_hosts)
     _add_routes(app)
+    add_operator_routes(app)
     app.mount('/static', StaticFiles(directory=str(STATIC)), name='static')
     app.mount('/swagger', StaticFiles(packages=[('fastapi_swagger', 'resources')]), name='swagger')
     return app
@@ -104,14 +106,6 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
 
 class HistoryParameters(models.HistoryQuery):
     format: Literal['json', 'csv'] = 'json'
-
-
-async def _link(request: Request) -> NodeLink:
-    link: NodeLink = request.app.state.link
-    return link
-
-
-Link = Annotated[NodeLink, Depends(_link)]
 
 
 async def _metrics_reader(request: Request, credentials: Credentials) -> Caller | None:

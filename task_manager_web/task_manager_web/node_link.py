@@ -6,9 +6,9 @@ coming and going) is handed to the event loop with `call_soon_threadsafe`. Each 
 turned into JSON once, then offered to every open event stream.
 
 The blocking calls have three pools of threads, so that no kind of request waits behind
-another: reads, starts, and control (stop and cancel). A flood of reads held up a cancel for
-seconds in the one small pool all shared (asyncio's default). Reads are bounded per client
-before they get here (read_bound.py).
+another: reads, starts, and control (stop, cancel, pause, resume, schedule changes). A flood
+of reads held up a cancel for seconds in the one small pool all shared (asyncio's default).
+Reads are bounded per client before they get here (read_bound.py).
 """
 
 import asyncio
@@ -17,7 +17,9 @@ import json
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
-from typing import Any, TypeVar
+from typing import Annotated, Any, TypeVar
+
+from fastapi import Depends, Request
 
 from task_manager.client import TaskEvent, TaskHandle, TaskManagerClient, TaskResult
 from task_manager.core.errors import TaskManagerUnavailable
@@ -28,7 +30,8 @@ T = TypeVar('T')
 READ_THREADS = 4
 START_THREADS = 8
 CONTROL_THREADS = 4
-"""Stop and cancel: each holds its thread until the system task ended (milliseconds)."""
+"""Control (stop, cancel, pause, ...): each holds its thread until its system task ended
+(milliseconds)."""
 STREAM_QUEUE_MAX = 10_000
 """Events a stream may have waiting; a client that falls this far behind is disconnected."""
 NOT_CONNECTED = (
@@ -100,7 +103,8 @@ class NodeLink:
         return await self._send(self._starts, function, *args, **kwargs)
 
     async def control(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
-        """Stop or cancel, in a thread of their own that no read or start can take."""
+        """Stop, cancel, pause, resume or a schedule's change, in a thread of their own that no
+        read or start can take."""
         return await self._send(self._control, function, *args, **kwargs)
 
     async def _send(
@@ -169,3 +173,12 @@ class NodeLink:
 def _set_done(future: asyncio.Future[None]) -> None:
     if not future.done():
         future.set_result(None)
+
+
+async def _link(request: Request) -> NodeLink:
+    link: NodeLink = request.app.state.link
+    return link
+
+
+Link = Annotated[NodeLink, Depends(_link)]
+"""A route's NodeLink (the app's, made at start-up)."""

@@ -8,7 +8,18 @@ of the ROS interfaces.
 from datetime import datetime
 from typing import Annotated, Any, Literal
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, RootModel, StrictFloat, StrictInt
+from pydantic import (
+    AfterValidator,
+    AwareDatetime,
+    BaseModel,
+    ConfigDict,
+    Field,
+    RootModel,
+    StrictBool,
+    StrictFloat,
+    StrictInt,
+    model_validator,
+)
 
 from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, IDS_MAX
 from task_manager.core.request_text import MAX_LENGTH, is_refused_character
@@ -115,6 +126,81 @@ class Reprioritize(_Request):
     priority: Priority
 
 
+class PauseTasks(_Request):
+    """system/pause: pause active tasks by id (a mission between its subtasks, a task declared
+    `pause: restart` at once)."""
+
+    task_ids: list[Name] = Field(min_length=1, max_length=IDS_MAX)
+
+
+class ResumeTasks(_Request):
+    """system/resume: paused tasks run again."""
+
+    task_ids: list[Name] = Field(min_length=1, max_length=IDS_MAX)
+
+
+OverlapName = Literal['', 'SKIP', 'BUFFER_ONE', 'CANCEL_OTHER', 'ALLOW_ALL']
+WHEN_FIELDS = ('at', 'delay_sec', 'period_sec', 'cron')
+"""A schedule gives exactly one of them."""
+
+
+class ScheduleTask(_Options):
+    """system/schedule: a task (task_name) or a mission (subtasks) the Task Manager starts at
+    set times, with the options of a start for each run (source: as StartTask).
+
+    Exactly one of `at` (once), `delay_sec` (once, this long from now), `period_sec` (every
+    period, from window_start or one period from now), `cron` (5 fields, in time_zone).
+    """
+
+    schedule_id: Name = Field('', max_length=NAME_MAX, description='Empty: one is generated.')
+    task_name: Name = Field('', max_length=NAME_MAX, description='A task; or give subtasks.')
+    task_data: dict[str, Any] = Field(default_factory=dict)
+    subtasks: list[Subtask] | None = Field(
+        None,
+        min_length=1,
+        max_length=IDS_MAX,
+        description='A mission (system/mission); subtask ids only in a schedule that runs once.',
+    )
+    at: AwareDatetime | None = Field(None, description='Once, at this time (with its zone).')
+    delay_sec: Seconds | None = Field(None, description='Once, this long from now.')
+    period_sec: Seconds | None = Field(None, description='Every period.')
+    cron: Name = Field('', max_length=NAME_MAX, examples=['0 2 * * *'])
+    time_zone: Name = Field('', max_length=NAME_MAX, description="Of cron, an IANA name; '': UTC.")
+    window_start: AwareDatetime | None = Field(None, description='No run before.')
+    window_end: AwareDatetime | None = Field(None, description='No run after.')
+    max_runs: StrictInt = Field(0, ge=0, description='0: no limit.')
+    overlap: OverlapName = Field(
+        '', description="A run due while the previous is active: '' is SKIP."
+    )
+    misfire_grace_sec: Annotated[StrictFloat, Field(ge=0, allow_inf_nan=False)] | None = Field(
+        None, description='How late a run missed while the Task Manager was down may run.'
+    )
+
+    @model_validator(mode='after')
+    def _one_what_and_one_when(self) -> 'ScheduleTask':
+        if bool(self.task_name) == (self.subtasks is not None):
+            raise ValueError('give either task_name (a task) or subtasks (a mission)')
+        given = [name for name in WHEN_FIELDS if getattr(self, name) not in (None, '')]
+        if len(given) != 1:
+            got = ' and '.join(given) if given else 'none'
+            raise ValueError(f'give exactly one of at, delay_sec, period_sec, cron; got {got}')
+        runs_once = self.at is not None or self.delay_sec is not None or self.max_runs == 1
+        fixed = [s.task_id for s in self.subtasks or [] if s.task_id]
+        if fixed and not runs_once:
+            raise ValueError(
+                f'subtask ids {", ".join(fixed)} would repeat in every run; leave task_id '
+                'empty in a repeating schedule (each run makes its own)'
+            )
+        return self
+
+
+class EnableSchedule(_Request):
+    """Disable a schedule (no runs; its state and counts kept) or enable it again (from the
+    next due time after now)."""
+
+    enabled: StrictBool
+
+
 class HistoryQuery(_Request):
     """Which ended tasks to read from the durable history; empty filters do not filter."""
 
@@ -184,6 +270,65 @@ class Started(BaseModel):
     subtask_ids: list[str] = Field(default_factory=list, description='Of a mission.')
     ended: bool = Field(description='Whether `task` is the final state (with the result).')
     task: Task | None = Field(None, description='The latest state known, if any.')
+
+
+class _PauseAnswer(BaseModel):
+    errors: list[str] = Field(
+        default_factory=list, description='Why not, one line per other id (e.g. not active).'
+    )
+    task: Task = Field(description='The system task, ended (DONE when every id was done).')
+
+
+class Paused(_PauseAnswer):
+    """The answer to a pause: the ids paused (one already paused counts) and why not the
+    others."""
+
+    paused: list[str]
+
+
+class Resumed(_PauseAnswer):
+    """The answer to a resume: the ids running again and why not the others."""
+
+    resumed: list[str]
+
+
+class Scheduled(BaseModel):
+    """The answer to a schedule: whether the Task Manager took it, and its first run."""
+
+    scheduled: bool
+    schedule_id: str
+    next_run: datetime | None = Field(None, description='None: no run to come.')
+    message: str = Field(description='When it runs, in words; or why it was refused.')
+    task: Task = Field(description='The system/schedule task, ended.')
+
+
+class Schedule(BaseModel):
+    """One schedule of the Task Manager (/task_manager/get_schedules)."""
+
+    schedule_id: str
+    task_name: str = Field(description='What each run starts (system/mission: a mission).')
+    task_data: dict[str, Any]
+    options: dict[str, Any] = Field(description="Each run's; empty: the declaration's.")
+    created_by: str = Field(description='The source that made it.')
+    description: str = Field(examples=['every 7200 s', "cron '0 2 * * *' (Europe/Paris)"])
+    at: datetime | None = None
+    period_sec: float | None = None
+    cron: str = ''
+    time_zone: str = ''
+    window_start: datetime | None = None
+    window_end: datetime | None = None
+    max_runs: int = Field(0, description='0: no limit.')
+    overlap: OverlapName
+    misfire_grace_sec: float
+    enabled: bool
+    created: datetime | None = None
+    next_run: datetime | None = Field(None, description='None: no run to come.')
+    last_run: datetime | None = Field(None, description='None before the first.')
+    last_task_id: str = ''
+    last_status: TaskStatusName | None = Field(None, description='Of the last run, if any.')
+    run_count: int
+    missed_count: int = Field(description='Due times not run (the Task Manager was down, ...).')
+    skipped_count: int = Field(description='Due times skipped by the overlap policy.')
 
 
 class ErrorDetail(BaseModel):
@@ -370,6 +515,14 @@ DOCUMENTS: dict[str, type[BaseModel]] = {
     'start_mission': StartMission,
     'cancel_tasks': CancelTasks,
     'reprioritize': Reprioritize,
+    'pause_tasks': PauseTasks,
+    'resume_tasks': ResumeTasks,
+    'paused': Paused,
+    'resumed': Resumed,
+    'schedule_task': ScheduleTask,
+    'scheduled': Scheduled,
+    'enable_schedule': EnableSchedule,
+    'schedule': Schedule,
     'history_query': HistoryQuery,
     'decision': Decision,
     'task': Task,

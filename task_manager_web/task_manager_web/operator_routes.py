@@ -1,0 +1,114 @@
+"""The routes that pause and resume tasks and keep the schedules: each a system task run
+through the client in a control thread, its request and answer documents `task_manager.protocol`'s.
+"""
+
+from fastapi import FastAPI
+
+from task_manager import gateway_requests
+from task_manager.client import TaskResult, scheduled_next_run
+from task_manager.core.request_text import text_problem
+from task_manager.gateway_json import result_json, schedule_json
+from task_manager.protocol import models
+from task_manager_web.access import Reader, Writer
+from task_manager_web.errors import ApiError
+from task_manager_web.node_link import Link
+
+
+def add_operator_routes(app: FastAPI) -> None:
+    @app.post('/api/tasks/pause', tags=['tasks'])
+    async def pause(body: models.PauseTasks, caller: Writer, link: Link) -> models.Paused:
+        """system/pause: pause these tasks (a mission between its subtasks, a task declared
+        `pause: restart` at once); the ids paused and why not the others."""
+        result = await link.control(gateway_requests.pause, link.client, body, source=caller.source)
+        return models.Paused.model_validate(
+            {**_steps(result), 'paused': result.result.get('successful_pauses', [])}
+        )
+
+    @app.post('/api/tasks/resume', tags=['tasks'])
+    async def resume(body: models.ResumeTasks, caller: Writer, link: Link) -> models.Resumed:
+        """system/resume: resume these paused tasks; the ids running again and why not the
+        others."""
+        result = await link.control(
+            gateway_requests.resume, link.client, body, source=caller.source
+        )
+        return models.Resumed.model_validate(
+            {**_steps(result), 'resumed': result.result.get('successful_resumes', [])}
+        )
+
+    @app.get('/api/schedules', tags=['schedules'])
+    async def schedules(_: Reader, link: Link) -> list[models.Schedule]:
+        """Every schedule: when it runs, its next run, its last run's status, its options."""
+        found = await link.read(link.client.schedules)
+        return [models.Schedule.model_validate(schedule_json(s)) for s in found]
+
+    @app.post('/api/schedules', tags=['schedules'])
+    async def schedule(body: models.ScheduleTask, caller: Writer, link: Link) -> models.Scheduled:
+        """system/schedule: a task or a mission run at set times (exactly one of at,
+        delay_sec, period_sec, cron). One the Task Manager refuses (an unknown task, bad
+        task_data or cron, an id taken, ...) is no HTTP error: `scheduled` is false and
+        `message` says why."""
+        result = await link.control(
+            gateway_requests.schedule, link.client, body, source=caller.source
+        )
+        return models.Scheduled.model_validate(
+            {
+                'scheduled': bool(result.result.get('success', False)),
+                'schedule_id': result.result.get('schedule_id', body.schedule_id),
+                'next_run': scheduled_next_run(result),
+                'message': str(result.result.get('message', '')) or _error_of(result),
+                'task': result_json(result),
+            }
+        )
+
+    @app.patch('/api/schedules/{schedule_id:path}', tags=['schedules'])
+    async def enable_schedule(
+        schedule_id: str, body: models.EnableSchedule, caller: Writer, link: Link
+    ) -> models.Schedule:
+        """system/enable_schedule: disable a schedule (no runs, its counts kept) or enable it
+        again (from its next due time after now); the schedule then."""
+        _check_schedule_id(schedule_id)
+        found = await link.control(
+            gateway_requests.enable_schedule,
+            link.client,
+            schedule_id,
+            body,
+            source=caller.source,
+        )
+        if found is None:
+            raise _unknown(schedule_id)
+        return models.Schedule.model_validate(schedule_json(found))
+
+    @app.delete('/api/schedules/{schedule_id:path}', tags=['schedules'])
+    async def unschedule(schedule_id: str, caller: Writer, link: Link) -> models.Task:
+        """system/unschedule: remove a schedule (its runs already started go on); the system
+        task, ended."""
+        _check_schedule_id(schedule_id)
+        result = await link.control(
+            gateway_requests.unschedule, link.client, schedule_id, source=caller.source
+        )
+        if result is None:
+            raise _unknown(schedule_id)
+        return models.Task.model_validate(result_json(result))
+
+
+def _steps(result: TaskResult) -> dict[str, object]:
+    """The errors and task of a pause's or resume's answer."""
+    errors = result.result.get('errors', [])
+    if not errors and result.status != 'DONE':  # refused as a whole (e.g. too many ids)
+        errors = [_error_of(result) or f'system task ended {result.status}']
+    return {'errors': errors, 'task': result_json(result)}
+
+
+def _error_of(result: TaskResult) -> str:
+    error = result.result.get('error')
+    return error if isinstance(error, str) else ''
+
+
+def _check_schedule_id(schedule_id: str) -> None:
+    """An id no schedule can have (NUL, a newline, ...) is looked up nowhere."""
+    if text_problem('schedule_id', schedule_id) is not None:
+        raise _unknown(schedule_id)
+
+
+def _unknown(schedule_id: str) -> ApiError:
+    return ApiError(404, 'unknown_schedule_id', f'the Task Manager has no schedule {schedule_id!r}')
