@@ -19,7 +19,7 @@ from typing import Any
 
 from pydantic import ValidationError
 
-from task_manager.protocol import models
+from task_manager.protocol import models, mqtt
 from task_manager.protocol.errors import describe
 
 MAX_DEPTH = 32
@@ -43,7 +43,7 @@ class Decoded:
     """Usable to address a reply: a string of 1 to NAME_MAX characters; else empty."""
     op: str = ''
     request: Any = None
-    """A request model of models.RobotRequest (StartTaskRequest, ...)."""
+    """A request model of mqtt.RobotRequest (StartTaskRequest, ...)."""
     error: dict[str, str] | None = None
 
     @property
@@ -95,7 +95,7 @@ def _decode(payload: bytes, max_payload_bytes: int, retained: bool) -> Decoded:
         )
         return Decoded(request_id, op, error=refusal('retained_request', message))
     try:
-        request = models.RobotRequest.model_validate_json(payload).root
+        request = mqtt.RobotRequest.model_validate_json(payload).root
     except ValidationError as error:
         return Decoded(request_id, op, error=_invalid(error))
     return Decoded(request_id, op, request=request)

@@ -20,7 +20,7 @@ from task_manager.client import TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.status import TaskStatus
 from task_manager.gateway_json import decisions_json, result_json, task_json
-from task_manager.protocol import models
+from task_manager.protocol import mqtt
 from task_manager_mqtt.decoding import Decoded, decode, refusal
 
 LOG = logging.getLogger('task_manager_mqtt')
@@ -67,7 +67,7 @@ class RequestHandler:
             return Answer(dead_letter=decoded.error)
         try:
             document = self._reply(decoded)
-            return Answer(reply=models.Reply.model_validate(document).model_dump(mode='json'))
+            return Answer(reply=mqtt.Reply.model_validate(document).model_dump(mode='json'))
         except Exception as error:  # the reply could not be made: an error reply instead
             LOG.error('the reply to %r failed: %s: %s', decoded.request_id, type(error).__name__,
                       error)  # fmt: skip
@@ -99,23 +99,23 @@ class RequestHandler:
                 "the Task Manager is not reachable from the robot's bridge"
             )
         match request:
-            case models.StartTaskRequest():
+            case mqtt.StartTaskRequest():
                 return self._start_task(request)
-            case models.StartMissionRequest():
+            case mqtt.StartMissionRequest():
                 return self._start_mission(request)
-            case models.CancelRequest():
+            case mqtt.CancelRequest():
                 result = gateway_requests.cancel_tasks(self.client, request, source=self.source)
                 return {'task': result_json(result)}
-            case models.StopRequest():
+            case mqtt.StopRequest():
                 return {'task': result_json(self.client.stop(source=self.source))}
-            case models.HistoryRequest():
+            case mqtt.HistoryRequest():
                 filters = request.model_dump(exclude={'request_id', 'op'})
                 return {'tasks': [task_json(s) for s in self.client.history(**filters)]}
-            case models.ReprioritizeRequest():
+            case mqtt.ReprioritizeRequest():
                 self.client.wait_until_available()
                 result = gateway_requests.reprioritize(self.client, request, source=self.source)
                 return {'task': result_json(result)}
-            case models.WhyRequest():
+            case mqtt.WhyRequest():
                 decisions = gateway_requests.why(self.client, request.task_id)
                 if decisions is None:
                     message = f'the Task Manager knows no task {request.task_id!r}'
@@ -134,7 +134,7 @@ class RequestHandler:
             with contextlib.suppress(TaskManagerUnavailable):
                 self.client.wait_until_available(NODE_WAIT_SEC)
 
-    def _start_task(self, request: models.StartTaskRequest) -> dict[str, Any]:
+    def _start_task(self, request: mqtt.StartTaskRequest) -> dict[str, Any]:
         task_id = request.task_id or request.request_id
         if (known := self._known(task_id)) is not None:
             return known
@@ -145,7 +145,7 @@ class RequestHandler:
         self._remember(handle)
         return _started(handle)
 
-    def _start_mission(self, request: models.StartMissionRequest) -> dict[str, Any]:
+    def _start_mission(self, request: mqtt.StartMissionRequest) -> dict[str, Any]:
         task_id = request.task_id or request.request_id
         if (known := self._known(task_id)) is not None:
             return known

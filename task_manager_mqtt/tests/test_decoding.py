@@ -7,7 +7,7 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from task_manager.protocol import models
+from task_manager.protocol import models, mqtt
 from task_manager_mqtt.decoding import (
     MAX_DEPTH,
     OPS,
@@ -77,7 +77,7 @@ def outcome(payload: bytes, retained: bool, max_bytes: int = MAX_BYTES) -> tuple
     answer = handler.answer(payload, retained)
     assert (answer.reply is None) != (answer.dead_letter is None), answer
     if answer.reply is not None:
-        reply = models.Reply.model_validate(answer.reply)
+        reply = mqtt.Reply.model_validate(answer.reply)
         assert not reply.ok and reply.request_id == decoded.request_id != ''
         assert reply.error is not None and reply.error.code != 'internal_error', reply
         return 'reply', reply

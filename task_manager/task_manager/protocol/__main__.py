@@ -3,7 +3,7 @@
 import json
 from pathlib import Path
 
-from task_manager.protocol.models import DOCUMENTS
+from task_manager.protocol.documents import DOCUMENTS
 
 SCHEMA_FOLDER = Path(__file__).with_name('schema')
 SCHEMA_ID_BASE = 'urn:task-manager:protocol:v1:'

@@ -11,7 +11,7 @@ from pydantic import ValidationError
 from task_manager.client import TaskEvent, TaskEventKind, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.gateway_json import event_json, result_json, task_json
-from task_manager.protocol import models
+from task_manager.protocol import models, mqtt
 from task_manager.protocol.__main__ import SCHEMA_FOLDER, schema_documents
 
 STARTED = datetime(2026, 11, 23, 2, 0, tzinfo=UTC)
@@ -114,7 +114,7 @@ def test_the_schema_and_the_model_agree_on_a_good_mission() -> None:
         (models.StartTask, {'task_name': 'camera/take_photo\x00junk'}, 'task_name'),
         (models.StartTask, {'task_name': 'fib', 'task_id': 'a\nb'}, 'task_id'),
         (
-            models.StartTaskRequest,
+            mqtt.StartTaskRequest,
             {'op': 'start_task', 'request_id': 'r', 'task_name': 'fib', 'source': '\u202eDUOLC'},
             'source',
         ),

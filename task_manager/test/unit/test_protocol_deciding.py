@@ -13,7 +13,7 @@ from task_manager.client import Decision, TaskEvent, TaskEventKind, TaskState
 from task_manager.core.status import TaskStatus
 from task_manager.gateway_json import event_json, task_json
 from task_manager.gateway_requests import options_of
-from task_manager.protocol import models
+from task_manager.protocol import models, mqtt
 from task_manager.protocol.__main__ import SCHEMA_FOLDER
 
 QUEUED_AT = datetime(2026, 11, 23, 2, 0, tzinfo=UTC)
@@ -97,9 +97,9 @@ def test_reprioritize_and_why_are_requests_of_the_mqtt_protocol() -> None:
     for document in (reprioritize, why):
         validator('mqtt_request').validate(document)
     validator('mqtt_reply').validate(reply)
-    assert isinstance(models.RobotRequest.model_validate(why).root, models.WhyRequest)
-    raised = models.RobotRequest.model_validate(reprioritize).root
-    assert isinstance(raised, models.ReprioritizeRequest) and raised.priority == 4
+    assert isinstance(mqtt.RobotRequest.model_validate(why).root, mqtt.WhyRequest)
+    raised = mqtt.RobotRequest.model_validate(reprioritize).root
+    assert isinstance(raised, mqtt.ReprioritizeRequest) and raised.priority == 4
     validator('reprioritize').validate({'task_ids': ['a'], 'priority': -1})
     for bad in ({'task_ids': [], 'priority': 1}, {'task_ids': ['a']}):
         assert not validator('reprioritize').is_valid(bad)
