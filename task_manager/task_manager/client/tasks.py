@@ -29,7 +29,7 @@ from task_manager.client.message_values import json_text
 from task_manager.client.missions import Subtask, mission_task_data
 from task_manager.client.records import TaskEvent, TaskEventKind, TaskResult
 from task_manager.client.watching import ActiveTasks
-from task_manager.core.admission.options import OnConflict, RequestOptions
+from task_manager.core.admission.options import OnConflict, RequestOptions, parse_on_conflict
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
@@ -75,13 +75,7 @@ def request_options(
     feedback_timeout_sec: float | None = None,
 ) -> RequestOptions:
     """A request's options (None: the declaration's); ValueError says what is wrong."""
-    mode = None
-    if on_conflict is not None:
-        try:
-            mode = OnConflict(str(on_conflict).strip().lower())
-        except ValueError:
-            allowed = ', '.join(m.value for m in OnConflict)
-            raise ValueError(f'on_conflict must be one of {allowed}, got {on_conflict!r}') from None
+    mode = None if on_conflict is None else parse_on_conflict(on_conflict)
     seconds = {
         'timeout_sec': timeout_sec,
         'queue_timeout_sec': queue_timeout_sec,

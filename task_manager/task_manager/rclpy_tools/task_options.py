@@ -2,19 +2,18 @@
 
 from task_manager_msgs.msg import TaskOptions
 
-from task_manager.core.admission.options import OnConflict, RequestOptions
+from task_manager.core.admission.options import OnConflict, RequestOptions, parse_on_conflict
 
 
 def request_options(message: TaskOptions) -> RequestOptions:
     """The options of a message; zero and empty fields take the declaration's values."""
     on_conflict: OnConflict | None = None
     error = ''
-    if text := message.on_conflict.strip().lower():
+    if message.on_conflict.strip():
         try:
-            on_conflict = OnConflict(text)
-        except ValueError:
-            allowed = ', '.join(mode.value for mode in OnConflict)
-            error = f'on_conflict must be one of {allowed}, got {message.on_conflict!r}'
+            on_conflict = parse_on_conflict(message.on_conflict)
+        except ValueError as problem:
+            error = str(problem)
     return RequestOptions(
         priority=message.priority if message.has_priority else None,
         on_conflict=on_conflict,

@@ -16,6 +16,15 @@ class OnConflict(StrEnum):
     """End at once, ERROR / resource_busy."""
 
 
+def parse_on_conflict(text: object) -> OnConflict:
+    """An on_conflict as written (any case, spaces around); ValueError says what is allowed."""
+    try:
+        return OnConflict(str(text).strip().lower())
+    except ValueError:
+        allowed = ', '.join(mode.value for mode in OnConflict)
+        raise ValueError(f'on_conflict must be one of {allowed}, got {text!r}') from None
+
+
 @dataclass(frozen=True)
 class RequestOptions:
     """One request's own admission options; None takes the declaration's value."""
