@@ -95,7 +95,8 @@ class AdmissionControl:
         self._update_positions()
         timeout_sec = run.options.queue_timeout_sec or record.spec.queue_timeout_sec
         if timeout_sec:
-            self._set(record.task_id, _QUEUE, timeout_sec, lambda: self._queue_timeout(run))
+            reason = f'timed out: waited {timeout_sec:g} s in the queue (queue_timeout_sec)'
+            self._set(record.task_id, _QUEUE, timeout_sec, lambda: self._queue_timeout(run, reason))
 
     def released(self, run: TaskRun) -> None:
         """The task ended: its resources go to the queued tasks whose turn it is."""
@@ -145,12 +146,10 @@ class AdmissionControl:
                 run.record.queue_position = position
         self._dispatcher.publish_active_soon()
 
-    def _queue_timeout(self, run: TaskRun) -> None:
+    def _queue_timeout(self, run: TaskRun, reason: str) -> None:
         record = run.record
         if run.finished.done() or record.status is not TaskStatus.QUEUED:
             return
-        timeout_sec = run.options.queue_timeout_sec or record.spec.queue_timeout_sec
-        reason = f'timed out: waited {timeout_sec:g} s in the queue (queue_timeout_sec)'
         record.note(DecisionKind.TIMEOUT, reason)
         run.settle(TaskEnd(TaskStatus.ERROR, {'error': reason}, ErrorCode.TIMEOUT))
 
