@@ -15,7 +15,7 @@ from typing import Any
 
 from task_manager.client import Decision, ScheduleInfo, TaskEvent, TaskResult, TaskState
 from task_manager.core.errors import ConfigurationError
-from task_manager.core.task_spec import parse_interface_name
+from task_manager.core.task_spec import PauseMode, parse_interface_name
 from task_manager.protocol.models import DeclaredTask
 from task_manager.ros.goal_schema import task_data_schema
 
@@ -95,7 +95,19 @@ def declared_json(entry: dict[str, Any]) -> dict[str, Any]:
     interface = str(entry.get('msg_interface', ''))
     with contextlib.suppress(ConfigurationError):  # then shown as the node has it
         interface = str(parse_interface_name(interface))
-    return {**known, 'msg_interface': interface, 'goal_schema': _goal_schema(interface)}
+    return {
+        **known,
+        'msg_interface': interface,
+        'pause': _pause_mode(entry.get('pause')),
+        'goal_schema': _goal_schema(interface),
+    }
+
+
+def _pause_mode(declared: object) -> str:
+    """The pause mode as the node reads its declaration (`Restart` is restart); none when
+    not declared."""
+    text = str(declared or PauseMode.NONE.value).strip().lower()
+    return text if text in {mode.value for mode in PauseMode} else PauseMode.NONE.value
 
 
 @cache

@@ -33,7 +33,9 @@ def started_in_background(
     return pool.submit(start, http, body, wait='true', timeout_sec=TIMEOUT_SEC)
 
 
-def test_declared_tasks_come_with_a_json_schema_of_their_goal(http: httpx.Client) -> None:
+def test_declared_tasks_come_with_a_json_schema_of_their_goal_and_how_they_pause(
+    http: httpx.Client,
+) -> None:
     response = http.get('/api/tasks')
 
     assert response.status_code == 200
@@ -42,6 +44,7 @@ def test_declared_tasks_come_with_a_json_schema_of_their_goal(http: httpx.Client
     fib = tasks['fib']
     assert fib['msg_interface'] == 'test_msgs/action/Fibonacci'
     assert fib['reentrant'] and fib['cancel_on_stop']
+    assert (fib['pause'], tasks['system/mission']['pause']) == ('none', 'between_subtasks')
     order = fib['goal_schema']['properties']['order']
     assert order['type'] == 'integer' and order['x-ros-type'] == 'int32'
     assert (order['minimum'], order['maximum'], order['default']) == (-(2**31), 2**31 - 1, 0)

@@ -49,6 +49,7 @@ def _system_tasks() -> list[dict[str, Any]]:
             'reentrant': spec.reentrant,
             'cancel_reported_as_success': spec.cancel_reported_as_success,
             'cancel_timeout': spec.cancel_timeout_sec,
+            'pause': spec.pause.value,
         }
         for spec in SYSTEM_SPECS
     ]

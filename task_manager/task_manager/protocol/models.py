@@ -50,6 +50,7 @@ def _without_refused_characters(text: str) -> str:
 
 Name = Annotated[str, AfterValidator(_without_refused_characters)]
 """A task id, task name or source of a request."""
+PauseModeName = Literal['none', 'restart', 'between_subtasks']
 EventName = Literal[
     'RECEIVED', 'QUEUED', 'STARTED', 'FEEDBACK', 'PAUSED', 'RESUMED', 'DECIDED', 'ENDED'
 ]  # fmt: skip
@@ -352,6 +353,11 @@ class DeclaredTask(BaseModel):
     cancel_on_stop: bool = False
     reentrant: bool = False
     cancel_reported_as_success: bool = False
+    pause: PauseModeName = Field(
+        'none',
+        description='How it pauses: none (it cannot), restart (its goal is cancelled and sent '
+        'again on resume), between_subtasks (system/mission).',
+    )
     goal_schema: dict[str, Any] = Field(
         default_factory=dict, description='JSON Schema of task_data, from its ROS interface.'
     )

@@ -10,7 +10,8 @@ from pydantic import ValidationError
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
-from task_manager.gateway_json import event_json, result_json, task_json
+from task_manager.core.task_spec import PauseMode
+from task_manager.gateway_json import declared_json, event_json, result_json, task_json
 from task_manager.protocol import models, mqtt
 from task_manager.protocol.__main__ import SCHEMA_FOLDER, schema_documents
 
@@ -34,6 +35,21 @@ def test_statuses_and_error_codes_are_those_of_the_interfaces() -> None:
     assert set(get_args(models.TaskStatusName)) == {s.value for s in TaskStatus}
     assert set(get_args(models.ErrorCodeName)) == {c.value for c in ErrorCode}
     assert set(get_args(models.EventName)) == {k.value for k in TaskEventKind}
+    assert set(get_args(models.PauseModeName)) == {m.value for m in PauseMode}
+
+
+@pytest.mark.parametrize(
+    ('declared', 'shown'), [(None, 'none'), ('restart', 'restart'), (' Restart', 'restart')]
+)
+def test_a_declared_task_says_how_it_pauses(declared: str | None, shown: str) -> None:
+    entry = {'key': 'nav', 'task_name': 'nav', 'msg_interface': 'test_msgs/action/Fibonacci'}
+    if declared is not None:
+        entry['pause'] = declared
+
+    document = declared_json(entry)
+
+    validator('declared_task').validate(document)
+    assert document['pause'] == shown
 
 
 def test_an_ended_task_is_a_valid_task_document() -> None:
