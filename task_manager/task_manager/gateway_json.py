@@ -13,7 +13,14 @@ from datetime import UTC, datetime
 from functools import cache
 from typing import Any
 
-from task_manager.client import Decision, ScheduleInfo, TaskEvent, TaskResult, TaskState
+from task_manager.client import (
+    Decision,
+    ScheduleInfo,
+    TaskEvent,
+    TaskResult,
+    TaskState,
+    scheduled_next_run,
+)
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.task_spec import PauseMode, parse_interface_name
 from task_manager.protocol.models import DeclaredTask
@@ -148,3 +155,38 @@ def schedule_json(schedule: ScheduleInfo) -> dict[str, Any]:
         'missed_count': schedule.missed_count,
         'skipped_count': schedule.skipped_count,
     }
+
+
+def paused_json(result: TaskResult) -> dict[str, Any]:
+    """A Paused document of system/pause's result."""
+    return {**_steps(result), 'paused': result.result.get('successful_pauses', [])}
+
+
+def resumed_json(result: TaskResult) -> dict[str, Any]:
+    """A Resumed document of system/resume's result."""
+    return {**_steps(result), 'resumed': result.result.get('successful_resumes', [])}
+
+
+def scheduled_json(result: TaskResult, schedule_id: str) -> dict[str, Any]:
+    """A Scheduled document of system/schedule's result (`schedule_id`: the one asked for,
+    when the Task Manager names none)."""
+    return {
+        'scheduled': bool(result.result.get('success', False)),
+        'schedule_id': result.result.get('schedule_id', schedule_id),
+        'next_run': iso(scheduled_next_run(result)),
+        'message': str(result.result.get('message', '')) or _error_of(result),
+        'task': result_json(result),
+    }
+
+
+def _steps(result: TaskResult) -> dict[str, Any]:
+    """The errors and task of a pause's or resume's answer."""
+    errors = result.result.get('errors', [])
+    if not errors and result.status != 'DONE':  # refused as a whole (e.g. too many ids)
+        errors = [_error_of(result) or f'system task ended {result.status}']
+    return {'errors': errors, 'task': result_json(result)}
+
+
+def _error_of(result: TaskResult) -> str:
+    error = result.result.get('error')
+    return error if isinstance(error, str) else ''

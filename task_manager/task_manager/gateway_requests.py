@@ -2,6 +2,7 @@
 used by the web gateway and the MQTT bridge alike, so that both ask the Task Manager the same
 thing for the same document. They block: call them from a worker thread."""
 
+from collections.abc import Sequence
 from typing import Any
 
 from task_manager.client import (
@@ -125,18 +126,50 @@ def schedule(client: TaskManagerClient, request: models.ScheduleTask, *, source:
     )
 
 
+class UnknownScheduleError(LookupError):
+    """A schedule id the Task Manager has no schedule of."""
+
+    def __init__(self, schedule_id: str, index: int) -> None:
+        super().__init__(f'the Task Manager has no schedule {schedule_id!r}')
+        self.schedule_id = schedule_id
+        self.index = index
+        """Its place among the ids asked for."""
+
+
+def enable_schedules(
+    client: TaskManagerClient,
+    schedule_ids: Sequence[str],
+    request: models.EnableSchedule,
+    *,
+    source: str,
+) -> tuple[TaskResult, list[ScheduleInfo]]:
+    """system/enable_schedule of these schedules; its result and the schedules changed, as they
+    are then. Every id is looked up first: UnknownScheduleError for the first that is no schedule,
+    and nothing is changed."""
+    known = {s.schedule_id for s in client.schedules(schedule_ids)}
+    for index, schedule_id in enumerate(schedule_ids):
+        if schedule_id not in known:
+            raise UnknownScheduleError(schedule_id, index)
+    result = client.enable_schedules(schedule_ids, request.enabled, source=source)
+    changed = list(dict.fromkeys(result.result.get('changed', [])))
+    return result, client.schedules(changed) if changed else []
+
+
 def enable_schedule(
     client: TaskManagerClient, schedule_id: str, request: models.EnableSchedule, *, source: str
 ) -> ScheduleInfo | None:
     """system/enable_schedule of one schedule; the schedule then, None when there is none."""
-    result = client.enable_schedules([schedule_id], request.enabled, source=source)
-    if schedule_id not in result.result.get('changed', []):
+    try:
+        _, found = enable_schedules(client, [schedule_id], request, source=source)
+    except UnknownScheduleError:
         return None
-    found = client.schedules([schedule_id])
     return found[0] if found else None
 
 
 def unschedule(client: TaskManagerClient, schedule_id: str, *, source: str) -> TaskResult | None:
-    """system/unschedule of one schedule; its result, None when there is no such schedule."""
+    """system/unschedule of one schedule; its result, None when there is no such schedule (it
+    is looked up first: then nothing runs)."""
+    if not client.schedules([schedule_id]):
+        return None
     result = client.unschedule([schedule_id], source=source)
     return result if schedule_id in result.result.get('removed', []) else None

@@ -5,9 +5,14 @@ through the client in a control thread, its request and answer documents `task_m
 from fastapi import FastAPI
 
 from task_manager import gateway_requests
-from task_manager.client import TaskResult, scheduled_next_run
 from task_manager.core.request_text import text_problem
-from task_manager.gateway_json import result_json, schedule_json
+from task_manager.gateway_json import (
+    paused_json,
+    result_json,
+    resumed_json,
+    schedule_json,
+    scheduled_json,
+)
 from task_manager.protocol import models
 from task_manager_web.access import Reader, Writer
 from task_manager_web.errors import ApiError
@@ -20,9 +25,7 @@ def add_operator_routes(app: FastAPI) -> None:
         """system/pause: pause these tasks (a mission between its subtasks, a task declared
         `pause: restart` at once); the ids paused and why not the others."""
         result = await link.control(gateway_requests.pause, link.client, body, source=caller.source)
-        return models.Paused.model_validate(
-            {**_steps(result), 'paused': result.result.get('successful_pauses', [])}
-        )
+        return models.Paused.model_validate(paused_json(result))
 
     @app.post('/api/tasks/resume', tags=['tasks'])
     async def resume(body: models.ResumeTasks, caller: Writer, link: Link) -> models.Resumed:
@@ -31,9 +34,7 @@ def add_operator_routes(app: FastAPI) -> None:
         result = await link.control(
             gateway_requests.resume, link.client, body, source=caller.source
         )
-        return models.Resumed.model_validate(
-            {**_steps(result), 'resumed': result.result.get('successful_resumes', [])}
-        )
+        return models.Resumed.model_validate(resumed_json(result))
 
     @app.get('/api/schedules', tags=['schedules'])
     async def schedules(_: Reader, link: Link) -> list[models.Schedule]:
@@ -50,15 +51,7 @@ def add_operator_routes(app: FastAPI) -> None:
         result = await link.control(
             gateway_requests.schedule, link.client, body, source=caller.source
         )
-        return models.Scheduled.model_validate(
-            {
-                'scheduled': bool(result.result.get('success', False)),
-                'schedule_id': result.result.get('schedule_id', body.schedule_id),
-                'next_run': scheduled_next_run(result),
-                'message': str(result.result.get('message', '')) or _error_of(result),
-                'task': result_json(result),
-            }
-        )
+        return models.Scheduled.model_validate(scheduled_json(result, body.schedule_id))
 
     @app.patch('/api/schedules/{schedule_id:path}', tags=['schedules'])
     async def enable_schedule(
@@ -89,19 +82,6 @@ def add_operator_routes(app: FastAPI) -> None:
         if result is None:
             raise _unknown(schedule_id)
         return models.Task.model_validate(result_json(result))
-
-
-def _steps(result: TaskResult) -> dict[str, object]:
-    """The errors and task of a pause's or resume's answer."""
-    errors = result.result.get('errors', [])
-    if not errors and result.status != 'DONE':  # refused as a whole (e.g. too many ids)
-        errors = [_error_of(result) or f'system task ended {result.status}']
-    return {'errors': errors, 'task': result_json(result)}
-
-
-def _error_of(result: TaskResult) -> str:
-    error = result.result.get('error')
-    return error if isinstance(error, str) else ''
 
 
 def _check_schedule_id(schedule_id: str) -> None:
