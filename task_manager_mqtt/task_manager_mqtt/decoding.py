@@ -24,7 +24,10 @@ from task_manager.protocol.errors import describe
 
 MAX_DEPTH = 32
 """Nesting levels (objects and arrays) a request may have; a mission's task_data uses ~6."""
-OPS = ('start_task', 'start_mission', 'cancel', 'stop', 'history', 'reprioritize', 'why')
+OPS = (
+    'start_task', 'start_mission', 'cancel', 'stop', 'history', 'reprioritize', 'why', 'pause',
+    'resume', 'schedule', 'unschedule', 'enable_schedules', 'schedules',
+)  # fmt: skip
 
 # a JSON string (escapes included) and each structural character; anything else between
 _TOKEN = re.compile(rb'"[^"\\]*(?:\\.[^"\\]*)*"|[{}\[\]:,]', re.DOTALL)

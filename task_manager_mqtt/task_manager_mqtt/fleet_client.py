@@ -14,19 +14,29 @@ import threading
 import uuid
 from collections.abc import Callable
 from concurrent.futures import Future
-from dataclasses import dataclass, field, replace
-from typing import Any
+from dataclasses import replace
+from typing import Any, Unpack
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
 from task_manager_mqtt.connection import connect, largest_payload, new_client
 from task_manager_mqtt.decoding import load_json
+from task_manager_mqtt.fleet_types import (
+    TIMEOUT_SEC,
+    Document,
+    FleetError,
+    FleetTask,
+    RobotView,
+    ScheduleFields,
+    StartOptions,
+    outcome,
+    schedule_document,
+)
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, Tls
 from task_manager_mqtt.topics import ANY_ROBOT, Topics
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
-TIMEOUT_SEC = 10.0
 SESSION_EXPIRY_SEC = 24 * 3600
 RECONNECT_MAX_SEC = 2
 FINAL_STATUSES = ('DONE', 'ERROR', 'CANCELED')
@@ -34,57 +44,6 @@ KEEPALIVE_SEC = 60
 # the topics followed, of every robot; the connection last, so that the retained state of a
 # robot is there when it is seen ONLINE
 FOLLOWED = ('reply', 'result', 'dead_letter', 'tasks', 'active_tasks', 'connection')
-
-Document = dict[str, Any]
-
-
-class FleetError(Exception):
-    """A request the robot refused (its error code and message), or no answer in time."""
-
-    def __init__(self, message: str, code: str = '') -> None:
-        super().__init__(message)
-        self.code = code
-
-
-@dataclass
-class RobotView:
-    """What is known of one robot, from its retained topics."""
-
-    robot_id: str
-    connection: Document | None = None
-    active_tasks: list[Document] = field(default_factory=list)
-    tasks: list[Document] = field(default_factory=list)
-    last_sequence: int = 0
-    """Of the last result passed on (results at or below it are duplicates)."""
-    duplicates: int = 0
-    """Results delivered again (after a reconnection) and not passed on."""
-
-    @property
-    def online(self) -> bool:
-        return bool(self.connection and self.connection.get('connection_state') == 'ONLINE')
-
-    @property
-    def dead_letters(self) -> int:
-        """Request messages its bridge could not answer since it started (see on_dead_letter)."""
-        return int((self.connection or {}).get('dead_letters') or 0)
-
-
-@dataclass
-class FleetTask:
-    """A task or mission started on a robot: its reply, then its result (Task documents)."""
-
-    robot_id: str
-    task_id: str
-    reply_future: Future[Document]
-    result_future: Future[Document]
-
-    def accepted(self, timeout_sec: float = TIMEOUT_SEC) -> Document:
-        """The robot's reply (FleetError if it refused the request)."""
-        return _outcome(self.reply_future, timeout_sec, f'reply of {self.robot_id}')
-
-    def result(self, timeout_sec: float = TIMEOUT_SEC) -> Document:
-        """The ended task (a Task document with its status, error code and result)."""
-        return _outcome(self.result_future, timeout_sec, f'result of {self.task_id}')
 
 
 class FleetClient:
@@ -178,7 +137,7 @@ class FleetClient:
         *,
         task_id: str = '',
         source: str = '',
-        **options: Any,
+        **options: Unpack[StartOptions],
     ) -> FleetTask:
         """Start a task on a robot; its reply and result come to the FleetTask.
 
@@ -195,7 +154,7 @@ class FleetClient:
         *,
         task_id: str = '',
         source: str = '',
-        **options: Any,
+        **options: Unpack[StartOptions],
     ) -> FleetTask:
         """Start a mission: `subtasks` as StartMission's (task_name, task_data, allow_skipping);
         `options` as start_task's, of the mission as one unit."""
@@ -206,34 +165,110 @@ class FleetClient:
         self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
     ) -> Document:
         """system/cancel_task on the robot; its ended Task document."""
-        reply = self.request(robot_id, 'cancel', task_ids=task_ids)
-        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['task']
+        return self._answer(robot_id, 'cancel', timeout_sec, task_ids=task_ids)['task']
 
     def stop(self, robot_id: str, timeout_sec: float = TIMEOUT_SEC) -> Document:
         """system/stop on the robot; its ended Task document."""
-        reply = self.request(robot_id, 'stop')
-        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['task']
+        return self._answer(robot_id, 'stop', timeout_sec)['task']
 
     def reprioritize(
         self, robot_id: str, task_ids: list[str], priority: int, timeout_sec: float = TIMEOUT_SEC
     ) -> Document:
         """system/reprioritize on the robot; its ended Task document (`successful_changes`,
         `errors` in its result)."""
-        reply = self.request(robot_id, 'reprioritize', task_ids=task_ids, priority=priority)
-        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['task']
+        fields = {'task_ids': task_ids, 'priority': priority}
+        return self._answer(robot_id, 'reprioritize', timeout_sec, **fields)['task']
 
     def why(self, robot_id: str, task_id: str, timeout_sec: float = TIMEOUT_SEC) -> list[Document]:
         """Every decision the robot's Task Manager took about a task (Decision documents,
         oldest first); FleetError `unknown_task_id` when it knows no such task."""
-        reply = self.request(robot_id, 'why', task_id=task_id)
-        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['decisions']
+        return self._answer(robot_id, 'why', timeout_sec, task_id=task_id)['decisions']
 
     def history(
         self, robot_id: str, timeout_sec: float = TIMEOUT_SEC, **filters: Any
     ) -> list[Document]:
         """Ended tasks from the robot's durable history (HistoryQuery's filters)."""
-        reply = self.request(robot_id, 'history', **filters)
-        return _outcome(reply, timeout_sec, f'reply of {robot_id}')['tasks']
+        return self._answer(robot_id, 'history', timeout_sec, **filters)['tasks']
+
+    def pause(
+        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/pause on the robot (a mission between its subtasks, a task declared `pause:
+        restart` at once); its Paused document: the ids `paused` (one already paused counts),
+        `errors` (why not the others), the system `task`, ended."""
+        return self._answer(robot_id, 'pause', timeout_sec, task_ids=task_ids)['paused']
+
+    def resume(
+        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/resume on the robot; its Resumed document: the ids `resumed`, `errors` (why
+        not the others, e.g. not paused), the system `task`, ended."""
+        return self._answer(robot_id, 'resume', timeout_sec, task_ids=task_ids)['resumed']
+
+    def schedule_task(
+        self,
+        robot_id: str,
+        task_name: str,
+        task_data: Document | None = None,
+        *,
+        reply_timeout_sec: float = TIMEOUT_SEC,
+        **fields: Unpack[ScheduleFields],
+    ) -> Document:
+        """system/schedule of a task on the robot; its Scheduled document: `scheduled`, the
+        `schedule_id`, its `next_run`, and `message` (when it runs, or why the robot's Task
+        Manager refused it: an unknown task, bad task_data or cron, an id taken, ...).
+
+        `fields`: exactly one of `at`, `delay_sec`, `period_sec`, `cron`, and the rest of
+        ScheduleTask's (schedule_id, time_zone, window_start, window_end, max_runs, overlap,
+        misfire_grace_sec), with start_task's options for each run (`timeout_sec` being each
+        run's; `reply_timeout_sec` is the wait for the robot's reply). A request the bridge
+        cannot take (two whens, a field misspelt, ...) is FleetError `invalid_request`.
+        """
+        document = {'task_name': task_name, 'task_data': task_data or {}}
+        return self._schedule(robot_id, document, fields, reply_timeout_sec)
+
+    def schedule_mission(
+        self,
+        robot_id: str,
+        subtasks: list[Document],
+        *,
+        reply_timeout_sec: float = TIMEOUT_SEC,
+        **fields: Unpack[ScheduleFields],
+    ) -> Document:
+        """system/schedule of a mission (`subtasks` as start_mission's), as schedule_task;
+        a subtask's task_id only in a schedule that runs once (each run makes its own)."""
+        return self._schedule(robot_id, {'subtasks': subtasks}, fields, reply_timeout_sec)
+
+    def unschedule(
+        self, robot_id: str, schedule_id: str, timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/unschedule of a schedule on the robot (its runs already started go on); its
+        ended Task document. FleetError `unknown_schedule_id` when there is no such schedule."""
+        return self._answer(robot_id, 'unschedule', timeout_sec, schedule_id=schedule_id)['task']
+
+    def enable_schedules(
+        self,
+        robot_id: str,
+        schedule_ids: list[str],
+        enabled: bool,
+        timeout_sec: float = TIMEOUT_SEC,
+    ) -> list[Document]:
+        """Disable schedules on the robot (no runs; their counts kept) or enable them again
+        (from their next due time after now); the Schedule documents changed, as they are then.
+        FleetError `unknown_schedule_id` (and none changed) when one is no schedule."""
+        fields = {'schedule_ids': schedule_ids, 'enabled': enabled}
+        return self._answer(robot_id, 'enable_schedules', timeout_sec, **fields)['schedules']
+
+    def schedules(
+        self,
+        robot_id: str,
+        schedule_ids: list[str] | None = None,
+        timeout_sec: float = TIMEOUT_SEC,
+    ) -> list[Document]:
+        """The robot's schedules (Schedule documents: when each runs, its next run, its last
+        run's status, its counts), every one or those of `schedule_ids` that exist."""
+        fields = {'schedule_ids': schedule_ids or []}
+        return self._answer(robot_id, 'schedules', timeout_sec, **fields)['schedules']
 
     def request(
         self, robot_id: str, op: str, *, request_id: str = '', **fields: Any
@@ -261,6 +296,17 @@ class FleetClient:
         if early is not None:
             self._refused(request_id, early)
         return reply
+
+    def _answer(self, robot_id: str, op: str, wait_sec: float, /, **fields: Any) -> Document:
+        """The robot's reply to a request (FleetError if it is an error reply); `fields` may
+        hold a `timeout_sec` of their own (a schedule's runs')."""
+        return outcome(self.request(robot_id, op, **fields), wait_sec, f'reply of {robot_id}')
+
+    def _schedule(
+        self, robot_id: str, what: Document, fields: ScheduleFields, timeout_sec: float
+    ) -> Document:
+        document = {**what, **schedule_document(fields)}
+        return self._answer(robot_id, 'schedule', timeout_sec, **document)['scheduled']
 
     def _start(
         self, robot_id: str, op: str, fields: Document, task_id: str, source: str
@@ -433,17 +479,3 @@ class FleetClient:
         if robot is None:
             robot = self.robots[robot_id] = RobotView(robot_id)
         return robot
-
-
-def _outcome(future: Future[Document], timeout_sec: float, what: str) -> Document:
-    try:
-        return _checked(future.result(timeout_sec))
-    except TimeoutError:
-        raise FleetError(f'no {what} within {timeout_sec} s', 'timeout') from None
-
-
-def _checked(reply: Document) -> Document:
-    if reply.get('ok') is False:
-        error = reply.get('error') or {}
-        raise FleetError(error.get('message', 'refused'), error.get('code', ''))
-    return reply

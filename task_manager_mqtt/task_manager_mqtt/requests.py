@@ -5,8 +5,10 @@ a bad one with a usable request_id gets an error reply naming what is wrong and 
 allowed (`invalid_request`, `payload_too_large`, `nesting_too_deep`, `retained_request`),
 one without is a dead letter (see Answer). No Task Manager is `task_manager_unavailable`.
 A start whose task id the Task Manager already knows starts nothing: the reply is that
-task, with `duplicate: true`; `why` of a task it does not know is `unknown_task_id`.
-Whatever happens, `answer` returns one Answer.
+task, with `duplicate: true`; `why` of a task it does not know is `unknown_task_id`, and
+`unschedule` or `enable_schedules` of a schedule it does not have `unknown_schedule_id`.
+Pause, resume and the schedules go through the same calls as the web gateway's routes
+(`gateway_requests`). Whatever happens, `answer` returns one Answer.
 """
 
 import contextlib
@@ -19,7 +21,15 @@ from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.status import TaskStatus
-from task_manager.gateway_json import decisions_json, result_json, task_json
+from task_manager.gateway_json import (
+    decisions_json,
+    paused_json,
+    result_json,
+    resumed_json,
+    schedule_json,
+    scheduled_json,
+    task_json,
+)
 from task_manager.protocol import mqtt
 from task_manager_mqtt.decoding import Decoded, decode, refusal
 
@@ -29,6 +39,14 @@ NODE_WAIT_SEC = 5.0
 
 REMEMBERED_STARTS = 1000
 """Tasks the bridge started whose id it remembers, for requests delivered again."""
+OperatorRequest = (
+    mqtt.PauseRequest
+    | mqtt.ResumeRequest
+    | mqtt.ScheduleRequest
+    | mqtt.UnscheduleRequest
+    | mqtt.EnableSchedulesRequest
+    | mqtt.SchedulesRequest
+)
 
 
 class Refusal(Exception):  # noqa: N818 - an answer, not a failure of the bridge
@@ -98,6 +116,8 @@ class RequestHandler:
             raise TaskManagerUnavailable(
                 "the Task Manager is not reachable from the robot's bridge"
             )
+        if isinstance(request, OperatorRequest):
+            return self._operate(request)
         match request:
             case mqtt.StartTaskRequest():
                 return self._start_task(request)
@@ -122,6 +142,41 @@ class RequestHandler:
                     raise Refusal('unknown_task_id', message, 'task_id')
                 return {'decisions': decisions_json(decisions)}
         raise AssertionError(f'unhandled request {request!r}')
+
+    def _operate(self, request: OperatorRequest) -> dict[str, Any]:
+        """pause, resume and the schedules' ops: the system task, ended, and the answer."""
+        client, source = self.client, self.source
+        if isinstance(request, mqtt.SchedulesRequest):
+            return {'schedules': [schedule_json(s) for s in client.schedules(request.schedule_ids)]}
+        client.wait_until_available()
+        match request:
+            case mqtt.PauseRequest():
+                result = gateway_requests.pause(client, request, source=source)
+                return {'task': result_json(result), 'paused': paused_json(result)}
+            case mqtt.ResumeRequest():
+                result = gateway_requests.resume(client, request, source=source)
+                return {'task': result_json(result), 'resumed': resumed_json(result)}
+            case mqtt.ScheduleRequest():
+                result = gateway_requests.schedule(client, request, source=source)
+                scheduled = scheduled_json(result, request.schedule_id)
+                return {'task': result_json(result), 'scheduled': scheduled}
+            case mqtt.UnscheduleRequest():
+                removed = gateway_requests.unschedule(client, request.schedule_id, source=source)
+                if removed is None:
+                    raise _unknown_schedule(request.schedule_id, 'schedule_id')
+                return {'task': result_json(removed)}
+            case mqtt.EnableSchedulesRequest():
+                return self._enable_schedules(request)
+        raise AssertionError(f'unhandled request {request!r}')
+
+    def _enable_schedules(self, request: mqtt.EnableSchedulesRequest) -> dict[str, Any]:
+        try:
+            result, changed = gateway_requests.enable_schedules(
+                self.client, request.schedule_ids, request, source=self.source
+            )
+        except gateway_requests.UnknownScheduleError as unknown:
+            raise _unknown_schedule(unknown.schedule_id, f'schedule_ids.{unknown.index}') from None
+        return {'task': result_json(result), 'schedules': [schedule_json(s) for s in changed]}
 
     def _wait_for_node_once(self) -> None:
         """Before the first request to run: those the broker kept while the bridge was away
@@ -184,6 +239,11 @@ def handle_state(handle: Any) -> TaskState:
 def _started(handle: TaskHandle) -> dict[str, Any]:
     state: TaskState | None = handle.state
     return {'task_id': handle.task_id, 'task': None if state is None else task_json(state)}
+
+
+def _unknown_schedule(schedule_id: str, field: str) -> Refusal:
+    message = f'the Task Manager has no schedule {schedule_id!r}'
+    return Refusal('unknown_schedule_id', message, field)
 
 
 def _error_reply(decoded: Decoded, detail: dict[str, str]) -> dict[str, Any]:

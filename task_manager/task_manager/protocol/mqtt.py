@@ -8,15 +8,24 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, Field, RootModel
 
+from task_manager.core.names import IDS_MAX
 from task_manager.protocol.models import (
     NAME_MAX,
     CancelTasks,
     Decision,
     DeclaredTask,
+    EnableSchedule,
     ErrorDetail,
     HistoryQuery,
     Name,
+    Paused,
+    PauseTasks,
     Reprioritize,
+    Resumed,
+    ResumeTasks,
+    Schedule,
+    Scheduled,
+    ScheduleTask,
     StartMission,
     StartTask,
     Task,
@@ -78,6 +87,49 @@ class WhyRequest(_Addressed):
     task_id: Name = Field(min_length=1, max_length=NAME_MAX)
 
 
+class PauseRequest(PauseTasks, _Addressed):
+    """`pause`: system/pause of these ids."""
+
+    op: Literal['pause']
+
+
+class ResumeRequest(ResumeTasks, _Addressed):
+    """`resume`: system/resume of these ids."""
+
+    op: Literal['resume']
+
+
+class ScheduleRequest(ScheduleTask, _Addressed):
+    """`schedule`: system/schedule of a task or a mission (the fields of the web API's POST
+    /api/schedules; created by the bridge's source)."""
+
+    op: Literal['schedule']
+
+
+class UnscheduleRequest(_Addressed):
+    """`unschedule`: system/unschedule of one schedule; `unknown_schedule_id` if there is none."""
+
+    op: Literal['unschedule']
+    schedule_id: Name = Field(min_length=1, max_length=NAME_MAX)
+
+
+class EnableSchedulesRequest(EnableSchedule, _Addressed):
+    """`enable_schedules`: system/enable_schedule of these schedules; `unknown_schedule_id`,
+    and none changed, if one is no schedule."""
+
+    op: Literal['enable_schedules']
+    schedule_ids: list[Name] = Field(min_length=1, max_length=IDS_MAX)
+
+
+class SchedulesRequest(_Addressed):
+    """`schedules`: the schedules, every one or those of these ids (those found)."""
+
+    op: Literal['schedules']
+    schedule_ids: list[Name] = Field(
+        default_factory=list, max_length=IDS_MAX, description='Empty: every schedule.'
+    )
+
+
 RequestBody = Annotated[
     StartTaskRequest
     | StartMissionRequest
@@ -85,7 +137,13 @@ RequestBody = Annotated[
     | StopRequest
     | HistoryRequest
     | ReprioritizeRequest
-    | WhyRequest,
+    | WhyRequest
+    | PauseRequest
+    | ResumeRequest
+    | ScheduleRequest
+    | UnscheduleRequest
+    | EnableSchedulesRequest
+    | SchedulesRequest,
     Field(discriminator='op'),
 ]
 
@@ -107,10 +165,19 @@ class Reply(BaseModel):
     )
     task: Task | None = Field(
         None,
-        description='start: its latest state; cancel, stop, reprioritize: the system task, ended.',
+        description='start: its latest state; cancel, stop, reprioritize, pause, resume, '
+        'schedule, unschedule, enable_schedules: the system task, ended.',
     )
     tasks: list[Task] | None = Field(None, description='history: the tasks found.')
     decisions: list[Decision] | None = Field(None, description="why: the task's, oldest first.")
+    paused: Paused | None = Field(None, description='pause: the ids paused, why not the others.')
+    resumed: Resumed | None = Field(None, description='resume: the ids resumed, why not others.')
+    scheduled: Scheduled | None = Field(
+        None, description='schedule: whether the Task Manager took it (else why), its first run.'
+    )
+    schedules: list[Schedule] | None = Field(
+        None, description='schedules: those found; enable_schedules: those changed, as now.'
+    )
     error: ErrorDetail | None = Field(None, description='When ok is false.')
 
 
