@@ -1,14 +1,18 @@
 """Fixtures of the gateway tests: a real Task Manager node and a real gateway, as users run them.
 
 The node serves `fib` (a scripted Fibonacci action server in the test process, reentrant,
-cancelled by system/stop) and `instant` (a SetBool service that answers at once).
+cancelled by system/stop) and `instant` (a SetBool service that answers at once). The
+dashboard's tests drive Debian's headless Chromium at /usr/bin/chromium with Playwright, which
+never downloads a browser.
 """
 
+import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import httpx
 import pytest
+from playwright.sync_api import Browser, Page, expect, sync_playwright
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, wait_until
 from task_manager_web.testing import GatewayProcess
@@ -44,4 +48,67 @@ def http(robot: Robot, gateway: GatewayProcess) -> Iterator[httpx.Client]:
         timeout=TIMEOUT_SEC,
     ) as client:
         wait_until(lambda: client.get('/api/health').json()['connected'], 'gateway connected')
+        yield client
+
+
+CHROMIUM = shutil.which('chromium') or '/usr/bin/chromium'
+# No background connections: this machine's network is closed, and the test needs none.
+CHROMIUM_ARGS = [
+    '--no-sandbox',
+    '--disable-gpu',
+    '--disable-quic',
+    '--no-first-run',
+    '--disable-background-networking',
+    '--disable-component-update',
+    '--disable-sync',
+]
+EXPECT_TIMEOUT_MS = int(TIMEOUT_SEC * 1000)
+
+
+@pytest.fixture(scope='module')
+def browser() -> Iterator[Browser]:
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+        yield browser
+        browser.close()
+
+
+@pytest.fixture
+def blank_page(browser: Browser) -> Iterator[Page]:
+    """A new page whose script errors and Content-Security-Policy refusals fail the test."""
+    expect.set_options(timeout=EXPECT_TIMEOUT_MS)
+    context = browser.new_context(viewport={'width': 1280, 'height': 900})
+    page = context.new_page()
+    errors = _watch_errors(page)
+    yield page
+    context.close()
+    assert not errors, errors
+
+
+@pytest.fixture
+def page(blank_page: Page, robot: Robot, gateway: GatewayProcess) -> Page:
+    """The dashboard, opened with the link the gateway printed, once it shows 'connected'."""
+    blank_page.goto(f'{gateway.url}/?token={gateway.token}')
+    expect(blank_page.locator('#connection')).to_have_text('connected')
+    return blank_page
+
+
+def _watch_errors(page: Page) -> list[str]:
+    """The page's script errors and what its Content-Security-Policy refused, as they come."""
+    errors: list[str] = []
+    page.on('pageerror', lambda error: errors.append(str(error)))
+    page.on(
+        'console',
+        lambda message: (
+            errors.append(message.text) if 'Content Security Policy' in message.text else None
+        ),
+    )
+    return errors
+
+
+@pytest.fixture
+def api(gateway: GatewayProcess) -> Iterator[httpx.Client]:
+    """An HTTP client of the gateway, with its token (the dashboard's tests' other door)."""
+    headers = {'Authorization': f'Bearer {gateway.token}'}
+    with httpx.Client(base_url=gateway.url, headers=headers, timeout=TIMEOUT_SEC) as client:
         yield client

@@ -1,0 +1,56 @@
+// The gateway's API: the token (taken from the address once, then kept for the session),
+// requests with it, and their errors.
+
+import { $ } from './dom.js';
+
+let token = '';
+
+export function takeToken() {
+  const url = new URL(window.location.href);
+  const fromUrl = url.searchParams.get('token');
+  if (fromUrl) {
+    sessionStorage.setItem('task_manager_token', fromUrl);
+    url.searchParams.delete('token');
+    history.replaceState(null, '', url.pathname + url.search + url.hash);
+  }
+  token = sessionStorage.getItem('task_manager_token') || '';
+  return token;
+}
+
+export function authorization() {
+  return { Authorization: `Bearer ${token}` };
+}
+
+export class ApiError extends Error {
+  constructor(status, body) {
+    super(body?.error?.message || `HTTP ${status}`);
+    this.status = status;
+    this.code = body?.error?.code || '';
+  }
+}
+
+export async function api(path, options = {}) {
+  const headers = { ...authorization(), ...(options.headers || {}) };
+  if (options.json !== undefined) headers['Content-Type'] = 'application/json';
+  const response = await fetch(path, {
+    method: options.method || 'GET',
+    headers,
+    body: options.json !== undefined ? JSON.stringify(options.json) : undefined,
+  });
+  if (response.status === 401) askForToken();
+  if (!response.ok) {
+    let body = null;
+    try { body = await response.json(); } catch { /* not JSON */ }
+    throw new ApiError(response.status, body);
+  }
+  return options.raw ? response : response.json();
+}
+
+export function askForToken() {
+  $('#token-form').hidden = false;
+}
+
+// The path of an id inside a route (`/api/schedules/{id}`): every character kept as it is.
+export function idPath(id) {
+  return encodeURIComponent(id);
+}

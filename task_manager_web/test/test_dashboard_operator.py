@@ -1,0 +1,122 @@
+"""The operator's controls on the dashboard, in a real headless Chromium against a real gateway
+and node: pause and resume, the schedules panel, confirmations waiting in the banner."""
+
+import httpx
+import pytest
+from playwright.sync_api import Page, expect
+
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot
+
+pytestmark = pytest.mark.ros
+
+FIB = {'task_name': 'fib', 'task_data': {'order': 1}}
+
+
+def node_status(api: httpx.Client, task_id: str) -> str:
+    """The task's status as the node has it (the gateway asks it)."""
+    response = api.get(f'/api/tasks/{task_id}')
+    assert response.status_code == 200, response.text
+    return str(response.json()['status'])
+
+
+def test_a_mission_is_paused_and_resumed_from_the_page(
+    page: Page, robot: Robot, api: httpx.Client
+) -> None:
+    mission = {'subtasks': [FIB, FIB], 'task_id': 'm-1'}
+    assert api.post('/api/missions', json=mission).status_code == 202
+    robot.fib.wait_for_goals(1, TIMEOUT_SEC)
+    plain = {**FIB, 'task_id': 'plain'}  # fib is declared pause: none
+    assert api.post('/api/tasks/start', json=plain).status_code == 202
+    robot.fib.wait_for_goals(2, TIMEOUT_SEC)
+    row = page.locator('#active tbody tr[data-task-id="m-1"]')
+    card = page.locator('.mission[data-mission-id="m-1"]')
+    expect(page.locator('#active tbody tr[data-task-id="plain"]')).to_contain_text('IN_PROGRESS')
+    expect(page.locator('#active tbody tr[data-task-id="plain"] button.pause')).to_have_count(0)
+
+    row.locator('button.pause').click()
+
+    expect(row.locator('.badge')).to_have_text('PAUSED')
+    expect(card.locator('.mission-title .badge')).to_have_text('PAUSED')
+    expect(page.locator('#message')).to_have_text('m-1 paused')
+    assert node_status(api, 'm-1') == 'PAUSED'
+    expect(row.locator('button.pause')).to_have_count(0)
+
+    card.locator('button.resume').click()
+
+    expect(row.locator('.badge')).to_have_text('IN_PROGRESS')
+    expect(page.locator('#message')).to_have_text('m-1 resumed')
+    assert node_status(api, 'm-1') == 'IN_PROGRESS'
+    expect(row.locator('button.pause')).to_be_visible()
+    for goal in robot.fib.wait_for_goals(2, TIMEOUT_SEC):
+        goal.succeed()
+    robot.fib.wait_for_goals(3, TIMEOUT_SEC)[2].succeed()  # the mission goes on
+    expect(card.locator('.mission-title .badge')).to_have_text('DONE')
+
+
+def test_a_schedule_is_added_from_the_start_form_then_disabled_and_removed(
+    page: Page, api: httpx.Client
+) -> None:
+    page.select_option('#task-select', 'fib')
+    page.fill('[data-field="order"]', '4')
+    page.fill('#start-priority', '3')
+    page.select_option('#start-when', 'cron')
+    expect(page.locator('#start-button')).to_have_text('Schedule')
+    page.fill('#when-cron', '0 2 * * *')
+    page.fill('#when-time-zone', 'Europe/Paris')
+    page.fill('#when-schedule-id', 'nightly')
+
+    page.click('#start-button')
+
+    expect(page.locator('#message')).to_contain_text('Scheduled fib: nightly, next run ')
+    row = page.locator('#schedules tbody tr[data-schedule-id="nightly"]')
+    expect(row).to_contain_text('Europe/Paris')
+    expect(row.locator('.next-run .relative')).to_contain_text('in ')
+    expect(row.locator('.last-run')).to_have_text('not yet')
+    expect(row.locator('.counts')).to_have_text('0 run, 0 missed')
+    (schedule,) = api.get('/api/schedules').json()
+    assert (schedule['task_name'], schedule['task_data'], schedule['options']) == (
+        'fib',
+        {'order': 4},
+        {'priority': 3},
+    )
+    assert (schedule['cron'], schedule['time_zone'], schedule['created_by']) == (
+        '0 2 * * *',
+        'Europe/Paris',
+        'WEB',
+    )
+
+    row.locator('button.toggle').click()
+
+    expect(row).to_have_attribute('data-enabled', 'false')
+    expect(row.locator('.next-run')).to_have_text('disabled')
+    expect(row.locator('button.toggle')).to_have_text('Enable')
+    assert api.get('/api/schedules').json()[0]['enabled'] is False
+
+    row.locator('button.remove').click()
+    expect(page.locator('#remove-dialog')).to_contain_text('nightly')
+    page.click('#remove-keep')  # asked again: kept
+    expect(page.locator('#remove-dialog')).to_be_hidden()
+    assert len(api.get('/api/schedules').json()) == 1
+    row.locator('button.remove').click()
+    page.click('#remove-yes')
+
+    expect(row).to_have_count(0)
+    expect(page.locator('#schedules-empty')).to_be_visible()
+    assert api.get('/api/schedules').json() == []
+
+
+def test_the_schedules_panel_follows_a_run_from_its_events(
+    page: Page, robot: Robot, api: httpx.Client
+) -> None:
+    once = {**FIB, 'schedule_id': 'soon', 'delay_sec': 1}
+    assert api.post('/api/schedules', json=once).json()['scheduled']  # from another door
+    row = page.locator('#schedules tbody tr[data-schedule-id="soon"]')
+    expect(row.locator('.last-run')).to_have_text('not yet')
+
+    (goal,) = robot.fib.wait_for_goals(1, TIMEOUT_SEC)
+    expect(row.locator('.counts')).to_have_text('1 run, 0 missed')
+    goal.succeed()
+
+    # the panel is read again on the run's events, not on a timer (a minute)
+    expect(row.locator('.last-run .badge')).to_have_text('DONE')
+    expect(row.locator('.next-run')).to_have_text('none to come')
