@@ -28,7 +28,8 @@ help:
 	@echo "make bench    benchmarks (not part of make test)"
 
 install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo \
-  $(STAMPS)/task_manager_web $(STAMPS)/task_manager_mqtt $(STAMPS)/chromium $(STAMPS)/mosquitto
+  $(STAMPS)/task_manager_web $(STAMPS)/task_manager_mqtt $(STAMPS)/chromium $(STAMPS)/mosquitto \
+  $(STAMPS)/task_manager_vda5050 $(STAMPS)/vda5050_master
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -77,6 +78,18 @@ $(STAMPS)/task_manager_web: task_manager_web/pyproject.toml task_manager_web/set
 $(STAMPS)/task_manager_mqtt: task_manager_mqtt/pyproject.toml task_manager_mqtt/setup.py task_manager_mqtt/setup.cfg | $(STAMPS)/task_manager
 	$(PIP) install --quiet -e 'task_manager_mqtt[dev]' -c $(CONSTRAINTS)
 	@touch $@
+
+# The VDA 5050 adapter (a separate process and package; it shares the MQTT bridge's broker
+# settings and client).
+$(STAMPS)/task_manager_vda5050: task_manager_vda5050/pyproject.toml task_manager_vda5050/setup.py task_manager_vda5050/setup.cfg | $(STAMPS)/task_manager_mqtt
+	$(PIP) install --quiet -e task_manager_vda5050 -c $(CONSTRAINTS)
+	@touch $@
+
+# The independent master control of the adapter's tests (npm's vda-5050-lib), installed from
+# its lock file into the package's test_tools/node_modules (never globally).
+$(STAMPS)/vda5050_master: task_manager_vda5050/test_tools/package.json task_manager_vda5050/test_tools/package-lock.json | $(PY)
+	cd task_manager_vda5050/test_tools && npm ci --no-audit --no-fund --loglevel=error
+	@mkdir -p $(STAMPS) && touch $@
 
 # A Debian package, installed with apt-get when its program is missing.
 # $(1): package, $(2): a program it installs, $(3): what it is for.

@@ -1,0 +1,113 @@
+"""The vehicle's MQTT connection: its last will, ONLINE and OFFLINE, what it subscribes to,
+and every publication with its header, QoS and retain flag (paho-mqtt, made as the MQTT
+bridge makes its client)."""
+
+import json
+import logging
+import threading
+from collections.abc import Callable
+from typing import Any
+
+import paho.mqtt.client as mqtt
+from paho.mqtt.reasoncodes import ReasonCode
+from task_manager_mqtt.connection import connect, new_client
+from task_manager_mqtt.settings import Broker
+
+from task_manager_vda5050.topics import DELIVERY, INBOUND, Headers, Vehicle
+
+LOG = logging.getLogger('task_manager_vda5050')
+MAX_IN_FLIGHT = 20
+SESSION_SEC = 0
+"""No session kept while away: the inbound topics are QoS 0, nothing would be queued."""
+
+
+def _ignore(*_: object) -> None:
+    pass
+
+
+class Link:
+    """`on_message(topic name, payload)` and `on_connected()` (once subscribed and ONLINE
+    sent) run on paho's thread: set them before `start()`."""
+
+    def __init__(
+        self, vehicle: Vehicle, broker: Broker, keepalive_sec: int = 10, reconnect_max_sec: int = 2
+    ) -> None:
+        self.vehicle = vehicle
+        self.headers = Headers(vehicle)
+        self._lock = threading.Lock()
+        self.on_message: Callable[[str, bytes], None] = _ignore
+        self.on_connected: Callable[[], None] = _ignore
+        self._broker = broker
+        self._keepalive_sec = keepalive_sec
+        self.refused = threading.Event()
+        """Set when the broker refuses the credentials (no retrying helps)."""
+        client_id = broker.username or f'{vehicle.manufacturer}_{vehicle.serial_number}'
+        self.mqtt = new_client(client_id, broker, reconnect_max_sec, MAX_IN_FLIGHT)
+        self.mqtt.will_set(
+            vehicle.topic('connection'),
+            json.dumps(self._with_header('connection', {'connectionState': 'CONNECTIONBROKEN'})),
+            qos=1,
+            retain=True,
+        )
+        self.mqtt.on_connect = self._connected
+        self.mqtt.on_message = self._message
+        self.mqtt.on_subscribe = self._subscribed
+        self.mqtt.on_disconnect = self._disconnected
+
+    def start(self) -> None:
+        connect(self.mqtt, self._broker, self._keepalive_sec, SESSION_SEC)
+
+    @property
+    def connected(self) -> bool:
+        return self.mqtt.is_connected()
+
+    def publish(self, topic: str, fields: dict[str, Any]) -> dict[str, Any]:
+        """Send `fields` with a header on `topic` (headerId counted even when offline, as the
+        standard says); the message sent."""
+        qos, retain = DELIVERY[topic]
+        with self._lock:
+            message = self._with_header(topic, fields)
+            self.mqtt.publish(self.vehicle.topic(topic), json.dumps(message), qos, retain)
+        return message
+
+    def stop(self, timeout_sec: float = 5.0) -> None:
+        """OFFLINE (retained), delivered before a clean disconnection (no last will)."""
+        if self.connected:
+            info = self.mqtt.publish(
+                self.vehicle.topic('connection'),
+                json.dumps(self._with_header('connection', {'connectionState': 'OFFLINE'})),
+                qos=1,
+                retain=True,
+            )
+            info.wait_for_publish(timeout_sec)
+        self.mqtt.disconnect()
+        self.mqtt.loop_stop()
+
+    def _with_header(self, topic: str, fields: dict[str, Any]) -> dict[str, Any]:
+        return {**self.headers.header(topic), **fields}
+
+    def _connected(
+        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+    ) -> None:
+        if reason.is_failure:
+            LOG.error('the broker refused the connection: %s', reason)
+            if reason.getName() in ('Bad user name or password', 'Not authorized'):
+                self.refused.set()
+            return
+        client.subscribe([(self.vehicle.topic(name), DELIVERY[name][0]) for name in INBOUND])
+
+    def _subscribed(self, _: mqtt.Client, __: Any, ___: int, reasons: Any, ____: Any) -> None:
+        """ONLINE once the vehicle hears its order and instantActions topics."""
+        self.publish('connection', {'connectionState': 'ONLINE'})
+        LOG.info('connected to the broker %s as %s', self._broker.url, self.vehicle.prefix)
+        self.on_connected()
+
+    def _disconnected(
+        self, _: mqtt.Client, __: Any, ___: Any, reason: ReasonCode, ____: Any
+    ) -> None:
+        LOG.warning('disconnected from the broker (%s); reconnecting', reason)
+
+    def _message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
+        name = message.topic.rsplit('/', 1)[-1]
+        if message.topic == self.vehicle.topic(name) and name in INBOUND:
+            self.on_message(name, bytes(message.payload))

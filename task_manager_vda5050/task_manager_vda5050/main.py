@@ -1,0 +1,121 @@
+"""Console script `task-manager-vda5050`: one robot's Task Manager as a VDA 5050 vehicle.
+
+    task-manager-vda5050 --manufacturer acme --serial-number robot1 \\
+        --broker-url mqtt://robot1@127.0.0.1:1883 --password-file pw --mapping mapping.yaml
+
+It waits for the Task Manager, then connects to the broker (last will CONNECTIONBROKEN,
+then ONLINE, both retained) and serves <interface>/v2/<manufacturer>/<serialNumber>/order
+and instantActions. Ctrl-C or SIGTERM: OFFLINE is published (retained), then a clean
+disconnection. Exit codes: 0 after a clean stop, 2 for unusable settings, a mapping that
+cannot be read, credentials the broker refuses or no Task Manager.
+"""
+
+import argparse
+import logging
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from task_manager_mqtt.settings import Broker, SettingsError
+
+from task_manager.client import TaskManagerClient
+from task_manager.core.errors import TaskManagerError
+from task_manager.discovery import use_quick_discovery
+from task_manager_vda5050.adapter import STATE_PERIOD_SEC, Adapter
+from task_manager_vda5050.link import Link
+from task_manager_vda5050.mapping import Mapping, MappingError, read_mapping
+from task_manager_vda5050.topics import DEFAULT_INTERFACE, Vehicle
+
+EXIT_USAGE = 2
+CLIENT_TIMEOUT_SEC = 5.0
+TASK_MANAGER_WAIT_SEC = 30.0
+LOG_FORMAT = 'task-manager-vda5050: [%(levelname)s] %(message)s'
+
+
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog='task-manager-vda5050',
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument('--manufacturer', required=True, help='one topic level')
+    parser.add_argument('--serial-number', required=True, help='one topic level')
+    parser.add_argument('--interface-name', default=DEFAULT_INTERFACE, help='(uagv)')
+    parser.add_argument('--mapping', type=Path, required=True, help='YAML mapping to tasks')
+    parser.add_argument(
+        '--broker-url',
+        default='mqtt://127.0.0.1:1883',
+        help='mqtt://[user[:password]@]host[:port] or mqtts://... (TLS)',
+    )
+    parser.add_argument('--password-file', type=Path, help='file holding the broker password')
+    parser.add_argument(
+        '--state-period-sec', type=float, default=STATE_PERIOD_SEC, help='state at least every (30)'
+    )
+    parser.add_argument('--keepalive-sec', type=int, default=10, help='MQTT keep-alive (10 s)')
+    return parser.parse_args(argv)
+
+
+def _broker(options: argparse.Namespace) -> Broker:
+    broker = Broker.from_url(options.broker_url)
+    if options.password_file is None:
+        return broker
+    try:
+        password = options.password_file.read_text().strip()
+    except OSError as error:
+        raise SettingsError(f'cannot read the password file: {error}') from None
+    return Broker(broker.host, broker.port, broker.username, password, broker.tls)
+
+
+def main(argv: list[str] | None = None) -> int:
+    use_quick_discovery()
+    logging.basicConfig(level=logging.INFO, format=LOG_FORMAT, stream=sys.stderr)
+    options = _arguments(argv)
+    try:
+        vehicle = Vehicle(options.manufacturer, options.serial_number, options.interface_name)
+        broker = _broker(options)
+        mapping = read_mapping(options.mapping)
+    except (SettingsError, MappingError, ValueError) as error:
+        print(f'task-manager-vda5050: {error}', file=sys.stderr)
+        return EXIT_USAGE
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    with TaskManagerClient('task_manager_vda5050', timeout_sec=CLIENT_TIMEOUT_SEC) as client:
+        try:
+            client.wait_until_available(TASK_MANAGER_WAIT_SEC, events=True)
+        except TaskManagerError as error:
+            print(f'task-manager-vda5050: {error}', file=sys.stderr)
+            return EXIT_USAGE
+        return _serve(client, vehicle, broker, mapping, options, stop)
+
+
+def _serve(
+    client: TaskManagerClient,
+    vehicle: Vehicle,
+    broker: Broker,
+    mapping: Mapping,
+    options: argparse.Namespace,
+    stop: threading.Event,
+) -> int:
+    link = Link(vehicle, broker, keepalive_sec=options.keepalive_sec)
+    adapter = Adapter(client, link, mapping, options.state_period_sec)
+    link.on_message = adapter.on_message
+    link.on_connected = adapter.on_connected
+    adapter.start()
+    link.start()
+    threading.Thread(target=_stop_when_refused, args=(link, stop), daemon=True).start()
+    stop.wait()
+    link.stop()
+    adapter.stop()
+    return EXIT_USAGE if link.refused.is_set() else 0
+
+
+def _stop_when_refused(link: Link, stop: threading.Event) -> None:
+    """Credentials the broker refuses: no retry helps, the adapter stops (exit code 2)."""
+    link.refused.wait()
+    stop.set()
+
+
+if __name__ == '__main__':
+    sys.exit(main())

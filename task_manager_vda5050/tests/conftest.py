@@ -1,0 +1,94 @@
+"""Fixtures of the adapter's tests: a real mosquitto, the demo robot and its Task Manager,
+the adapter as users run it, and the independent master control (npm's vda-5050-lib)."""
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from task_manager.client import TaskManagerClient
+from task_manager.testing.process import NodeProcess
+from task_manager_demo.robot_interface import ROBOT_READY_LOG
+from task_manager_demo.testing import DemoProcess, robot_command
+from task_manager_vda5050.broker import MASTER_USER
+from task_manager_vda5050.testing import (
+    MANUFACTURER,
+    SERIAL,
+    START_TIMEOUT_SEC,
+    TESTER,
+    AdapterProcess,
+    BrokerProcess,
+    Master,
+)
+
+DEMO_PARAMS = (
+    Path(__file__).resolve().parents[2] / 'task_manager_demo' / 'params' / 'demo_tasks.yaml'
+)
+# fast enough for short tests, slow enough that a 40 m leg is still driving when paused
+ROBOT_SPEEDS = ('linear_speed:=8.0', 'angular_speed:=20.0')
+
+
+@pytest.fixture(scope='module')
+def demo_robot(ros_context: None) -> Iterator[TaskManagerClient]:
+    """The simulated robot and a Task Manager with the demo's tasks (for the module), and a
+    client of it."""
+    robot = DemoProcess('robot', robot_command(*ROBOT_SPEEDS))
+    task_manager = NodeProcess(DEMO_PARAMS)
+    try:
+        robot.wait_for_line(ROBOT_READY_LOG, START_TIMEOUT_SEC)
+        task_manager.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
+        with TaskManagerClient('vda5050_test', timeout_sec=START_TIMEOUT_SEC) as client:
+            client.wait_until_available()
+            yield client
+    finally:
+        assert task_manager.stop() == 0, '\n'.join(task_manager.log_lines)
+        assert robot.stop() == 0, robot.output
+
+
+@pytest.fixture
+def broker(tmp_path: Path) -> Iterator[BrokerProcess]:
+    broker = BrokerProcess(tmp_path / 'broker', MANUFACTURER, [SERIAL], [MASTER_USER, TESTER])
+    broker.start()
+    yield broker
+    broker.stop()
+
+
+@pytest.fixture
+def adapter(demo_robot: TaskManagerClient, broker: BrokerProcess) -> Iterator[AdapterProcess]:
+    adapter = AdapterProcess(broker)
+    yield adapter
+    assert adapter.stop() == 0, '\n'.join(adapter.log_lines)
+
+
+@pytest.fixture
+def master(broker: BrokerProcess, adapter: AdapterProcess) -> Iterator[Master]:
+    """The master control, once the vehicle is ONLINE; at the end, every message it received
+    was valid for it (none dropped) and against the 2.0.0 and the 2.1.0 schemas."""
+    master = Master(broker, MASTER_USER)
+    try:
+        master.wait_for(
+            lambda e: (
+                e['event'] == 'message'
+                and e['topic'] == 'connection'
+                and e['object']['connectionState'] == 'ONLINE'
+            ),
+            'ONLINE',
+        )
+        yield master
+        check_every_message(master)
+    finally:
+        master.stop()
+
+
+def check_every_message(master: Master) -> None:
+    from task_manager_vda5050.schemas import problems
+
+    assert master.dropped() == []
+    seen: list[tuple[str, dict[str, Any]]] = [
+        (e['topic'], e['object']) for e in master.events if e['event'] == 'message'
+    ]
+    assert seen
+    for topic, document in seen:
+        assert problems(topic, document) == [], (topic, document)
+        assert master.validate_2_0(topic, document) == [], (topic, document)

@@ -1,0 +1,211 @@
+"""A master control no one here wrote (npm's vda-5050-lib MasterController, VDA 5050 2.0.0)
+drives the demo robot through the adapter and its Task Manager, over a real mosquitto: an
+order with an action, pause and resume, cancelOrder, factsheetRequest and malformed
+messages. Every message the master receives is checked (conftest.check_every_message)."""
+
+import itertools
+import json
+import uuid
+from typing import Any
+
+import pytest
+
+from task_manager.client import TaskManagerClient
+from task_manager.core.status import TaskStatus
+from task_manager_vda5050.testing import Master
+
+pytestmark = pytest.mark.ros
+
+
+def node(
+    node_id: str, sequence_id: int, x: float, y: float, *actions: dict[str, Any]
+) -> dict[str, Any]:
+    return {
+        'nodeId': node_id,
+        'sequenceId': sequence_id,
+        'released': True,
+        'nodePosition': {'x': x, 'y': y, 'mapId': 'demo'},
+        'actions': list(actions),
+    }
+
+
+def edge(start: dict[str, Any], end: dict[str, Any]) -> dict[str, Any]:
+    return {
+        'edgeId': f'{start["nodeId"]}-{end["nodeId"]}',
+        'sequenceId': start['sequenceId'] + 1,
+        'released': True,
+        'startNodeId': start['nodeId'],
+        'endNodeId': end['nodeId'],
+        'actions': [],
+    }
+
+
+def order(order_id: str, *nodes: dict[str, Any]) -> dict[str, Any]:
+    return {
+        'orderId': order_id,
+        'orderUpdateId': 0,
+        'nodes': list(nodes),
+        'edges': [edge(a, b) for a, b in itertools.pairwise(nodes)],
+    }
+
+
+def photo(blocking_type: str = 'HARD', camera: str = 'front') -> dict[str, Any]:
+    return {
+        'actionId': f'photo-{uuid.uuid4().hex[:8]}',
+        'actionType': 'take_photo',
+        'blockingType': blocking_type,
+        'actionParameters': [{'key': 'camera', 'value': camera}],
+    }
+
+
+def instant(action_type: str) -> dict[str, Any]:
+    return {'actionId': f'{action_type}-{uuid.uuid4().hex[:8]}', 'actionType': action_type,
+            'blockingType': 'HARD'}  # fmt: skip
+
+
+def processed(master: Master, order_id: str, timeout_sec: float = 30.0) -> dict[str, Any]:
+    return master.wait_for(
+        lambda e: e['event'] == 'orderProcessed' and e['orderId'] == order_id,
+        f'order {order_id} processed',
+        timeout_sec,
+    )
+
+
+def instant_state(master: Master, action: dict[str, Any], status: str) -> dict[str, Any]:
+    return master.wait_for(
+        lambda e: (
+            e['event'] == 'instantActionState'
+            and e['actionState']['actionId'] == action['actionId']
+            and e['actionState']['actionStatus'] == status
+        ),
+        f'{action["actionType"]} {status}',
+    )
+
+
+def latest_state(master: Master, condition: Any, what: str) -> dict[str, Any]:
+    event = master.wait_for(
+        lambda e: e['event'] == 'message' and e['topic'] == 'state' and condition(e['object']),
+        what,
+    )
+    state: dict[str, Any] = event['object']
+    return state
+
+
+def test_the_master_completes_an_order_with_an_action(
+    master: Master, demo_robot: TaskManagerClient
+) -> None:
+    action = photo()
+    first, second = node('start', 0, 0.0, 0.0), node('shelf', 2, 2.0, 1.0, action)
+    master.command('order', order=order('order-photo', first, second))
+
+    done = processed(master, 'order-photo')
+
+    assert (done['error'], done['byCancelation'], done['active']) == (None, False, False)
+    traversed = [e['nodeId'] for e in master.events if e['event'] == 'nodeTraversed']
+    assert traversed[-1] == 'shelf'
+    finished = master.wait_for(
+        lambda e: e['event'] == 'actionState' and e['actionState']['actionStatus'] == 'FINISHED',
+        'the photo FINISHED',
+    )
+    assert json.loads(finished['actionState']['resultDescription'])['success'] is True
+    (mission,) = demo_robot.task_states(['order-photo'])
+    assert (mission.task_name, mission.status) == ('system/mission', TaskStatus.DONE)
+    (photo_task,) = demo_robot.task_states([f'order-photo/{action["actionId"]}'])
+    assert (photo_task.task_name, photo_task.mission_id) == ('camera/take_photo', 'order-photo')
+    state = latest_state(master, lambda s: s['lastNodeId'] == 'shelf', 'lastNodeId shelf')
+    assert state['agvPosition']['x'] == pytest.approx(2.0, abs=0.05)
+
+
+def test_the_master_pauses_and_resumes_an_order(master: Master) -> None:
+    master.command(
+        'order', order=order('order-far', node('a', 0, 0.0, 0.0), node('far', 2, 40.0, 0.0))
+    )
+    latest_state(master, lambda s: s['driving'], 'driving')
+    pause = instant('startPause')
+
+    master.command('instant', actions=[pause])
+
+    instant_state(master, pause, 'FINISHED')
+    paused = latest_state(master, lambda s: s['paused'] and not s['driving'], 'paused')
+    assert paused['nodeStates'][-1]['nodeId'] == 'far'
+    resume = instant('stopPause')
+    master.command('instant', actions=[resume])
+    instant_state(master, resume, 'FINISHED')
+    latest_state(master, lambda s: not s['paused'] and s['driving'], 'driving again')
+    done = processed(master, 'order-far')
+    assert (done['error'], done['byCancelation']) == (None, False)
+
+
+def test_the_master_cancels_a_long_order(master: Master, demo_robot: TaskManagerClient) -> None:
+    long_order = order(
+        'order-long', node('a', 0, 0.0, 0.0), node('b', 2, -40.0, 0.0), node('c', 4, 0.0, 0.0)
+    )
+    master.command('order', order=long_order)
+    latest_state(master, lambda s: s['driving'], 'driving')
+    cancel = instant('cancelOrder')
+
+    master.command('instant', actions=[cancel])
+
+    done = processed(master, 'order-long')
+    assert (done['error'], done['byCancelation']) == (None, True)
+    instant_state(master, cancel, 'FINISHED')
+    (mission,) = demo_robot.task_states(['order-long'])
+    assert mission.status is TaskStatus.CANCELED
+    nothing_left = latest_state(master, lambda s: not s['nodeStates'], 'no node left')
+    assert nothing_left['driving'] is False
+
+
+def test_cancel_order_without_an_order_fails_with_a_warning(master: Master) -> None:
+    cancel = instant('cancelOrder')
+
+    master.command('instant', actions=[cancel])
+
+    failed = instant_state(master, cancel, 'FAILED')
+    assert (failed['error']['errorType'], failed['error']['errorLevel']) == (
+        'noOrderToCancel',
+        'WARNING',
+    )
+
+
+def test_the_master_gets_the_factsheet(master: Master) -> None:
+    request = instant('factsheetRequest')
+
+    master.command('instant', actions=[request])
+
+    instant_state(master, request, 'FINISHED')
+    sheet = master.wait_for(
+        lambda e: e['event'] == 'message' and e['topic'] == 'factsheet', 'a factsheet'
+    )['object']
+    actions = {a['actionType']: a for a in sheet['protocolFeatures']['agvActions']}
+    assert actions['take_photo']['actionScopes'] == ['INSTANT', 'NODE', 'EDGE']
+    assert actions['take_photo']['actionDescription'].endswith('Blocking types: NONE, SOFT, HARD.')
+    assert actions['take_photo']['actionParameters'] == [
+        {'key': 'camera', 'valueDataType': 'STRING', 'isOptional': True}
+    ]
+    assert {'startPause', 'stopPause', 'cancelOrder', 'stateRequest', 'factsheetRequest'} <= set(
+        actions
+    )
+
+
+def test_a_malformed_order_is_reported_and_the_vehicle_still_takes_orders(master: Master) -> None:
+    malformed = {**order('order-bad', node('a', 0, 0.0, 0.0)), 'headerId': 1,
+                 'timestamp': '2024-01-01T00:00:00.00Z', 'version': '2.0.0',
+                 'manufacturer': 'acme', 'serialNumber': 'robot1'}  # fmt: skip
+    malformed['nodes'][0]['sequenceId'] = 'zero'
+
+    master.command('raw', topic='order', payload=json.dumps(malformed))
+    master.command('raw', topic='instantActions', payload='not json')
+
+    state = latest_state(
+        master,
+        lambda s: len([e for e in s['errors'] if e['errorType'] == 'validationError']) == 2,
+        'two validation errors',
+    )
+    order_error, text_error = [e for e in state['errors'] if e['errorType'] == 'validationError']
+    references = {r['referenceKey']: r['referenceValue'] for r in order_error['errorReferences']}
+    assert references == {'topic': 'order', 'field': 'nodes/0/sequenceId'}
+    assert 'not JSON' in text_error['errorDescription']
+    assert state['orderId'] == ''
+    master.command('order', order=order('order-good', node('home', 0, 0.0, 0.0)))
+    done = processed(master, 'order-good')
+    assert done['error'] is None
