@@ -1,58 +1,110 @@
-"""Who may use the gateway: a bearer token on every request that starts, cancels or stops.
+"""Who may do what on the gateway: a bearer token with a role (tokens.py) on every request.
 
-Reading needs it too unless the gateway runs with --read-without-token. The token is
-compared in constant time. Only the event stream also takes it as `?token=` (a browser's
-EventSource cannot send headers). A request is refused 401 with `WWW-Authenticate: Bearer`.
+Each route names the role it needs with one annotation of its caller, `Viewer`, `Operator`
+or `Admin` (`StreamViewer` for the event stream, `MetricsViewer` for /metrics): the rule of
+every route is there. Reading needs a token unless the gateway runs with
+--read-without-token (then anyone reads, as a viewer); /metrics needs one unless
+--metrics-without-token. Tokens are compared in constant time. Only the event stream also
+takes the token as `?token=` (a browser's EventSource cannot send headers). No token, or an
+unknown one: 401 with `WWW-Authenticate: Bearer`; a role below the route's: 403, nothing done.
 
 Each dependency answers who sent the request, a `Caller`: the source of the tasks it starts
-is set here, never taken from the request, so that the history says who did it.
+is set here, never taken from the request (`WEB`, `WEB:<token name>` for a named token), so
+that the history says who did it.
 """
 
 import secrets
+from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import Depends, Query, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from pydantic import BaseModel
 from starlette.datastructures import Headers
 from starlette.types import Scope
 
+from task_manager.core.admission.priority import SOURCE_SEPARATOR
 from task_manager_web.errors import ApiError
+from task_manager_web.tokens import Role, Token
 
-_BEARER = HTTPBearer(auto_error=False, description='The token the gateway printed at start.')
+_BEARER = HTTPBearer(auto_error=False, description='A token of the gateway (its token file).')
 Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_BEARER)]
-TOKEN_HOLDER = 'token'
-"""The client key of the token's holder (a token has no name yet: there is one)."""
 
 
 @dataclass(frozen=True)
 class Caller:
     """Who sent a request."""
 
+    role: Role
+    name: str
+    """The name of its token; '': a token without a name, or no token (reading without)."""
     source: str
-    """The source of the tasks it starts: the gateway's (`WEB`), later `WEB:<token name>`."""
+    """The source of the tasks it starts: the gateway's (`WEB`), `WEB:<name>` for a name."""
+
+
+class Identity(BaseModel):
+    """Who the token is (GET /api/whoami): what the dashboard may offer its holder."""
+
+    role: Literal['viewer', 'operator', 'admin']
+    name: str
 
 
 class Access:
-    def __init__(self, token: str, read_without_token: bool = False, source: str = 'WEB') -> None:
-        self._token = token
+    def __init__(
+        self,
+        tokens: Sequence[Token],
+        read_without_token: bool = False,
+        source: str = 'WEB',
+        metrics_without_token: bool = False,
+    ) -> None:
+        self._tokens = tuple(tokens)
         self._read_without_token = read_without_token
         self._source = source
+        self._metrics_without_token = metrics_without_token
 
-    def _is_token(self, given: str) -> bool:
-        return secrets.compare_digest(given.encode(), self._token.encode())
+    def _find(self, given: str) -> Token | None:
+        """The token `given` is; compared with every token in constant time."""
+        found = None
+        for token in self._tokens:
+            if secrets.compare_digest(given.encode(), token.secret.encode()):
+                found = token
+        return found
 
     def client_key(self, scope: Scope) -> str:
-        """Who a request comes from, for bounds: `token` with the token, else `address:<ip>`."""
+        """Who a request comes from, for bounds: its token's key, else `address:<ip>`."""
         authorization = Headers(scope=scope).get('authorization', '')
         scheme, _, given = authorization.partition(' ')
-        if scheme.lower() == 'bearer' and self._is_token(given.strip()):
-            return TOKEN_HOLDER
+        token = self._find(given.strip()) if scheme.lower() == 'bearer' else None
+        if token is not None:
+            return token.key
         client = scope.get('client')
         return f'address:{client[0] if client else "unknown"}'
 
-    def _holder(self, given: str | None) -> Caller:
-        """The caller of a request that needs the token; 401 without it."""
+    def caller(self, given: str | None, needed: Role, what: str) -> Caller:
+        """The caller of `what` (a request), which needs role `needed`: 401 without a
+        known token (a viewer's reads excepted with --read-without-token), 403 below it."""
+        token = self._find(given) if given else None
+        if token is None and needed is Role.VIEWER and self._read_without_token:
+            return Caller(Role.VIEWER, '', self._source)
+        holder = self._holder(given, token)
+        if holder.role < needed:
+            raise forbidden(what, needed, holder.role)
+        return self._caller_of(holder)
+
+    def metrics_caller(self, given: str | None) -> Caller | None:
+        """A viewer, even with --read-without-token; None with --metrics-without-token."""
+        if self._metrics_without_token:
+            return None
+        return self._caller_of(self._holder(given, self._find(given) if given else None))
+
+    def _caller_of(self, token: Token) -> Caller:
+        source = f'{self._source}{SOURCE_SEPARATOR}{token.name}' if token.name else self._source
+        return Caller(token.role, token.name, source)
+
+    @staticmethod
+    def _holder(given: str | None, token: Token | None) -> Token:
+        """The token of a request that needs one; 401 without it."""
         if not given:
             raise ApiError(
                 401,
@@ -60,24 +112,34 @@ class Access:
                 'missing token: send Authorization: Bearer <token>',
                 headers={'WWW-Authenticate': 'Bearer'},
             )
-        if not self._is_token(given):
+        if token is None:
             raise ApiError(
                 401,
                 'unauthorized',
                 'wrong token',
                 headers={'WWW-Authenticate': 'Bearer error="invalid_token"'},
             )
-        return Caller(self._source)
+        return token
 
-    def writer(self, given: str | None) -> Caller:
-        """Of the requests that change something."""
-        return self._holder(given)
 
-    def reader(self, given: str | None) -> Caller:
-        """Of the requests that only read."""
-        if self._read_without_token:
-            return Caller(self._source)
-        return self._holder(given)
+def forbidden(what: str, needed: Role, role: Role, field: str = '', hint: str = '') -> ApiError:
+    """403 for `what`, beyond a caller of `role`."""
+    message = f'{what} needs role {needed.label}; this token is {role.label}'
+    return ApiError(403, 'forbidden', message + (f' ({hint})' if hint else ''), field)
+
+
+def check_start_priority(caller: Caller, priority: int | None) -> None:
+    """A start that gives its own priority decides what it pre-empts and overtakes in the
+    queue, as reprioritize does: an admin's; an operator's start leaves it out, and runs at
+    the task's declared priority plus its source's (`source_priorities`)."""
+    if priority is not None and caller.role < Role.ADMIN:
+        raise forbidden(
+            'a start that gives a priority',
+            Role.ADMIN,
+            caller.role,
+            field='priority',
+            hint="leave priority out: the task's declared priority applies",
+        )
 
 
 def _access(request: Request) -> Access:
@@ -85,25 +147,41 @@ def _access(request: Request) -> Access:
     return access
 
 
-async def _writer(request: Request, credentials: Credentials) -> Caller:
-    return _access(request).writer(credentials.credentials if credentials else None)
+def _what(request: Request) -> str:
+    return f'{request.method} {request.url.path}'
 
 
-async def _reader(request: Request, credentials: Credentials) -> Caller:
-    return _access(request).reader(credentials.credentials if credentials else None)
+def _needs(role: Role) -> Callable[[Request, Credentials], Awaitable[Caller]]:
+    """The dependency of a route that needs `role` (the token in the header)."""
+
+    async def caller(request: Request, credentials: Credentials) -> Caller:
+        given = credentials.credentials if credentials else None
+        return _access(request).caller(given, role, _what(request))
+
+    return caller
 
 
-async def _stream_reader(
+async def _stream_viewer(
     request: Request,
     credentials: Credentials,
     token: Annotated[str | None, Query(description='The token, for EventSource.')] = None,
 ) -> Caller:
-    return _access(request).reader(credentials.credentials if credentials else token)
+    given = credentials.credentials if credentials else token
+    return _access(request).caller(given, Role.VIEWER, _what(request))
 
 
-Writer = Annotated[Caller, Depends(_writer)]
-"""Who sent a request that changes something (needs the token)."""
-Reader = Annotated[Caller, Depends(_reader)]
-"""Who sent a request that only reads (needs the token unless --read-without-token)."""
-StreamReader = Annotated[Caller, Depends(_stream_reader)]
-"""As Reader, for the event stream: the header, or `?token=`."""
+async def _metrics_viewer(request: Request, credentials: Credentials) -> Caller | None:
+    given = credentials.credentials if credentials else None
+    return _access(request).metrics_caller(given)
+
+
+Viewer = Annotated[Caller, Depends(_needs(Role.VIEWER))]
+"""A request that only reads (any token; none needed with --read-without-token)."""
+Operator = Annotated[Caller, Depends(_needs(Role.OPERATOR))]
+"""A request that starts, cancels, stops, pauses, resumes or confirms (operator or admin)."""
+Admin = Annotated[Caller, Depends(_needs(Role.ADMIN))]
+"""A request that changes the schedules or the priorities (admin)."""
+StreamViewer = Annotated[Caller, Depends(_stream_viewer)]
+"""As Viewer, for the event stream: the header, or `?token=`."""
+MetricsViewer = Annotated[Caller | None, Depends(_metrics_viewer)]
+"""GET /metrics: any token, even with --read-without-token; None with --metrics-without-token."""

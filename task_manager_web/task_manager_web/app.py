@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from fastapi import Depends, FastAPI, Query, Request, Response
+from fastapi import FastAPI, Query, Request, Response
 from fastapi.responses import FileResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
 from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
@@ -25,7 +25,16 @@ from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
-from task_manager_web.access import Access, Caller, Credentials, Reader, StreamReader, Writer
+from task_manager_web.access import (
+    Access,
+    Admin,
+    Identity,
+    MetricsViewer,
+    Operator,
+    StreamViewer,
+    Viewer,
+    check_start_priority,
+)
 from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.errors import ApiError, add_error_handlers
 from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
@@ -34,6 +43,7 @@ from task_manager_web.metrics import GatewayMetrics, RequestMetrics, node_snapsh
 from task_manager_web.node_link import EventStream, Link, NodeLink
 from task_manager_web.operator_routes import add_operator_routes
 from task_manager_web.read_bound import ReadBound
+from task_manager_web.tokens import Token
 
 KEEPALIVE_SEC = 15.0
 """An event stream idle this long gets a comment line, which also finds clients gone."""
@@ -46,18 +56,20 @@ MAX_READS_PER_CLIENT = 32
 
 @dataclass(frozen=True)
 class Settings:
-    token: str
+    tokens: tuple[Token, ...]
+    """Who may use the gateway, each token with its role (and maybe a name)."""
     read_without_token: bool = False
     source: str = 'WEB'
-    """The source of every task started, cancelled or stopped here (a request cannot say)."""
+    """The source of every task started, cancelled or stopped here (a request cannot say),
+    followed by `:<name>` for a token with a name."""
     max_body_bytes: int = 1_048_576
     body_timeout_sec: float = BODY_TIMEOUT_SEC
     allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
     """The names a request's Host header may give (its port is not compared)."""
     max_reads_per_client: int = MAX_READS_PER_CLIENT
-    """Reads in flight per client (the token's holder, or an address without it); more: 429."""
+    """Reads in flight per client (a token's holder, or an address without it); more: 429."""
     metrics_without_token: bool = False
-    """GET /metrics without the token (else it needs it, even with read_without_token)."""
+    """GET /metrics without a token (else it needs one, even with read_without_token)."""
 
 
 def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient]) -> FastAPI:
@@ -85,11 +97,15 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
         swagger_ui_oauth2_redirect_url=None,
     )
     add_error_handlers(app)
-    access = Access(settings.token, settings.read_without_token, settings.source)
+    access = Access(
+        settings.tokens,
+        settings.read_without_token,
+        settings.source,
+        settings.metrics_without_token,
+    )
     app.state.access = access
     metrics = GatewayMetrics()
     app.state.metrics = metrics
-    app.state.metrics_without_token = settings.metrics_without_token
     # the last added is the outermost
     app.add_middleware(
         BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
@@ -108,16 +124,6 @@ class HistoryParameters(models.HistoryQuery):
     format: Literal['json', 'csv'] = 'json'
 
 
-async def _metrics_reader(request: Request, credentials: Credentials) -> Caller | None:
-    """The token's holder (the token is needed even with --read-without-token), or None
-    with --metrics-without-token."""
-    if request.app.state.metrics_without_token:
-        return None
-    access: Access = request.app.state.access
-    return access.writer(credentials.credentials if credentials else None)
-
-
-MetricsReader = Annotated[Caller | None, Depends(_metrics_reader)]
 Wait = Annotated[bool, Query(description='Answer once the task ended (bounded by timeout_sec).')]
 WaitSec = Annotated[
     float, Query(gt=0, le=WAIT_MAX_SEC, description='The longest wait, with wait=true.')
@@ -139,16 +145,22 @@ def _add_routes(app: FastAPI) -> None:
         """Whether the gateway reaches a Task Manager (no token needed)."""
         return {'connected': link.connected, 'event_streams': link.stream_count}
 
+    @app.get('/api/whoami', tags=['state'])
+    async def whoami(caller: Viewer) -> Identity:
+        """The role and name of the token sent (a viewer without a name when reading needs
+        no token and none is sent): what the dashboard may offer."""
+        return Identity.model_validate({'role': caller.role.label, 'name': caller.name})
+
     @app.get(
         '/metrics',
         tags=['state'],
         response_class=Response,
         responses={200: {'content': {CONTENT_TYPE_LATEST: {}}}},
     )
-    async def metrics(_: MetricsReader, link: Link, request: Request) -> Response:
+    async def metrics(_: MetricsViewer, link: Link, request: Request) -> Response:
         """Prometheus metrics (text format): the tasks ended by name and status, their
         durations, the active, paused and queued counts, the schedules' runs and misses, and
-        this gateway's requests. Needs the token unless --metrics-without-token."""
+        this gateway's requests. Needs a token unless --metrics-without-token."""
         gateway_metrics: GatewayMetrics = request.app.state.metrics
         snapshot = await node_snapshot(link)
         # no await from here to the exposition: another scrape cannot come in between
@@ -156,7 +168,7 @@ def _add_routes(app: FastAPI) -> None:
         return Response(generate_latest(gateway_metrics.registry), media_type=CONTENT_TYPE_LATEST)
 
     @app.get('/api/tasks', tags=['tasks'])
-    async def declared_tasks(_: Reader, link: Link) -> list[models.DeclaredTask]:
+    async def declared_tasks(_: Viewer, link: Link) -> list[models.DeclaredTask]:
         """The tasks the Task Manager runs, each with a JSON Schema of its task_data."""
         declared = await link.read(link.client.declared_tasks)
         return [models.DeclaredTask.model_validate(declared_json(entry)) for entry in declared]
@@ -169,7 +181,7 @@ def _add_routes(app: FastAPI) -> None:
     )
     async def start_task(
         body: models.StartTask,
-        caller: Writer,
+        caller: Operator,
         link: Link,
         response: Response,
         wait: Wait = False,
@@ -180,8 +192,9 @@ def _add_routes(app: FastAPI) -> None:
         The options (priority, on_conflict, timeout_sec, queue_timeout_sec,
         feedback_timeout_sec) are the task's declaration's when left out. A task the Task
         Manager refuses (unknown, bad task_data, a busy resource, ...) is no HTTP error: it
-        ends ERROR with its error code and message.
+        ends ERROR with its error code and message. A priority needs role admin.
         """
+        check_start_priority(caller, body.priority)
         handle = await link.start(
             gateway_requests.start_task,
             link.client,
@@ -199,7 +212,7 @@ def _add_routes(app: FastAPI) -> None:
     )
     async def start_mission(
         body: models.StartMission,
-        caller: Writer,
+        caller: Operator,
         link: Link,
         response: Response,
         wait: Wait = False,
@@ -207,8 +220,10 @@ def _add_routes(app: FastAPI) -> None:
     ) -> models.Started:
         """Start system/mission with these subtasks; its id and the subtasks' ids at once.
 
-        Its options are a start's, for the mission as one unit (it queues as one).
+        Its options are a start's, for the mission as one unit (it queues as one); a
+        priority needs role admin.
         """
+        check_start_priority(caller, body.priority)
         handle, subtask_ids = await link.start(
             gateway_requests.start_mission,
             link.client,
@@ -219,7 +234,7 @@ def _add_routes(app: FastAPI) -> None:
         return await _started(link, handle, response, wait, timeout_sec, subtask_ids)
 
     @app.post('/api/tasks/cancel', tags=['tasks'])
-    async def cancel_tasks(body: models.CancelTasks, caller: Writer, link: Link) -> models.Task:
+    async def cancel_tasks(body: models.CancelTasks, caller: Operator, link: Link) -> models.Task:
         """system/cancel_task: cancel these tasks, whoever started them; its result."""
         result = await link.control(
             gateway_requests.cancel_tasks, link.client, body, source=caller.source
@@ -227,7 +242,7 @@ def _add_routes(app: FastAPI) -> None:
         return models.Task.model_validate(result_json(result))
 
     @app.post('/api/tasks/reprioritize', tags=['tasks'])
-    async def reprioritize(body: models.Reprioritize, caller: Writer, link: Link) -> models.Task:
+    async def reprioritize(body: models.Reprioritize, caller: Admin, link: Link) -> models.Task:
         """system/reprioritize: a new priority for these active tasks (a queued one moves in
         the queue at once); its result, with `successful_changes` and `errors`."""
         result = await link.control(
@@ -236,20 +251,20 @@ def _add_routes(app: FastAPI) -> None:
         return models.Task.model_validate(result_json(result))
 
     @app.post('/api/stop', tags=['tasks'])
-    async def stop(caller: Writer, link: Link) -> models.Task:
+    async def stop(caller: Operator, link: Link) -> models.Task:
         """system/stop: cancel every task declared cancel_on_stop; its result."""
         result = await link.control(link.client.stop, source=caller.source)
         return models.Task.model_validate(result_json(result))
 
     @app.get('/api/active', tags=['state'])
-    async def active(_: Reader, link: Link) -> list[models.Task]:
+    async def active(_: Viewer, link: Link) -> list[models.Task]:
         """Every active task, with its stamps and latest feedback."""
         states = await link.read(link.client.task_states)
         return [models.Task.model_validate(task_json(s)) for s in states]
 
     # before /api/tasks/{task_id:path}, which would take `ID/why` for an id
     @app.get('/api/tasks/{task_id:path}/why', tags=['state'])
-    async def why(task_id: str, _: Reader, link: Link) -> list[models.Decision]:
+    async def why(task_id: str, _: Viewer, link: Link) -> list[models.Decision]:
         """Every decision the Task Manager took about a task, active or ended, oldest first:
         why it was queued, refused, pre-empted, timed out, retried or reprioritized."""
         refused = text_problem('task_id', task_id) is not None
@@ -259,7 +274,7 @@ def _add_routes(app: FastAPI) -> None:
         return [models.Decision.model_validate(d) for d in decisions_json(decisions)]
 
     @app.get('/api/tasks/{task_id:path}', tags=['state'])
-    async def task(task_id: str, _: Reader, link: Link) -> models.Task:
+    async def task(task_id: str, _: Viewer, link: Link) -> models.Task:
         """One task, active or ended: its state, stamps, latest feedback and result."""
         # an id no task can have (NUL, which ROS would cut, a newline, ...) is looked up nowhere
         refused = text_problem('task_id', task_id) is not None
@@ -273,7 +288,7 @@ def _add_routes(app: FastAPI) -> None:
         tags=['state'],
         responses={200: {'content': {'text/csv': {}}}},
     )
-    async def history(_: Reader, link: Link, query: Annotated[HistoryParameters, Query()]) -> Any:
+    async def history(_: Viewer, link: Link, query: Annotated[HistoryParameters, Query()]) -> Any:
         """Ended tasks from the durable history, newest first; format=csv for a spreadsheet."""
         # the query's fields are the client's filters, by the same names
         states = await link.read(link.client.history, **query.model_dump(exclude={'format'}))
@@ -292,7 +307,7 @@ def _add_routes(app: FastAPI) -> None:
         response_class=StreamingResponse,
         responses={200: {'content': {'text/event-stream': {}}}},
     )
-    async def events(_: StreamReader, link: Link) -> StreamingResponse:
+    async def events(_: StreamViewer, link: Link) -> StreamingResponse:
         """Server-Sent Events: `hello` and `connection` ({"connected": bool}), then a `task`
         event (a TaskEvent document) for every change of every task."""
         stream = link.open_stream()

@@ -1,13 +1,14 @@
 """Console script `task-manager-web`: the web gateway of a running Task Manager.
 
-Prints `dashboard: http://HOST:PORT/?token=TOKEN` once it listens; Ctrl-C or SIGTERM stops it.
+Prints `dashboard: http://HOST:PORT/?token=TOKEN` once it listens, with the token it made
+(an admin's) when it has no --token-file, whose tokens it never prints; Ctrl-C or SIGTERM
+stops it.
 """
 
 import argparse
 import asyncio
 import contextlib
 import logging
-import secrets
 import socket
 import sys
 from pathlib import Path
@@ -19,6 +20,7 @@ from task_manager.discovery import use_quick_discovery
 from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
 from task_manager_web.front_door import LOCAL_HOSTS
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, server_config
+from task_manager_web.tokens import Token, TokenFileError, generated_token, read_token_file
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080
@@ -32,10 +34,15 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         '--port', type=int, default=DEFAULT_PORT, help=f'0: any free port ({DEFAULT_PORT})'
     )
     parser.add_argument(
-        '--token-file', type=Path, help='file holding the token (default: a new one, printed)'
+        '--token-file',
+        type=Path,
+        help="file of the tokens, one 'ROLE TOKEN [NAME]' line each (ROLE: viewer, operator, "
+        'admin); default: a new admin token, printed',
     )
     parser.add_argument(
-        '--read-without-token', action='store_true', help='let anyone read; writing still needs it'
+        '--read-without-token',
+        action='store_true',
+        help='let anyone read, as a viewer; the rest still needs a token',
     )
     parser.add_argument(
         '--metrics-without-token',
@@ -45,8 +52,8 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         '--source',
         default='WEB',
-        help='source of the tasks started, cancelled and stopped here; requests cannot set it '
-        '(WEB)',
+        help='source of the tasks started, cancelled and stopped here, followed by :NAME for a '
+        'token with a name; requests cannot set it (WEB)',
     )
     parser.add_argument(
         '--max-body-bytes', type=int, default=1_048_576, help='largest request body (1 MiB)'
@@ -81,16 +88,24 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def _token(token_file: Path | None) -> str:
+def _tokens(token_file: Path | None) -> tuple[Token, ...]:
     if token_file is None:
-        return secrets.token_urlsafe(24)
+        return (generated_token(),)
     try:
-        token = token_file.read_text().strip()
-    except OSError as error:
-        raise SystemExit(f'task-manager-web: cannot read --token-file: {error}') from None
-    if not token:
-        raise SystemExit(f'task-manager-web: --token-file {token_file} is empty')
-    return token
+        return read_token_file(token_file)
+    except TokenFileError as error:
+        raise SystemExit(f'task-manager-web: --token-file {error}') from None
+
+
+def _dashboard_line(url: str, tokens: tuple[Token, ...], token_file: Path | None) -> str:
+    """The dashboard's link: with the token made here, else how to open it."""
+    if token_file is None:
+        return f'dashboard: {url}?token={tokens[0].secret}'
+    roles = ', '.join(
+        f'{sum(t.role is role for t in tokens)} {role.label}'
+        for role in sorted({t.role for t in tokens}, reverse=True)
+    )
+    return f'dashboard: {url} (open it with ?token=TOKEN, a token of {token_file}: {roles})'
 
 
 def _listen(host: str, port: int) -> socket.socket:
@@ -115,13 +130,13 @@ def main(argv: list[str] | None = None) -> None:
         level=logging.INFO, format='[%(levelname)s] [task_manager_web]: %(message)s'
     )
     try:
-        token = _token(arguments.token_file)
+        tokens = _tokens(arguments.token_file)
         listener = _listen(arguments.host, arguments.port)
     except SystemExit as error:
         print(error, file=sys.stderr)
         sys.exit(EXIT_USAGE)
     settings = Settings(
-        token=token,
+        tokens=tokens,
         read_without_token=arguments.read_without_token,
         metrics_without_token=arguments.metrics_without_token,
         source=arguments.source,
@@ -137,7 +152,8 @@ def main(argv: list[str] | None = None) -> None:
     host, port = listener.getsockname()[:2]
     shown_host = f'[{host}]' if ':' in host else host
     print(f'Task Manager web gateway on http://{shown_host}:{port}/ (API docs: /docs)', flush=True)
-    print(f'dashboard: http://{shown_host}:{port}/?token={token}', flush=True)
+    dashboard = _dashboard_line(f'http://{shown_host}:{port}/', tokens, arguments.token_file)
+    print(dashboard, flush=True)
     with contextlib.suppress(KeyboardInterrupt):
         asyncio.run(server.serve(sockets=[listener]))
 

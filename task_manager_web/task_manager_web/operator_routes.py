@@ -14,21 +14,21 @@ from task_manager.gateway_json import (
     scheduled_json,
 )
 from task_manager.protocol import models
-from task_manager_web.access import Reader, Writer
+from task_manager_web.access import Admin, Operator, Viewer
 from task_manager_web.errors import ApiError
 from task_manager_web.node_link import Link
 
 
 def add_operator_routes(app: FastAPI) -> None:
     @app.post('/api/tasks/pause', tags=['tasks'])
-    async def pause(body: models.PauseTasks, caller: Writer, link: Link) -> models.Paused:
+    async def pause(body: models.PauseTasks, caller: Operator, link: Link) -> models.Paused:
         """system/pause: pause these tasks (a mission between its subtasks, a task declared
         `pause: restart` at once); the ids paused and why not the others."""
         result = await link.control(gateway_requests.pause, link.client, body, source=caller.source)
         return models.Paused.model_validate(paused_json(result))
 
     @app.post('/api/tasks/resume', tags=['tasks'])
-    async def resume(body: models.ResumeTasks, caller: Writer, link: Link) -> models.Resumed:
+    async def resume(body: models.ResumeTasks, caller: Operator, link: Link) -> models.Resumed:
         """system/resume: resume these paused tasks; the ids running again and why not the
         others."""
         result = await link.control(
@@ -37,13 +37,13 @@ def add_operator_routes(app: FastAPI) -> None:
         return models.Resumed.model_validate(resumed_json(result))
 
     @app.get('/api/schedules', tags=['schedules'])
-    async def schedules(_: Reader, link: Link) -> list[models.Schedule]:
+    async def schedules(_: Viewer, link: Link) -> list[models.Schedule]:
         """Every schedule: when it runs, its next run, its last run's status, its options."""
         found = await link.read(link.client.schedules)
         return [models.Schedule.model_validate(schedule_json(s)) for s in found]
 
     @app.post('/api/schedules', tags=['schedules'])
-    async def schedule(body: models.ScheduleTask, caller: Writer, link: Link) -> models.Scheduled:
+    async def schedule(body: models.ScheduleTask, caller: Admin, link: Link) -> models.Scheduled:
         """system/schedule: a task or a mission run at set times (exactly one of at,
         delay_sec, period_sec, cron). One the Task Manager refuses (an unknown task, bad
         task_data or cron, an id taken, ...) is no HTTP error: `scheduled` is false and
@@ -55,7 +55,7 @@ def add_operator_routes(app: FastAPI) -> None:
 
     @app.patch('/api/schedules/{schedule_id:path}', tags=['schedules'])
     async def enable_schedule(
-        schedule_id: str, body: models.EnableSchedule, caller: Writer, link: Link
+        schedule_id: str, body: models.EnableSchedule, caller: Admin, link: Link
     ) -> models.Schedule:
         """system/enable_schedule: disable a schedule (no runs, its counts kept) or enable it
         again (from its next due time after now); the schedule then."""
@@ -72,7 +72,7 @@ def add_operator_routes(app: FastAPI) -> None:
         return models.Schedule.model_validate(schedule_json(found))
 
     @app.delete('/api/schedules/{schedule_id:path}', tags=['schedules'])
-    async def unschedule(schedule_id: str, caller: Writer, link: Link) -> models.Task:
+    async def unschedule(schedule_id: str, caller: Admin, link: Link) -> models.Task:
         """system/unschedule: remove a schedule (its runs already started go on); the system
         task, ended."""
         _check_schedule_id(schedule_id)

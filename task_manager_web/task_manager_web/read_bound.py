@@ -1,11 +1,12 @@
 """An ASGI middleware that bounds each client's reads in flight: over the bound, 429 at once.
 
-A client is the token's holder (a token has no name yet: there is one), or, for a request
-without the right token, its address. The reads are the GET requests that ask the Task
-Manager (`/api/active`, `/api/tasks...`, `/api/history`); the event stream, health, the
-dashboard's files and the documentation are not. The refusal is made here, before routing,
-so that a flood of reads costs the event loop little: a stop or cancel sent behind 500 reads
-waited for them to be routed one by one (0.13 s of the 0.15 s it took).
+A client is a token's holder (each named token one client by its name, each token without
+a name one by itself), or, for a request without a known token, its address. The reads are
+the GET requests that ask the Task Manager (`/api/active`, `/api/tasks...`,
+`/api/history`); the event stream, health, the dashboard's files and the documentation are
+not. The refusal is made here, before routing, so that a flood of reads costs the event loop
+little: a stop or cancel sent behind 500 reads waited for them to be routed one by one (0.13
+s of the 0.15 s it took).
 """
 
 from collections import Counter

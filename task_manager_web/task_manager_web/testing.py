@@ -5,14 +5,16 @@ import sys
 from pathlib import Path
 
 from task_manager.testing.process import NodeProcess
+from task_manager_web.tokens import Role, read_token_file
 
 GATEWAY_EXECUTABLE = str(Path(sys.executable).with_name('task-manager-web'))
-DASHBOARD_LINE = r'dashboard: (?P<url>http://\S+)/\?token=(?P<token>\S+)'
+DASHBOARD_LINE = r'dashboard: (?P<url>http://[^/\s]+)/'
 START_TIMEOUT_SEC = 20.0
 
 
 class GatewayProcess(NodeProcess):
-    """`task-manager-web --port 0 --token-file F [args]`; its URL and token once it listens."""
+    """`task-manager-web --port 0 --token-file F [args]`; its URL once it listens, and the
+    first admin token of F ('' for none)."""
 
     def __init__(self, token_file: Path, *args: str) -> None:
         super().__init__(
@@ -22,4 +24,5 @@ class GatewayProcess(NodeProcess):
         match = re.search(DASHBOARD_LINE, self.wait_for_log(DASHBOARD_LINE, START_TIMEOUT_SEC))
         assert match is not None
         self.url = match['url']
-        self.token = match['token']
+        admins = [t.secret for t in read_token_file(token_file) if t.role is Role.ADMIN]
+        self.token = admins[0] if admins else ''

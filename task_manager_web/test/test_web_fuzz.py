@@ -22,6 +22,7 @@ from hypothesis import strategies as st
 from task_manager.client import TaskManagerClient
 from task_manager.testing.gateway import check
 from task_manager_web.app import Settings, create_app
+from task_manager_web.tokens import Role, Token
 
 pytestmark = pytest.mark.ros
 
@@ -39,7 +40,7 @@ class InProcessGateway:
 
     def __init__(self) -> None:
         self.app: FastAPI = create_app(
-            Settings(token=TOKEN, max_body_bytes=BODY_LIMIT_BYTES),
+            Settings(tokens=(Token(TOKEN, Role.ADMIN),), max_body_bytes=BODY_LIMIT_BYTES),
             lambda: TaskManagerClient('web_fuzz', timeout_sec=1.0),
         )
         self._runner = asyncio.Runner()

@@ -1,0 +1,147 @@
+"""The gateway's tokens, each with a role and maybe a name, and the token file that holds them.
+
+A token file holds one `ROLE TOKEN [NAME]` line per token; blank lines and comments (from a
+word that starts with `#` to the end of its line) are skipped. A file whose only line is one
+bare token (the format of old) holds an admin token without a name. A line that cannot be
+read stops the gateway with its line number; no message ever shows a token.
+"""
+
+import enum
+import hashlib
+import re
+import secrets
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+GENERATED_NAME = 'admin'
+"""The name of the token the gateway makes when it is given no token file."""
+MIN_TOKEN_CHARACTERS = 16
+"""The shortest token of a `ROLE TOKEN [NAME]` line (a bare token of old may be shorter)."""
+NAME = re.compile(r'[A-Za-z0-9._@-]{1,64}')
+"""A token's name: it ends up in the source of every task the token starts (`WEB:alice`)."""
+TOKEN = re.compile(r'[!-~]+')
+"""A token: printable ASCII without spaces (an HTTP header carries it)."""
+LINE_FORMAT = 'ROLE TOKEN [NAME]'
+
+
+class Role(enum.IntEnum):
+    """What a token may do; each role may do what the roles below it may."""
+
+    VIEWER = 1
+    """Read: the declared, active and ended tasks, the schedules, the events, the metrics."""
+    OPERATOR = 2
+    """Also start tasks and missions, cancel, stop, pause, resume, confirm."""
+    ADMIN = 3
+    """Also change the schedules and the priorities (a start that gives one, reprioritize)."""
+
+    @property
+    def label(self) -> str:
+        """As written in a token file and in the API: `viewer`, `operator`, `admin`."""
+        return self.name.lower()
+
+
+ROLES = {role.label: role for role in Role}
+"""key: a role as written in a token file, value: the role."""
+
+
+@dataclass(frozen=True)
+class Token:
+    """One token of the gateway."""
+
+    secret: str
+    role: Role
+    name: str = ''
+    """The holder's name, in the source of what the token starts; '': none."""
+
+    @property
+    def key(self) -> str:
+        """The holder as a client of the read bound: its name, else a hash of the token."""
+        if self.name:
+            return f'token:{self.name}'
+        return f'token-sha256:{hashlib.sha256(self.secret.encode()).hexdigest()[:16]}'
+
+
+class TokenFileError(Exception):
+    """A token file that cannot be read; the message names the line, never a token."""
+
+
+def generated_token() -> Token:
+    """A new random admin token named `admin` (for a gateway given no token file)."""
+    return Token(secrets.token_urlsafe(24), Role.ADMIN, GENERATED_NAME)
+
+
+def read_token_file(path: Path) -> tuple[Token, ...]:
+    """The tokens of the file at `path`."""
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as error:
+        raise TokenFileError(f'cannot read {path}: {error}') from None
+    return parse_tokens(text, str(path))
+
+
+def parse_tokens(text: str, where: str) -> tuple[Token, ...]:
+    """The tokens of a token file's `text`; `where` names the file in messages."""
+    lines = [(number, words) for number, words in _words(text.splitlines()) if words]
+    if not lines:
+        raise TokenFileError(f'{where} holds no token: write one `{LINE_FORMAT}` line per token')
+    if len(lines) == 1 and len(lines[0][1]) == 1:
+        number, (secret,) = lines[0]
+        if secret in ROLES:
+            raise TokenFileError(f'{where}, line {number}: a role without a token')
+        return (Token(_checked_secret(secret, where, number, 1), Role.ADMIN),)
+    tokens = tuple(_token(words, where, number) for number, words in lines)
+    _check_unique(tokens, [number for number, _ in lines], where)
+    return tokens
+
+
+def _words(lines: Iterable[str]) -> Iterable[tuple[int, list[str]]]:
+    """Each line's number (from 1) and its words before a comment."""
+    for number, line in enumerate(lines, start=1):
+        words = line.split()
+        comment = next((i for i, word in enumerate(words) if word.startswith('#')), len(words))
+        yield number, words[:comment]
+
+
+def _token(words: list[str], where: str, number: int) -> Token:
+    if len(words) not in (2, 3):
+        raise TokenFileError(
+            f'{where}, line {number}: {len(words)} words; expected `{LINE_FORMAT}` (a bare '
+            'token is read only when it is the only line of the file)'
+        )
+    role = ROLES.get(words[0])
+    if role is None:
+        raise TokenFileError(
+            f'{where}, line {number}: the first word is no role; roles: {", ".join(ROLES)}'
+        )
+    name = words[2] if len(words) == 3 else ''
+    if name and not NAME.fullmatch(name):
+        raise TokenFileError(
+            f"{where}, line {number}: a name is 1 to 64 letters, digits, '.', '_', '@' or '-'"
+        )
+    return Token(_checked_secret(words[1], where, number, MIN_TOKEN_CHARACTERS), role, name)
+
+
+def _checked_secret(secret: str, where: str, number: int, min_characters: int) -> str:
+    if not TOKEN.fullmatch(secret):
+        raise TokenFileError(
+            f'{where}, line {number}: a token is printable ASCII characters without spaces'
+        )
+    if len(secret) < min_characters:
+        raise TokenFileError(
+            f'{where}, line {number}: the token has {len(secret)} characters; at least '
+            f'{min_characters} are needed (make one: python3 -c "import secrets; '
+            'print(secrets.token_urlsafe(24))")'
+        )
+    return secret
+
+
+def _check_unique(tokens: tuple[Token, ...], numbers: list[int], where: str) -> None:
+    """One line per token: the same token twice would have two roles or names."""
+    first_line: dict[str, int] = {}  # key: a token, value: the number of its first line
+    for token, number in zip(tokens, numbers, strict=True):
+        if token.secret in first_line:
+            raise TokenFileError(
+                f'{where}, line {number}: the same token as line {first_line[token.secret]}'
+            )
+        first_line[token.secret] = number
