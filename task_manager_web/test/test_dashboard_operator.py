@@ -1,15 +1,40 @@
 """The operator's controls on the dashboard, in a real headless Chromium against a real gateway
-and node: pause and resume, the schedules panel, confirmations waiting in the banner."""
+and node: pause and resume, the schedules panel, confirmations waiting in the banner, and the
+controls each role is offered."""
+
+from collections.abc import Iterator
+from pathlib import Path
 
 import httpx
 import pytest
-from playwright.sync_api import Page, expect
+from playwright.sync_api import Locator, Page, expect
 
-from task_manager.testing.gateway import TIMEOUT_SEC, Robot
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, wait_until
+from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
 
 FIB = {'task_name': 'fib', 'task_data': {'order': 1}}
+# key: role, value: its token in the token file of `roles_gateway`
+TOKENS = {
+    'viewer': 'viewer-token-0123456789',
+    'operator': 'operator-token-0123456789',
+    'admin': 'admin-token-0123456789',
+}
+
+
+@pytest.fixture
+def roles_gateway(tmp_path: Path) -> Iterator[GatewayProcess]:
+    """A gateway with a viewer (victor), an operator (alice) and an admin token."""
+    token_file = tmp_path / 'roles'
+    token_file.write_text(
+        f'viewer {TOKENS["viewer"]} victor\n'
+        f'operator {TOKENS["operator"]} alice\n'
+        f'admin {TOKENS["admin"]}\n'
+    )
+    gateway = GatewayProcess(token_file)
+    yield gateway
+    assert gateway.stop() == 0, '\n'.join(gateway.log_lines)
 
 
 def node_status(api: httpx.Client, task_id: str) -> str:
@@ -40,6 +65,7 @@ def test_a_mission_is_paused_and_resumed_from_the_page(
     expect(page.locator('#message')).to_have_text('m-1 paused')
     assert node_status(api, 'm-1') == 'PAUSED'
     expect(row.locator('button.pause')).to_have_count(0)
+    expect(card.locator('.step').nth(0)).to_have_attribute('data-state', 'running')  # goes on
 
     card.locator('button.resume').click()
 
@@ -72,7 +98,7 @@ def test_a_schedule_is_added_from_the_start_form_then_disabled_and_removed(
     expect(row).to_contain_text('Europe/Paris')
     expect(row.locator('.next-run .relative')).to_contain_text('in ')
     expect(row.locator('.last-run')).to_have_text('not yet')
-    expect(row.locator('.counts')).to_have_text('0 run, 0 missed')
+    expect(row.locator('.counts')).to_have_text('0 runs, 0 missed')
     (schedule,) = api.get('/api/schedules').json()
     assert (schedule['task_name'], schedule['task_data'], schedule['options']) == (
         'fib',
@@ -120,3 +146,63 @@ def test_the_schedules_panel_follows_a_run_from_its_events(
     # the panel is read again on the run's events, not on a timer (a minute)
     expect(row.locator('.last-run .badge')).to_have_text('DONE')
     expect(row.locator('.next-run')).to_have_text('none to come')
+
+
+def open_as(page: Page, gateway: GatewayProcess, role: str) -> None:
+    page.goto(f'{gateway.url}/?token={TOKENS[role]}')
+    expect(page.locator('#connection')).to_have_text('connected')
+    expect(page.locator('body')).to_have_attribute('data-role', role)
+
+
+def expect_shown(locators: list[Locator], shown: bool) -> None:
+    for locator in locators:
+        if shown:
+            expect(locator).to_be_visible()
+        else:
+            expect(locator).to_be_hidden()
+
+
+def test_each_role_is_offered_only_the_controls_it_may_use(
+    blank_page: Page, robot: Robot, roles_gateway: GatewayProcess
+) -> None:
+    admin = {'Authorization': f'Bearer {TOKENS["admin"]}'}
+    with httpx.Client(base_url=roles_gateway.url, headers=admin, timeout=TIMEOUT_SEC) as api:
+        wait_until(lambda: api.get('/api/health').json()['connected'], 'gateway connected')
+        assert api.post('/api/missions', json={'subtasks': [FIB], 'task_id': 'm-1'}).is_success
+        nightly = {**FIB, 'schedule_id': 'nightly', 'cron': '0 2 * * *'}
+        assert api.post('/api/schedules', json=nightly).json()['scheduled']
+    robot.fib.wait_for_goals(1, TIMEOUT_SEC)
+    page = blank_page
+    mission_row = page.locator('#active tbody tr[data-task-id="m-1"]')
+    schedule_row = page.locator('#schedules tbody tr[data-schedule-id="nightly"]')
+    operator_controls = [
+        page.locator('#stop'),
+        page.locator('#start-form'),
+        mission_row.locator('button.pause'),
+        mission_row.locator('button.cancel'),
+    ]
+    admin_controls = [
+        page.locator('#start-priority'),
+        page.locator('#start-when'),
+        mission_row.locator('button.reprioritize'),
+        schedule_row.locator('button.toggle'),
+        schedule_row.locator('button.remove'),
+    ]
+
+    open_as(page, roles_gateway, 'viewer')
+
+    expect(page.locator('#who')).to_have_text('victor (viewer)')
+    expect(mission_row).to_contain_text('IN_PROGRESS')
+    expect(schedule_row).to_contain_text('0 2 * * *')
+    expect_shown(operator_controls + admin_controls, False)
+
+    open_as(page, roles_gateway, 'operator')
+
+    expect(page.locator('#who')).to_have_text('alice (operator)')
+    expect_shown(operator_controls, True)
+    expect_shown(admin_controls, False)
+
+    open_as(page, roles_gateway, 'admin')
+
+    expect_shown(operator_controls + admin_controls, True)
+    robot.fib.wait_for_goals(1, TIMEOUT_SEC)[0].succeed()

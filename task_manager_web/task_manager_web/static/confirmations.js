@@ -42,7 +42,7 @@ function whereText(task) {
 }
 
 function newItem(task) {
-  const comment = element('input', { class: 'confirm-comment', type: 'text', maxlength: '256', placeholder: 'comment (optional)', 'aria-label': 'comment' });
+  const comment = element('input', { class: 'confirm-comment', type: 'text', maxlength: '1000', placeholder: 'comment (optional)', 'aria-label': 'comment' });
   const buttons = [
     element('button', { class: 'confirm', type: 'button', 'data-needs': 'operator', text: 'Confirm' }),
     element('button', { class: 'reject', type: 'button', 'data-needs': 'operator', text: 'Reject' }),

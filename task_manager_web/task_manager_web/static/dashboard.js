@@ -8,6 +8,7 @@ import { $, say } from './dom.js';
 import { followEvents } from './events.js';
 import { addHistoryRow, loadHistory, wireHistory } from './history.js';
 import { rememberMission, renderMissions } from './missions.js';
+import { loadRole } from './roles.js';
 import { loadSchedules, onScheduleEvent, tickSchedules, wireSchedules } from './schedules.js';
 import { loadDeclared, wireStartForm } from './start_form.js';
 import { isLive, state } from './state.js';
@@ -42,6 +43,7 @@ function onTaskEvent(event) {
   const task = event.task;
   applyTaskEvent(event);
   if (task.task_name === 'system/mission') rememberMission(task);
+  else if (state.missions.has(task.mission_id)) renderMissions();
   if (event.event === 'ENDED') addHistoryRow(task);
   onScheduleEvent(event);
   renderConfirmations();
@@ -83,6 +85,7 @@ function main() {
   wireHistory();
   setInterval(() => { tickElapsed(); tickConfirmations(); tickSchedules(); }, 1000);
   showConnection();
+  loadRole();
   followEvents({
     opened: () => { state.streamOpen = true; },
     closed: () => { state.streamOpen = false; showConnection(); },

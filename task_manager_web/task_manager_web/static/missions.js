@@ -14,11 +14,15 @@ export function rememberMission(task) {
   renderMissions();
 }
 
+// A step's state: the mission's feedback, or the step's own events when newer (a step paused
+// with its mission changes no feedback of the mission).
 function stepClass(subtask) {
   if (subtask.skipped) return 'skipped';
+  const own = state.tasks.get(subtask.task_id);
+  const status = own && !own.endedAt && subtask.task_status === 'IN_PROGRESS' ? own.status : subtask.task_status;
   return {
     DONE: 'done', IN_PROGRESS: 'running', PAUSED: 'paused', ERROR: 'failed', CANCELED: 'canceled',
-  }[subtask.task_status] || 'pending';
+  }[status] || 'pending';
 }
 
 // A mission's document as the events leave it; ended, it is no longer active.

@@ -37,25 +37,39 @@ function whatCell(schedule) {
   const subtasks = schedule.task_data?.subtasks;
   if (schedule.task_name !== 'system/mission' || !Array.isArray(subtasks)) return element('td', { text: schedule.task_name });
   const names = subtasks.map((each) => each.task_name).join(' → ');
-  return element('td', { text: `mission: ${names}`, title: `${subtasks.length} steps` });
+  return element('td', { text: `mission of ${plural(subtasks.length, 'step')}`, title: names });
+}
+
+function plural(count, noun) {
+  return `${count} ${noun}${count === 1 ? '' : 's'}`;
+}
+
+// A cron schedule's times in its own zone ("2:00:00 AM Europe/Paris"), the others in the browser's.
+function whenText(iso, schedule) {
+  if (!schedule.cron || !schedule.time_zone) return localTime(iso);
+  try {
+    return `${new Date(iso).toLocaleString(undefined, { timeZone: schedule.time_zone })} ${schedule.time_zone}`;
+  } catch {
+    return localTime(iso);
+  }
 }
 
 function nextRunCell(schedule) {
   if (!schedule.enabled) return element('td', { class: 'next-run', text: 'disabled' });
   if (!schedule.next_run) return element('td', { class: 'next-run', text: 'none to come' });
   return element('td', { class: 'next-run', title: schedule.next_run },
-    localTime(schedule.next_run), ' ', element('span', { class: 'relative hint', 'data-at': schedule.next_run, text: fromNow(schedule.next_run) }));
+    whenText(schedule.next_run, schedule), ' ', element('span', { class: 'relative hint', 'data-at': schedule.next_run, text: fromNow(schedule.next_run) }));
 }
 
 function lastRunCell(schedule) {
   if (!schedule.last_run) return element('td', { class: 'last-run hint', text: 'not yet' });
   return element('td', { class: 'last-run', title: schedule.last_task_id },
-    localTime(schedule.last_run), ' ', schedule.last_status ? statusBadge(schedule.last_status) : '');
+    whenText(schedule.last_run, schedule), ' ', schedule.last_status ? statusBadge(schedule.last_status) : '');
 }
 
 function countsCell(schedule) {
   const skipped = schedule.skipped_count ? `, ${schedule.skipped_count} skipped` : '';
-  return element('td', { class: 'counts', text: `${schedule.run_count} run, ${schedule.missed_count} missed${skipped}` });
+  return element('td', { class: 'counts', text: `${plural(schedule.run_count, 'run')}, ${schedule.missed_count} missed${skipped}` });
 }
 
 function buttonsCell(schedule) {
