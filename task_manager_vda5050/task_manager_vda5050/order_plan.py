@@ -73,9 +73,13 @@ class Segment:
 
 
 def references(order: dict[str, Any], *more: tuple[str, str]) -> tuple[tuple[str, str], ...]:
+    """The references of an error about `order` (the topic, its header and ids, then
+    `more`), as master controls match them to the order they sent."""
     return (
+        ('topic', 'order'),
         ('headerId', str(order.get('headerId', ''))),
         ('orderId', str(order.get('orderId', ''))),
+        ('orderUpdateId', str(order.get('orderUpdateId', ''))),
         *more,
     )
 
@@ -282,7 +286,6 @@ def check_update(
             order,
             f'orderUpdateId {order["orderUpdateId"]} is older '
             f'than {current_update_id}, the order {current_id} has already',
-            ('orderUpdateId', str(order['orderUpdateId'])),
         )
     first = min(order['nodes'], key=lambda n: n['sequenceId'], default=None)
     if first is None or (first['nodeId'], first['sequenceId']) != last_base:

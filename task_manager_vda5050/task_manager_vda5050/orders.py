@@ -92,7 +92,7 @@ class Orders:
                 Rejection(
                     ORDER_UPDATE_ERROR,
                     f'order {self.state.order_id} is still running: a new order waits for its end',
-                    references(order, ('orderUpdateId', str(order['orderUpdateId']))),
+                    references(order),
                 )
             )
         mission_id = (

@@ -150,7 +150,14 @@ class VehicleState:
         return document
 
 
-_ORDER_ERRORS = ('orderError', 'orderUpdateError', 'noRouteError')
+_ORDER_ERRORS = (
+    'orderError',
+    'orderUpdateError',
+    'noRouteError',
+    'validationError',
+    'orderActionError',
+)
+"""Cleared when an order is taken: the master has sent one that works."""
 
 
 def _node_state(node: dict[str, Any]) -> dict[str, Any]:

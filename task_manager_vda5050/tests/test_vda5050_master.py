@@ -3,92 +3,24 @@ drives the demo robot through the adapter and its Task Manager, over a real mosq
 order with an action, pause and resume, cancelOrder, factsheetRequest and malformed
 messages. Every message the master receives is checked (conftest.check_every_message)."""
 
-import itertools
 import json
-import uuid
-from typing import Any
 
 import pytest
 
 from task_manager.client import TaskManagerClient
 from task_manager.core.status import TaskStatus
-from task_manager_vda5050.testing import Master
+from task_manager_vda5050.testing import (
+    Master,
+    instant,
+    instant_state,
+    latest_state,
+    node,
+    order,
+    photo,
+    processed,
+)
 
 pytestmark = pytest.mark.ros
-
-
-def node(
-    node_id: str, sequence_id: int, x: float, y: float, *actions: dict[str, Any]
-) -> dict[str, Any]:
-    return {
-        'nodeId': node_id,
-        'sequenceId': sequence_id,
-        'released': True,
-        'nodePosition': {'x': x, 'y': y, 'mapId': 'demo'},
-        'actions': list(actions),
-    }
-
-
-def edge(start: dict[str, Any], end: dict[str, Any]) -> dict[str, Any]:
-    return {
-        'edgeId': f'{start["nodeId"]}-{end["nodeId"]}',
-        'sequenceId': start['sequenceId'] + 1,
-        'released': True,
-        'startNodeId': start['nodeId'],
-        'endNodeId': end['nodeId'],
-        'actions': [],
-    }
-
-
-def order(order_id: str, *nodes: dict[str, Any]) -> dict[str, Any]:
-    return {
-        'orderId': order_id,
-        'orderUpdateId': 0,
-        'nodes': list(nodes),
-        'edges': [edge(a, b) for a, b in itertools.pairwise(nodes)],
-    }
-
-
-def photo(blocking_type: str = 'HARD', camera: str = 'front') -> dict[str, Any]:
-    return {
-        'actionId': f'photo-{uuid.uuid4().hex[:8]}',
-        'actionType': 'take_photo',
-        'blockingType': blocking_type,
-        'actionParameters': [{'key': 'camera', 'value': camera}],
-    }
-
-
-def instant(action_type: str) -> dict[str, Any]:
-    return {'actionId': f'{action_type}-{uuid.uuid4().hex[:8]}', 'actionType': action_type,
-            'blockingType': 'HARD'}  # fmt: skip
-
-
-def processed(master: Master, order_id: str, timeout_sec: float = 30.0) -> dict[str, Any]:
-    return master.wait_for(
-        lambda e: e['event'] == 'orderProcessed' and e['orderId'] == order_id,
-        f'order {order_id} processed',
-        timeout_sec,
-    )
-
-
-def instant_state(master: Master, action: dict[str, Any], status: str) -> dict[str, Any]:
-    return master.wait_for(
-        lambda e: (
-            e['event'] == 'instantActionState'
-            and e['actionState']['actionId'] == action['actionId']
-            and e['actionState']['actionStatus'] == status
-        ),
-        f'{action["actionType"]} {status}',
-    )
-
-
-def latest_state(master: Master, condition: Any, what: str) -> dict[str, Any]:
-    event = master.wait_for(
-        lambda e: e['event'] == 'message' and e['topic'] == 'state' and condition(e['object']),
-        what,
-    )
-    state: dict[str, Any] = event['object']
-    return state
 
 
 def test_the_master_completes_an_order_with_an_action(
