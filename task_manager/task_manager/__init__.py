@@ -9,6 +9,7 @@ from typing import Any
 
 __all__ = [
     'ActiveTaskInfo',
+    'ConfirmAnswer',
     'Decision',
     'ErrorCode',
     'OnConflict',
@@ -33,6 +34,7 @@ __all__ = [
 # key: public name, value: the module that defines it
 _DEFINED_IN = {
     'ActiveTaskInfo': 'task_manager.client.records',
+    'ConfirmAnswer': 'task_manager.client.confirmations',
     'Decision': 'task_manager.client.records',
     'OnConflict': 'task_manager.core.admission.options',
     'Subtask': 'task_manager.client.missions',

@@ -3,10 +3,12 @@
 One module per concern, composed by `TaskManagerClient` (task_manager_client.py): the
 connection (connection.py), the tasks it starts (tasks.py, handle.py), watching (watching.py,
 listeners.py), what the Task Manager keeps (history.py, parameters.py), pauses (pauses.py),
-schedules (schedules.py), missions (missions.py), the records
-(records.py) and message fields as Python values (message_values.py).
+answers to confirmations (confirmations.py), schedules (schedules.py), missions
+(missions.py), the records (records.py) and message fields as Python values
+(message_values.py).
 """
 
+from task_manager.client.confirmations import ConfirmAnswer
 from task_manager.client.connection import DEFAULT_TIMEOUT_SEC
 from task_manager.client.handle import FeedbackCallback, TaskHandle
 from task_manager.client.history import FINAL_STATUSES
@@ -27,6 +29,7 @@ __all__ = [
     'DEFAULT_TIMEOUT_SEC',
     'FINAL_STATUSES',
     'ActiveTaskInfo',
+    'ConfirmAnswer',
     'Decision',
     'FeedbackCallback',
     'Pause',

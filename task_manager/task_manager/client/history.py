@@ -8,8 +8,9 @@ from builtin_interfaces.msg import Time
 from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.client.message_values import stamp_of
-from task_manager.client.records import TaskResult, TaskState
+from task_manager.client.records import Decision, TaskResult, TaskState
 from task_manager.client.services import CallService
+from task_manager.core.errors import TaskManagerError
 from task_manager.core.history.stats import TaskStats, task_stats
 from task_manager.core.names import (
     GET_TASK_RESULTS_SERVICE,
@@ -32,6 +33,15 @@ class History:
         request = GetTaskStates.Request(task_ids=list(task_ids))
         response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
         return [TaskState.from_message(m) for m in response.tasks]
+
+    def why(self, task_id: str, timeout_sec: float | None) -> list[Decision]:
+        """See TaskManagerClient.why."""
+        states = self.task_states([task_id], timeout_sec)
+        if not states:
+            raise TaskManagerError(
+                f'the Task Manager knows no task {task_id!r} (neither active nor in its history)'
+            )
+        return states[0].decisions
 
     def recent_results(self, max_results: int) -> list[TaskResult]:
         request = GetTaskResults.Request(max_results=max_results)

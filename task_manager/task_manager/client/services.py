@@ -1,5 +1,6 @@
 """How the client's helpers reach the Task Manager: a call of one of its services that only
-read, asked again when a reply is lost, and the shapes of the calls a helper is given."""
+read (or, as confirm_task, take a request asked again as the first), asked again when a reply
+is lost, and the shapes of the calls a helper is given."""
 
 import threading
 import time
@@ -14,7 +15,7 @@ from task_manager.core.errors import TaskManagerUnavailable
 
 
 class CallService(Protocol):
-    """Call a Task Manager service that only reads; TaskManagerUnavailable if no reply."""
+    """Call a Task Manager service that may be asked again; TaskManagerUnavailable if no reply."""
 
     def __call__(
         self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
@@ -45,7 +46,8 @@ class ServiceCalls:
     def call(
         self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
     ) -> Any:
-        """Call a Task Manager service that only reads; a lost reply is asked for again."""
+        """Call a Task Manager service that only reads, or takes a repeat as the first (see
+        confirm_task); a lost reply is asked for again."""
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         deadline = time.monotonic() + timeout_sec
         with self._connection.lock:

@@ -13,7 +13,7 @@ with any, it goes to /task_manager/start_task, else to ExecuteTask as it always 
 
 The client holds one helper per concern and hands each what it needs: the connection, the
 tasks it started, the watchers of what the node publishes, the query services, the pauses
-and schedules (which start system tasks through `run_task`).
+and schedules (which start system tasks through `run_task`) and the answers to confirmations.
 """
 
 from collections.abc import Callable, Iterator, Sequence
@@ -22,6 +22,7 @@ from typing import Any, Unpack
 
 from rclpy.task import Future
 
+from task_manager.client.confirmations import ConfirmAnswer, Confirmations
 from task_manager.client.connection import DEFAULT_TIMEOUT_SEC, Connection
 from task_manager.client.handle import TaskHandle
 from task_manager.client.history import History
@@ -41,7 +42,6 @@ from task_manager.client.services import ServiceCalls
 from task_manager.client.tasks import Tasks, check_priority, request_options
 from task_manager.client.watching import ActiveTasks, Watch
 from task_manager.core.admission.options import OnConflict
-from task_manager.core.errors import TaskManagerError
 from task_manager.core.history.stats import TaskStats
 from task_manager.core.names import CANCEL_TASK, REPRIORITIZE, STOP
 from task_manager.core.status import TaskStatus
@@ -65,6 +65,7 @@ class TaskManagerClient:
         self._history = History(self._services.call)
         self._pauses = Pauses(self.run_task)
         self._schedules = Schedules(self.run_task, self._services.call)
+        self._confirmations = Confirmations(self._services.call)
         self._connection.start()
 
     @property
@@ -280,12 +281,7 @@ class TaskManagerClient:
         From its state while it is active, else from the history; TaskManagerError when the
         Task Manager knows no such task.
         """
-        states = self._history.task_states([task_id], timeout_sec)
-        if not states:
-            raise TaskManagerError(
-                f'the Task Manager knows no task {task_id!r} (neither active nor in its history)'
-            )
-        return states[0].decisions
+        return self._history.why(task_id, timeout_sec)
 
     def recent_results(self, max_results: int = 0) -> list[TaskResult]:
         """Results the Task Manager has kept (oldest first), including from before we started.
@@ -379,6 +375,13 @@ class TaskManagerClient:
         `successful_resumes` and `errors` (one line per other id, e.g. one not paused).
         """
         return self._pauses.resume(task_ids, source=source, timeout_sec=timeout_sec)
+
+    def confirm(
+        self, task_id: str, *, reject: bool = False, comment: str = '', source: str = 'python'
+    ) -> ConfirmAnswer:
+        """Answer a waiting system/confirm: confirmed, it ends DONE; rejected, ERROR `rejected`;
+        its result names `source` (`by`) and `comment`. Start one with start_task."""
+        return self._confirmations.confirm(task_id, reject, comment, source)
 
     # ---- schedules ---------------------------------------------------------------------------
 

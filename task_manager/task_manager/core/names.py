@@ -19,6 +19,8 @@ GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'
 QUERY_TASK_HISTORY_SERVICE = '/task_manager/query_task_history'
 GET_SCHEDULES_SERVICE = '/task_manager/get_schedules'
+CONFIRM_TASK_SERVICE = '/task_manager/confirm_task'
+"""ConfirmTask: answer a waiting system/confirm (confirm or reject)."""
 TASK_SERVER_PREFIX = '/task_manager/task/'
 """With enable_task_servers, task NAME is also served at TASK_SERVER_PREFIX + NAME."""
 
@@ -35,8 +37,10 @@ SCHEDULE = 'system/schedule'
 UNSCHEDULE = 'system/unschedule'
 ENABLE_SCHEDULE = 'system/enable_schedule'
 REPRIORITIZE = 'system/reprioritize'
+CONFIRM = 'system/confirm'
 SYSTEM_TASK_NAMES = frozenset(
     {
+        CONFIRM,
         REPRIORITIZE,
         MISSION,
         CANCEL_TASK,

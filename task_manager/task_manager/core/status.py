@@ -54,7 +54,10 @@ class ErrorCode(StrEnum):
     QUEUE_FULL = 'queue_full'
     """It would have waited, but the queue holds max_queued tasks already."""
     TIMEOUT = 'timeout'
-    """One of its timeouts fired (timeout_sec, queue_timeout_sec, feedback_timeout_sec)."""
+    """One of its timeouts fired (timeout_sec, queue_timeout_sec, feedback_timeout_sec), or
+    nobody answered a system/confirm within its own timeout_sec."""
+    REJECTED = 'rejected'
+    """An operator rejected a system/confirm."""
 
 
 class ServerOutcome(StrEnum):

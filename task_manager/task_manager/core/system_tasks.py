@@ -5,6 +5,7 @@ from typing import Any
 from task_manager.core.names import (
     CANCEL_TASK,
     CANCEL_TASK_ALIAS,
+    CONFIRM,
     ENABLE_SCHEDULE,
     MISSION,
     PAUSE,
@@ -71,6 +72,10 @@ ENABLE_SCHEDULE_SPEC = _system_spec(
     reentrant=True,
     service_success_field='success',
 )
+# Several confirmations may wait at once; stop cancels them, as it cancels a mission.
+CONFIRM_SPEC = _system_spec(
+    CONFIRM, TaskKind.ACTION, 'Confirm', reentrant=True, cancel_on_stop=True
+)
 
 SYSTEM_SPECS = (
     MISSION_SPEC,
@@ -84,4 +89,5 @@ SYSTEM_SPECS = (
     SCHEDULE_SPEC,
     UNSCHEDULE_SPEC,
     ENABLE_SCHEDULE_SPEC,
+    CONFIRM_SPEC,
 )

@@ -34,7 +34,7 @@ TaskStatusName = Literal[
 ErrorCodeName = Literal[
     '', 'duplicate_id', 'task_data_parsing_failed', 'task_start_failed', 'task_cancel_failed',
     'unknown_task', 'invalid_request', 'preemption_refused', 'resource_busy', 'queue_full',
-    'timeout',
+    'timeout', 'rejected',
 ]  # fmt: skip
 
 

@@ -7,11 +7,18 @@ from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.action import ExecuteTask, StartTask
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskDoneResult
-from task_manager_msgs.srv import GetSchedules, GetTaskResults, GetTaskStates, QueryTaskHistory
+from task_manager_msgs.srv import (
+    ConfirmTask,
+    GetSchedules,
+    GetTaskResults,
+    GetTaskStates,
+    QueryTaskHistory,
+)
 
 from task_manager.core.history.store import HistoryQuery, HistoryRow
 from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
+    CONFIRM_TASK_SERVICE,
     EXECUTE_TASK_ACTION,
     GET_SCHEDULES_SERVICE,
     GET_TASK_RESULTS_SERVICE,
@@ -47,6 +54,7 @@ from task_manager.ros.serving.action_services_server import ActionServicesServer
 from task_manager.ros.serving.goal_binding import GoalTaskBinding
 from task_manager.ros.serving.task_servers import create_task_servers
 from task_manager.ros.system import create_system_runners
+from task_manager.ros.system.confirm import ConfirmRunner
 from task_manager.ros.system.schedules import schedule_msg
 
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
@@ -109,9 +117,11 @@ class TaskManagerNode(Node):
             source_priorities=self.settings.source_priorities,
         )
         self.scheduler = TaskScheduler(self, self.dispatcher, self.history.schedule_store())
+        self._confirmations = ConfirmRunner(self, self.dispatcher, self.history)
         self._runners = [
             *user_runners,
             *create_system_runners(self, self.dispatcher, self.scheduler),
+            self._confirmations,
         ]
         self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in self._runners})
         self._goals = GoalTaskBinding(self.dispatcher)
@@ -134,6 +144,9 @@ class TaskManagerNode(Node):
         )
         self._schedules_service = self.create_service(
             GetSchedules, GET_SCHEDULES_SERVICE, self._get_schedules
+        )
+        self._confirm_service = self.create_service(
+            ConfirmTask, CONFIRM_TASK_SERVICE, self._confirmations.answer_service
         )
         self._events.open()
         self._execute_server = ActionServicesServer(

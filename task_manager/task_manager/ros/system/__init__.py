@@ -1,5 +1,6 @@
 """The tasks built into the Task Manager: system/mission, cancel_task, stop, wait, pause,
-resume, schedule, unschedule and enable_schedule."""
+resume, schedule, unschedule and enable_schedule; system/confirm (confirm.py) is made by the
+node, which also serves its answers."""
 
 from rclpy.node import Node
 
