@@ -14,6 +14,7 @@ from functools import cache
 from typing import Any
 
 from task_manager.client import (
+    ConfirmAnswer,
     Decision,
     ScheduleInfo,
     TaskEvent,
@@ -23,7 +24,7 @@ from task_manager.client import (
 )
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.task_spec import PauseMode, parse_interface_name
-from task_manager.protocol.models import DeclaredTask
+from task_manager.protocol.models import ConfirmTask, DeclaredTask
 from task_manager.ros.goal_schema import task_data_schema
 
 LOG = logging.getLogger(__name__)
@@ -177,6 +178,12 @@ def scheduled_json(result: TaskResult, schedule_id: str) -> dict[str, Any]:
         'message': str(result.result.get('message', '')) or _error_of(result),
         'task': result_json(result),
     }
+
+
+def confirmed_json(answer: ConfirmAnswer, request: ConfirmTask, by: str) -> dict[str, Any]:
+    """A Confirmed document of an answer the Task Manager took from `by`."""
+    outcome = 'rejected' if request.reject else 'confirmed'
+    return {'task_id': answer.task_id, 'outcome': outcome, 'by': by, 'comment': request.comment}
 
 
 def _steps(result: TaskResult) -> dict[str, Any]:

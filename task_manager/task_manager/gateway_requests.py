@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from task_manager.client import (
+    ConfirmAnswer,
     Decision,
     ScheduleInfo,
     Subtask,
@@ -83,6 +84,14 @@ def pause(client: TaskManagerClient, request: models.PauseTasks, *, source: str)
 def resume(client: TaskManagerClient, request: models.ResumeTasks, *, source: str) -> TaskResult:
     """system/resume of the request's ids; its result (`successful_resumes`, `errors`)."""
     return client.resume(request.task_ids, source=source)
+
+
+def confirm(
+    client: TaskManagerClient, task_id: str, request: models.ConfirmTask, *, source: str
+) -> ConfirmAnswer:
+    """Answer the waiting system/confirm `task_id` as `source` (its result's `by`): taken, or
+    why not (`error_code` not_found, not_waiting or invalid_request, and its message)."""
+    return client.confirm(task_id, reject=request.reject, comment=request.comment, source=source)
 
 
 def when_of(request: models.ScheduleTask) -> When:

@@ -1,12 +1,16 @@
-"""The routes that pause and resume tasks and keep the schedules: each a system task run
-through the client in a control thread, its request and answer documents `task_manager.protocol`'s.
+"""The routes that pause and resume tasks, answer confirmations and keep the schedules: each a
+system task (or confirm_task) run through the client in a control thread, its request and
+answer documents `task_manager.protocol`'s.
 """
 
 from fastapi import FastAPI
 
 from task_manager import gateway_requests
+from task_manager.client import ConfirmAnswer
+from task_manager.core.confirmation import AnswerRefusal, not_found_reason
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import (
+    confirmed_json,
     paused_json,
     result_json,
     resumed_json,
@@ -35,6 +39,22 @@ def add_operator_routes(app: FastAPI) -> None:
             gateway_requests.resume, link.client, body, source=caller.source
         )
         return models.Resumed.model_validate(resumed_json(result))
+
+    @app.post('/api/tasks/{task_id:path}/confirm', tags=['tasks'])
+    async def confirm(
+        task_id: str, body: models.ConfirmTask, caller: Operator, link: Link
+    ) -> models.Confirmed:
+        """Answer a waiting system/confirm: confirm it (DONE) or reject it (ERROR, `rejected`);
+        its result names the caller (`by`: WEB:alice). 404 for an id the Task Manager does
+        not know, 409 `not_waiting` for a task that is no waiting confirmation."""
+        if text_problem('task_id', task_id) is not None:
+            raise _no_task(task_id)
+        answer = await link.control(
+            gateway_requests.confirm, link.client, task_id, body, source=caller.source
+        )
+        if not answer.taken:
+            raise _not_taken(answer)
+        return models.Confirmed.model_validate(confirmed_json(answer, body, caller.source))
 
     @app.get('/api/schedules', tags=['schedules'])
     async def schedules(_: Viewer, link: Link) -> list[models.Schedule]:
@@ -88,6 +108,19 @@ def _check_schedule_id(schedule_id: str) -> None:
     """An id no schedule can have (NUL, a newline, ...) is looked up nowhere."""
     if text_problem('schedule_id', schedule_id) is not None:
         raise _unknown(schedule_id)
+
+
+def _no_task(task_id: str) -> ApiError:
+    return ApiError(404, 'unknown_task_id', not_found_reason(task_id))
+
+
+def _not_taken(answer: ConfirmAnswer) -> ApiError:
+    """The HTTP error of an answer the Task Manager did not take."""
+    if answer.error_code == AnswerRefusal.NOT_FOUND:
+        return ApiError(404, 'unknown_task_id', answer.message)
+    if answer.error_code == AnswerRefusal.NOT_WAITING:
+        return ApiError(409, 'not_waiting', answer.message)
+    return ApiError(422, answer.error_code or 'invalid_request', answer.message)
 
 
 def _unknown(schedule_id: str) -> ApiError:

@@ -53,6 +53,7 @@ ROUTE_ROLES: dict[tuple[str, str], str | None] = {
     ('POST', '/api/stop'): OPERATOR,
     ('POST', '/api/tasks/pause'): OPERATOR,
     ('POST', '/api/tasks/resume'): OPERATOR,
+    ('POST', '/api/tasks/{task_id:path}/confirm'): OPERATOR,
     ('POST', '/api/tasks/reprioritize'): ADMIN,
     ('POST', '/api/schedules'): ADMIN,
     ('PATCH', '/api/schedules/{schedule_id:path}'): ADMIN,

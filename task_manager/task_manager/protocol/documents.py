@@ -4,6 +4,8 @@ from pydantic import BaseModel
 
 from task_manager.protocol.models import (
     CancelTasks,
+    Confirmed,
+    ConfirmTask,
     Decision,
     DeclaredTask,
     EnableSchedule,
@@ -40,6 +42,8 @@ DOCUMENTS: dict[str, type[BaseModel]] = {
     'reprioritize': Reprioritize,
     'pause_tasks': PauseTasks,
     'resume_tasks': ResumeTasks,
+    'confirm_task': ConfirmTask,
+    'confirmed': Confirmed,
     'paused': Paused,
     'resumed': Resumed,
     'schedule_task': ScheduleTask,

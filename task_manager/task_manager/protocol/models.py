@@ -20,6 +20,7 @@ from pydantic import (
     model_validator,
 )
 
+from task_manager.core.confirmation import TEXT_MAX_LENGTH
 from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, IDS_MAX
 from task_manager.core.request_text import MAX_LENGTH, is_refused_character
 
@@ -137,6 +138,26 @@ class ResumeTasks(_Request):
     """system/resume: paused tasks run again."""
 
     task_ids: list[Name] = Field(min_length=1, max_length=IDS_MAX)
+
+
+class ConfirmTask(_Request):
+    """Answer a waiting system/confirm: confirm it (it ends DONE) or reject it (ERROR,
+    `rejected`). Who answers is not the request's to say: the gateway names its caller
+    (`WEB:alice`), and the task's result keeps it as `by`."""
+
+    reject: StrictBool = Field(False, description='True: reject; false: confirm.')
+    comment: Name = Field(
+        '', max_length=TEXT_MAX_LENGTH, description='Why, kept in the result (optional).'
+    )
+
+
+class Confirmed(BaseModel):
+    """The answer to a ConfirmTask the Task Manager took: the task ends with it."""
+
+    task_id: str
+    outcome: Literal['confirmed', 'rejected']
+    by: str = Field(description="Who answered, as the task's result says.", examples=['WEB:alice'])
+    comment: str = ''
 
 
 OverlapName = Literal['', 'SKIP', 'BUFFER_ONE', 'CANCEL_OTHER', 'ALLOW_ALL']
