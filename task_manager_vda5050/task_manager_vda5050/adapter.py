@@ -59,6 +59,9 @@ class Adapter:
         self.mapping = mapping
         self.state_period_sec = state_period_sec
         self.state = VehicleState()
+        self.state.battery.update(mapping.reported.get('batteryState') or {})
+        self.state.safety.update(mapping.reported.get('safetyState') or {})
+        self.state.operating_mode = mapping.reported.get('operatingMode', 'AUTOMATIC')
         self.items: queue.SimpleQueue[Item] = queue.SimpleQueue()
         self._blocking_tasks = self._tasks_that_block_driving(client, mapping)
         self.planner = Planner(mapping, self._blocking_tasks.__contains__)

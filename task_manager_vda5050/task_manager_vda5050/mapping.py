@@ -31,6 +31,9 @@ from typing import Any, TypeVar
 import yaml
 
 SCOPES = ('INSTANT', 'NODE', 'EDGE')
+REPORTED = ('batteryState', 'safetyState', 'operatingMode')
+DEMO_MAPPING = Path(__file__).resolve().parents[1] / 'params' / 'demo_mapping.yaml'
+"""The mapping of the demo robot (`make vda5050`, the tests)."""
 
 
 class MappingError(ValueError):
@@ -87,6 +90,9 @@ class Mapping:
     actions: dict[str, ActionMapping] = field(default_factory=dict)
     """key: actionType."""
     position: PositionSource | None = None
+    reported: dict[str, Any] = field(default_factory=dict)
+    """Fixed values of state: batteryState, safetyState, operatingMode (the defaults: full
+    and not charging, no e-stop, AUTOMATIC)."""
     vehicle: dict[str, Any] = field(default_factory=dict)
     """The factsheet's typeSpecification, physicalParameters, agvGeometry and
     loadSpecification, as given (defaults for those not given)."""
@@ -121,11 +127,12 @@ def read_mapping(path: Path) -> Mapping:
 
 
 def mapping_of(values: dict[str, Any]) -> Mapping:
-    unknown = sorted(set(values) - {'navigation', 'actions', 'position', 'vehicle'})
-    if unknown:
-        raise MappingError(
-            f'unknown keys {unknown}; allowed: navigation, actions, position, vehicle'
-        )
+    allowed = {'navigation', 'actions', 'position', 'vehicle', 'reported'}
+    if unknown := sorted(set(values) - allowed):
+        raise MappingError(f'unknown keys {unknown}; allowed: {sorted(allowed)}')
+    reported = values.get('reported') or {}
+    if not isinstance(reported, dict) or set(reported) - set(REPORTED):
+        raise MappingError(f'reported: a mapping of {", ".join(REPORTED)}')
     if not isinstance(values.get('vehicle') or {}, dict):
         raise MappingError('vehicle: a mapping of factsheet sections')
     if not isinstance(values.get('navigation'), dict):
@@ -140,6 +147,7 @@ def mapping_of(values: dict[str, Any]) -> Mapping:
         actions={str(k): _template(ActionMapping, f'actions.{k}', v) for k, v in actions.items()},
         position=None if position is None else _position(position),
         vehicle=dict(values.get('vehicle') or {}),
+        reported=dict(reported),
     )
 
 

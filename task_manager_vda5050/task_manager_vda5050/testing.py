@@ -17,10 +17,10 @@ from task_manager_mqtt.broker import READY_LINE
 from task_manager.testing.harness import WaitTimeoutError
 from task_manager.testing.process import NodeProcess
 from task_manager_vda5050.broker import VdaBroker
+from task_manager_vda5050.mapping import DEMO_MAPPING
 
 ADAPTER_EXECUTABLE = str(Path(sys.executable).with_name('task-manager-vda5050'))
 PACKAGE = Path(__file__).resolve().parents[1]
-DEMO_MAPPING = PACKAGE / 'params' / 'demo_mapping.yaml'
 TEST_TOOLS = PACKAGE / 'test_tools'
 MASTER_SCRIPT = TEST_TOOLS / 'master.js'
 CONNECTED_LINE = r'connected to the broker'

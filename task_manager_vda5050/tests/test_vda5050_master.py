@@ -46,6 +46,7 @@ def test_the_master_completes_an_order_with_an_action(
     assert (photo_task.task_name, photo_task.mission_id) == ('camera/take_photo', 'order-photo')
     state = latest_state(master, lambda s: s['lastNodeId'] == 'shelf', 'lastNodeId shelf')
     assert state['agvPosition']['x'] == pytest.approx(2.0, abs=0.05)
+    assert state['batteryState'] == {'batteryCharge': 80.0, 'charging': False}  # the mapping's
 
 
 def test_the_master_pauses_and_resumes_an_order(master: Master) -> None:
