@@ -148,6 +148,59 @@ def test_the_schedules_panel_follows_a_run_from_its_events(
     expect(row.locator('.next-run')).to_have_text('none to come')
 
 
+def test_a_waiting_step_is_confirmed_from_the_banner_and_its_mission_goes_on(
+    page: Page, robot: Robot, api: httpx.Client
+) -> None:
+    confirm = {
+        'task_name': 'system/confirm',
+        'task_data': {'prompt': 'Load the tray, then confirm', 'timeout_sec': 600},
+        'task_id': 'tray',
+    }
+    mission = {'subtasks': [FIB, confirm, FIB], 'task_id': 'm-c'}
+    assert api.post('/api/missions', json=mission).status_code == 202
+    banner = page.locator('#confirmations .confirmation[data-task-id="tray"]')
+    expect(page.locator('#confirmations')).to_be_hidden()
+    robot.fib.wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
+
+    expect(banner.locator('.confirm-prompt')).to_have_text('Load the tray, then confirm')
+    expect(banner.locator('.confirm-where')).to_have_text('step 2 of 3 of mission m-c')
+    expect(banner.locator('.countdown')).to_contain_text(' min ')
+    expect(page).to_have_title('(1) waiting for confirmation · Task Manager')
+    assert node_status(api, 'tray') == 'IN_PROGRESS'
+    banner.locator('.confirm-comment').fill('tray loaded')
+    banner.locator('button.confirm').click()
+
+    expect(page.locator('#message')).to_have_text('Confirmed tray (by WEB)')
+    expect(banner).to_have_count(0)
+    expect(page).to_have_title('Task Manager')
+    robot.fib.wait_for_goals(2, TIMEOUT_SEC)[1].succeed()  # the mission goes on
+    mission_card = page.locator('.mission[data-mission-id="m-c"]')
+    expect(mission_card.locator('.mission-title .badge')).to_have_text('DONE')
+    answered = api.get('/api/tasks/tray').json()
+    assert (answered['status'], answered['result']) == (
+        'DONE',
+        {'confirmed': True, 'by': 'WEB', 'comment': 'tray loaded', 'outcome': 'confirmed'},
+    )
+
+
+def test_a_confirmation_rejected_from_the_banner_ends_error(page: Page, api: httpx.Client) -> None:
+    confirm = {'task_name': 'system/confirm', 'task_data': {'prompt': 'Door open?'}}
+    assert api.post('/api/tasks/start', json={**confirm, 'task_id': 'door'}).status_code == 202
+    banner = page.locator('#confirmations .confirmation[data-task-id="door"]')
+    expect(banner.locator('.confirm-where')).to_have_text('task door')
+
+    banner.locator('button.reject').click()
+
+    expect(page.locator('#message')).to_have_text('Rejected door (by WEB)')
+    expect(banner).to_have_count(0)
+    answered = api.get('/api/tasks/door').json()
+    assert (answered['status'], answered['error_code'], answered['result']['outcome']) == (
+        'ERROR',
+        'rejected',
+        'rejected',
+    )
+
+
 def open_as(page: Page, gateway: GatewayProcess, role: str) -> None:
     page.goto(f'{gateway.url}/?token={TOKENS[role]}')
     expect(page.locator('#connection')).to_have_text('connected')

@@ -95,8 +95,8 @@ async function answer(taskId, reject, comment, buttons) {
   for (const button of buttons) button.disabled = true;
   const body = { reject, ...(comment.value.trim() ? { comment: comment.value.trim() } : {}) };
   try {
-    await api(`/api/tasks/${idPath(taskId)}/confirm`, { method: 'POST', json: body });
-    say(`${reject ? 'Rejected' : 'Confirmed'} ${taskId}`);
+    const answered = await api(`/api/tasks/${idPath(taskId)}/confirm`, { method: 'POST', json: body });
+    say(`${reject ? 'Rejected' : 'Confirmed'} ${taskId} (by ${answered.by})`);
   } catch (error) {
     for (const button of buttons) button.disabled = false;
     say(`Could not ${reject ? 'reject' : 'confirm'} ${taskId}: ${error.message}`, true);
