@@ -7,6 +7,7 @@ import typer
 from task_manager import TaskManagerError, TaskManagerUnavailable
 from task_manager.cli.common import EXIT_ERROR, EXIT_INTERRUPTED, EXIT_UNAVAILABLE, progress
 from task_manager.cli.verbs.cancel import cancel, stop
+from task_manager.cli.verbs.confirm import confirm
 from task_manager.cli.verbs.decisions import reprioritize, why
 from task_manager.cli.verbs.history import history, stats
 from task_manager.cli.verbs.mission import mission
@@ -19,8 +20,8 @@ from task_manager.discovery import use_quick_discovery
 
 app = typer.Typer(
     name='taskctl',
-    help='Start, watch, pause, cancel, reprioritize and schedule the tasks of a running ROS 2 '
-    'Task Manager.',
+    help='Start, watch, pause, confirm, cancel, reprioritize and schedule the tasks of a running '
+    'ROS 2 Task Manager.',
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
@@ -37,8 +38,8 @@ def options(
     ctx.obj = {'timeout_sec': timeout}
 
 
-VERBS = (start, mission, cancel, stop, pause, resume, reprioritize, why, active, results, history,
-         stats, tasks)  # fmt: skip
+VERBS = (start, mission, cancel, stop, pause, resume, confirm, reprioritize, why, active, results,
+         history, stats, tasks)  # fmt: skip
 for verb in VERBS:
     app.command()(verb)
 app.add_typer(schedule_app)

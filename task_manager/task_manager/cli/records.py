@@ -11,6 +11,7 @@ from typing import Any
 
 from task_manager import ActiveTaskInfo, Pause, TaskResult, TaskState
 from task_manager.client import Decision
+from task_manager.core.names import CONFIRM
 from task_manager.pauses import paused_time
 
 # key: a property of a declared task in taskctl's JSON, value: its default
@@ -103,7 +104,15 @@ def active_data(task: ActiveTaskInfo | TaskState, now: datetime) -> dict[str, An
         'priority': state.priority if known else None,
         'queue_position': state.queue_position if known else None,
         'attempt': state.attempt if known else None,
+        'prompt': prompt_of(task),
     }
+
+
+def prompt_of(task: ActiveTaskInfo | TaskState) -> str:
+    """What a waiting system/confirm asks (its feedback's prompt); '' for any other task."""
+    feedback = task.feedback if isinstance(task, TaskState) else None
+    prompt = (feedback or {}).get('prompt') if task.task_name == CONFIRM else None
+    return prompt if isinstance(prompt, str) else ''
 
 
 def declared_data(entry: dict[str, Any]) -> dict[str, Any]:

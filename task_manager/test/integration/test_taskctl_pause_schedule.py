@@ -31,7 +31,7 @@ ONE_MS = timedelta(milliseconds=1)
 ROUNDING = timedelta(microseconds=1)
 ACTIVE_FIELDS = {
     'task_id', 'task_name', 'status', 'source', 'mission_id', 'received_at', 'started_at',
-    'duration_sec', 'paused_sec', 'pauses', 'priority', 'queue_position', 'attempt',
+    'duration_sec', 'paused_sec', 'pauses', 'priority', 'queue_position', 'attempt', 'prompt',
 }  # fmt: skip
 CANNOT_PAUSE = (
     'task snap (photo) cannot be paused: its entry declares pause: none (the default); '

@@ -20,8 +20,8 @@ from task_manager.core.status import ErrorCode, TaskStatus
 
 T0 = datetime(2026, 11, 25, 8, 0, tzinfo=UTC)
 VERBS = (
-    'start', 'mission', 'cancel', 'stop', 'pause', 'resume', 'reprioritize', 'why', 'active',
-    'results', 'history', 'stats', 'tasks', 'schedule',
+    'start', 'mission', 'cancel', 'stop', 'pause', 'resume', 'confirm', 'reprioritize', 'why',
+    'active', 'results', 'history', 'stats', 'tasks', 'schedule',
 )  # fmt: skip
 SCHEDULE_VERBS = ('add', 'list', 'remove', 'disable', 'enable')
 
@@ -182,6 +182,7 @@ def test_active_json_a_line_per_task_and_a_list_per_change_with_watch(run: Any) 
         'priority': 0,
         'queue_position': 0,
         'attempt': 1,
+        'prompt': '',
     }
 
     once = run(client, 'active', '--json')
@@ -190,6 +191,27 @@ def test_active_json_a_line_per_task_and_a_list_per_change_with_watch(run: Any) 
     assert (once.exit_code, watched.exit_code) == (0, 0)
     assert _lines(once.stdout) == [queued_data]
     assert _lines(watched.stdout) == [[queued_data], [queued_data]]
+
+
+def test_active_shows_the_prompt_of_a_waiting_confirmation(run: Any) -> None:
+    waiting = TaskState(
+        'tray',
+        'system/confirm',
+        TaskStatus.IN_PROGRESS,
+        'CLI',
+        started_at=_at(1),
+        feedback={'prompt': 'Load the tray', 'remaining_sec': 599.0},
+    )
+    other = TaskState('drive', 'navigate', TaskStatus.IN_PROGRESS, 'CLI', feedback={'prompt': 1})
+    client = FakeClient(task_states=[waiting, other], active_task_updates=[])
+
+    table = run(client, 'active')
+    as_json = run(client, 'active', '--json')
+    alone = run(FakeClient(task_states=[other], active_task_updates=[]), 'active')
+
+    assert 'waiting for an answer' in table.stdout and 'Load the tray' in table.stdout
+    assert [row['prompt'] for row in _lines(as_json.stdout)] == ['Load the tray', '']
+    assert 'waiting for an answer' not in alone.stdout  # the column only while one waits
 
 
 def test_an_active_paused_task_as_json_stops_its_clock(cli: SimpleNamespace) -> None:

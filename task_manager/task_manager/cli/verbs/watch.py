@@ -20,7 +20,7 @@ from task_manager import (
     TaskStatus,
 )
 from task_manager.cli.common import connected, duration_text, output, time_text
-from task_manager.cli.records import active_data, json_line, result_data
+from task_manager.cli.records import active_data, json_line, prompt_of, result_data
 from task_manager.cli.verbs.start import status_text
 
 ActiveRow: TypeAlias = ActiveTaskInfo | TaskState
@@ -34,11 +34,14 @@ STATUS_STYLES = {TaskStatus.PAUSED: 'yellow', TaskStatus.QUEUED: 'cyan'}
 
 def active_table(tasks: Sequence[ActiveRow]) -> Table:
     """The active tasks; `running for` needs their stamps (TaskState rows), and stops while
-    a task is PAUSED; a QUEUED task shows its place in the queue (`QUEUED #2`)."""
+    a task is PAUSED; a QUEUED task shows its place in the queue (`QUEUED #2`); a waiting
+    system/confirm its prompt (a column shown while one waits)."""
     table = Table(title=f'active tasks ({len(tasks)})')
-    for column in ('id', 'task', 'status', 'source', 'running for', 'priority'):
+    prompts = [prompt_of(task) for task in tasks]
+    waiting = ('waiting for an answer',) if any(prompts) else ()
+    for column in ('id', 'task', 'status', 'source', 'running for', 'priority', *waiting):
         table.add_column(column)
-    for task in tasks:
+    for task, prompt in zip(tasks, prompts, strict=True):
         state = task if isinstance(task, TaskState) else None
         elapsed = state.elapsed() if state is not None else None
         position = state.queue_position if state is not None else 0
@@ -49,6 +52,7 @@ def active_table(tasks: Sequence[ActiveRow]) -> Table:
             task.source,
             duration_text(elapsed) if elapsed is not None else '',
             str(state.priority) if state is not None else '',
+            *([Text(prompt, style='bold magenta')] if waiting else []),
         )
     return table
 
