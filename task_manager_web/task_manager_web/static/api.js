@@ -1,5 +1,5 @@
 // The gateway's API: the token (taken from the address once, then kept for the session),
-// requests with it, and their errors.
+// requests with it, their errors, and what the token's holder may do.
 
 import { $ } from './dom.js';
 
@@ -53,4 +53,18 @@ export function askForToken() {
 // The path of an id inside a route (`/api/schedules/{id}`): every character kept as it is.
 export function idPath(id) {
   return encodeURIComponent(id);
+}
+
+// The token's role (GET /api/whoami: {role, name}) on the page's body: the controls beyond it
+// (data-needs="operator" or "admin") are hidden by the style sheet; the gateway refuses them
+// anyway (403). Unknown (a gateway without roles): every control is shown.
+export async function loadRole() {
+  try {
+    const who = await api('/api/whoami');
+    document.body.dataset.role = who.role;
+    $('#who').textContent = who.name ? `${who.name} (${who.role})` : who.role;
+    $('#who').hidden = false;
+  } catch (error) {
+    console.debug('role:', error);
+  }
 }

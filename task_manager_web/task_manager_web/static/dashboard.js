@@ -2,13 +2,12 @@
 // the gateway. Live state comes from /api/events; on every (re)connection the active tasks,
 // the schedules and the history are read again.
 
-import { api, askForToken, takeToken } from './api.js';
+import { api, askForToken, loadRole, takeToken } from './api.js';
 import { renderConfirmations, tickConfirmations } from './confirmations.js';
 import { $, say } from './dom.js';
 import { followEvents } from './events.js';
 import { addHistoryRow, loadHistory, wireHistory } from './history.js';
 import { rememberMission, renderMissions } from './missions.js';
-import { loadRole } from './roles.js';
 import { loadSchedules, onScheduleEvent, tickSchedules, wireSchedules } from './schedules.js';
 import { loadDeclared, wireStartForm } from './start_form.js';
 import { isLive, state } from './state.js';
