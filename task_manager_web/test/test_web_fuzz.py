@@ -29,8 +29,15 @@ pytestmark = pytest.mark.ros
 TOKEN = 'fuzz-token-0000'
 BODY_LIMIT_BYTES = 64 * 1024
 """Small, so that sizes over it come up often."""
-ROUTES = ('/api/tasks/start', '/api/missions', '/api/tasks/cancel', '/api/stop')
-FIELDS = ('task_name', 'task_data', 'task_id', 'source', 'subtasks', 'task_ids', 'allow_skipping')
+ROUTES = (
+    '/api/tasks/start',
+    '/api/missions',
+    '/api/tasks/cancel',
+    '/api/stop',
+    '/api/tasks/x/confirm',
+)
+FIELDS = ('task_name', 'task_data', 'task_id', 'source', 'subtasks', 'task_ids', 'allow_skipping',
+          'reject', 'comment')  # fmt: skip
 QUERY_FIELDS = ('task_name', 'status', 'source', 'since', 'until', 'limit', 'after_sequence')
 FUZZ = settings(max_examples=150, deadline=None)
 
