@@ -34,7 +34,7 @@ __all__ = [
 # key: public name, value: the module that defines it
 _DEFINED_IN = {
     'ActiveTaskInfo': 'task_manager.client.records',
-    'ConfirmAnswer': 'task_manager.client.confirmations',
+    'ConfirmAnswer': 'task_manager.client.interventions',
     'Decision': 'task_manager.client.records',
     'OnConflict': 'task_manager.core.admission.options',
     'Subtask': 'task_manager.client.missions',

@@ -2,16 +2,15 @@
 
 One module per concern, composed by `TaskManagerClient` (task_manager_client.py): the
 connection (connection.py), the tasks it starts (tasks.py, handle.py), watching (watching.py,
-listeners.py), what the Task Manager keeps (history.py, parameters.py), pauses (pauses.py),
-answers to confirmations (confirmations.py), schedules (schedules.py), missions
-(missions.py), the records (records.py) and message fields as Python values
-(message_values.py).
+listeners.py), what the Task Manager keeps (history.py, parameters.py), pauses and answers to
+confirmations (interventions.py), schedules (schedules.py), missions (missions.py), the
+records (records.py) and message fields as Python values (message_values.py).
 """
 
-from task_manager.client.confirmations import ConfirmAnswer
 from task_manager.client.connection import DEFAULT_TIMEOUT_SEC
 from task_manager.client.handle import FeedbackCallback, TaskHandle
 from task_manager.client.history import FINAL_STATUSES
+from task_manager.client.interventions import ConfirmAnswer
 from task_manager.client.missions import Subtask
 from task_manager.client.records import (
     ActiveTaskInfo,

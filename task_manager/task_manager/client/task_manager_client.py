@@ -22,14 +22,13 @@ from typing import Any, Unpack
 
 from rclpy.task import Future
 
-from task_manager.client.confirmations import ConfirmAnswer, Confirmations
 from task_manager.client.connection import DEFAULT_TIMEOUT_SEC, Connection
 from task_manager.client.handle import TaskHandle
 from task_manager.client.history import History
+from task_manager.client.interventions import ConfirmAnswer, Confirmations, Pauses
 from task_manager.client.listeners import Callback
 from task_manager.client.missions import Subtask
 from task_manager.client.parameters import declared_tasks
-from task_manager.client.pauses import Pauses
 from task_manager.client.records import (
     ActiveTaskInfo,
     Decision,

@@ -11,7 +11,7 @@ from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskState as TaskStateMessage
 
 from task_manager.client import Pause, TaskEvent, TaskEventKind, TaskResult, TaskState
-from task_manager.client.pauses import Pauses
+from task_manager.client.interventions import Pauses
 from task_manager.client.records import parse_pauses
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.gateway_json import result_json, task_json
