@@ -26,7 +26,7 @@ MAX_DEPTH = 32
 """Nesting levels (objects and arrays) a request may have; a mission's task_data uses ~6."""
 OPS = (
     'start_task', 'start_mission', 'cancel', 'stop', 'history', 'reprioritize', 'why', 'pause',
-    'resume', 'schedule', 'unschedule', 'enable_schedules', 'schedules',
+    'resume', 'schedule', 'unschedule', 'enable_schedules', 'schedules', 'confirm',
 )  # fmt: skip
 
 # a JSON string (escapes included) and each structural character; anything else between

@@ -224,8 +224,9 @@ class FleetClient:
         run's; `reply_timeout_sec` is the wait for the robot's reply). A request the bridge
         cannot take (two whens, a field misspelt, ...) is FleetError `invalid_request`.
         """
-        document = {'task_name': task_name, 'task_data': task_data or {}}
-        return self._schedule(robot_id, document, fields, reply_timeout_sec)
+        what = {'task_name': task_name, 'task_data': task_data or {}}
+        document = {**what, **schedule_document(fields)}
+        return self._answer(robot_id, 'schedule', reply_timeout_sec, **document)['scheduled']
 
     def schedule_mission(
         self,
@@ -237,7 +238,8 @@ class FleetClient:
     ) -> Document:
         """system/schedule of a mission (`subtasks` as start_mission's), as schedule_task;
         a subtask's task_id only in a schedule that runs once (each run makes its own)."""
-        return self._schedule(robot_id, {'subtasks': subtasks}, fields, reply_timeout_sec)
+        document = {'subtasks': subtasks, **schedule_document(fields)}
+        return self._answer(robot_id, 'schedule', reply_timeout_sec, **document)['scheduled']
 
     def unschedule(
         self, robot_id: str, schedule_id: str, timeout_sec: float = TIMEOUT_SEC
@@ -270,6 +272,21 @@ class FleetClient:
         fields = {'schedule_ids': schedule_ids or []}
         return self._answer(robot_id, 'schedules', timeout_sec, **fields)['schedules']
 
+    def confirm(
+        self,
+        robot_id: str,
+        task_id: str,
+        *,
+        reject: bool = False,
+        comment: str = '',
+        timeout_sec: float = TIMEOUT_SEC,
+    ) -> Document:
+        """Answer a waiting system/confirm on the robot: confirmed, it ends DONE; rejected,
+        ERROR `rejected`; its result's `by` is the bridge's source. The Confirmed document;
+        FleetError `unknown_task_id`, or `not_waiting` for a task that is no waiting one."""
+        fields = {'task_id': task_id, 'reject': reject, 'comment': comment}
+        return self._answer(robot_id, 'confirm', timeout_sec, **fields)['confirmed']
+
     def request(
         self, robot_id: str, op: str, *, request_id: str = '', **fields: Any
     ) -> Future[Document]:
@@ -301,12 +318,6 @@ class FleetClient:
         """The robot's reply to a request (FleetError if it is an error reply); `fields` may
         hold a `timeout_sec` of their own (a schedule's runs')."""
         return outcome(self.request(robot_id, op, **fields), wait_sec, f'reply of {robot_id}')
-
-    def _schedule(
-        self, robot_id: str, what: Document, fields: ScheduleFields, timeout_sec: float
-    ) -> Document:
-        document = {**what, **schedule_document(fields)}
-        return self._answer(robot_id, 'schedule', timeout_sec, **document)['scheduled']
 
     def _start(
         self, robot_id: str, op: str, fields: Document, task_id: str, source: str

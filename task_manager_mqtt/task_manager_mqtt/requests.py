@@ -6,8 +6,9 @@ allowed (`invalid_request`, `payload_too_large`, `nesting_too_deep`, `retained_r
 one without is a dead letter (see Answer). No Task Manager is `task_manager_unavailable`.
 A start whose task id the Task Manager already knows starts nothing: the reply is that
 task, with `duplicate: true`; `why` of a task it does not know is `unknown_task_id`, and
-`unschedule` or `enable_schedules` of a schedule it does not have `unknown_schedule_id`.
-Pause, resume and the schedules go through the same calls as the web gateway's routes
+`unschedule` or `enable_schedules` of a schedule it does not have `unknown_schedule_id`, and
+`confirm` of a task that is no waiting confirmation `not_waiting`. Pause, resume, the
+schedules and confirm go through the same calls as the web gateway's routes
 (`gateway_requests`). Whatever happens, `answer` returns one Answer.
 """
 
@@ -19,9 +20,11 @@ from typing import Any
 
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient, TaskState
+from task_manager.core.confirmation import AnswerRefusal
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.status import TaskStatus
 from task_manager.gateway_json import (
+    confirmed_json,
     decisions_json,
     paused_json,
     result_json,
@@ -46,6 +49,7 @@ OperatorRequest = (
     | mqtt.UnscheduleRequest
     | mqtt.EnableSchedulesRequest
     | mqtt.SchedulesRequest
+    | mqtt.ConfirmRequest
 )
 
 
@@ -144,10 +148,13 @@ class RequestHandler:
         raise AssertionError(f'unhandled request {request!r}')
 
     def _operate(self, request: OperatorRequest) -> dict[str, Any]:
-        """pause, resume and the schedules' ops: the system task, ended, and the answer."""
+        """pause, resume and the schedules' ops: the system task, ended, and the answer;
+        confirm: the answer."""
         client, source = self.client, self.source
         if isinstance(request, mqtt.SchedulesRequest):
             return {'schedules': [schedule_json(s) for s in client.schedules(request.schedule_ids)]}
+        if isinstance(request, mqtt.ConfirmRequest):
+            return self._confirm(request)
         client.wait_until_available()
         match request:
             case mqtt.PauseRequest():
@@ -168,6 +175,16 @@ class RequestHandler:
             case mqtt.EnableSchedulesRequest():
                 return self._enable_schedules(request)
         raise AssertionError(f'unhandled request {request!r}')
+
+    def _confirm(self, request: mqtt.ConfirmRequest) -> dict[str, Any]:
+        answer = gateway_requests.confirm(self.client, request.task_id, request, source=self.source)
+        if answer.taken:
+            return {'confirmed': confirmed_json(answer, request, self.source)}
+        if answer.error_code == AnswerRefusal.NOT_FOUND:
+            raise Refusal('unknown_task_id', answer.message, 'task_id')
+        if answer.error_code == AnswerRefusal.NOT_WAITING:
+            raise Refusal('not_waiting', answer.message, 'task_id')
+        raise Refusal(answer.error_code or 'invalid_request', answer.message)
 
     def _enable_schedules(self, request: mqtt.EnableSchedulesRequest) -> dict[str, Any]:
         try:

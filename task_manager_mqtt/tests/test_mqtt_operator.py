@@ -1,5 +1,5 @@
-"""Pause, resume and schedules through the bridge (issue 30): the FleetClient's calls over a
-real mosquitto to a real Task Manager, and the error replies to bad requests."""
+"""Pause, resume, schedules and confirmations through the bridge (issue 30): the FleetClient's
+calls over a real mosquitto to a real Task Manager, and the error replies to bad requests."""
 
 import json
 from datetime import UTC, datetime, timedelta
@@ -182,6 +182,44 @@ def test_each_bad_request_gets_one_error_reply_naming_the_field_and_nothing_is_d
     with pytest.raises(FleetError) as unknown:
         online.unschedule(ROBOT, 'nope')
     assert unknown.value.code == 'unknown_schedule_id'
+
+
+def test_a_mission_waits_at_its_confirmation_until_the_cloud_confirms_it(
+    online: FleetClient,
+) -> None:
+    events: list[dict[str, Any]] = []
+    online.on_event(lambda _, event: events.append(check(event, 'task_event')))
+    step = {'task_name': 'system/confirm', 'task_data': {'prompt': 'Load the tray'}}
+    mission = online.start_mission(ROBOT, [step, INSTANT])
+    confirm_id, instant_id = check(mission.accepted(), 'mqtt_reply')['subtask_ids']
+    waiting = wait_until(
+        lambda: [e for e in events if e['task']['task_id'] == confirm_id and e['task']['feedback']],
+        'the prompt as feedback',
+    )
+    assert waiting[0]['task']['feedback']['prompt'] == 'Load the tray'
+    assert not [e for e in events if e['task']['task_id'] == instant_id]  # the mission waits
+
+    confirmed = check(online.confirm(ROBOT, confirm_id, comment='tray loaded'), 'confirmed')
+
+    assert confirmed == {
+        'task_id': confirm_id,
+        'outcome': 'confirmed',
+        'by': 'CLOUD',
+        'comment': 'tray loaded',
+    }
+    assert check(mission.result(), 'task')['status'] == 'DONE'
+    (stored,) = online.history(ROBOT, task_name='system/confirm')
+    assert (stored['status'], stored['result']['by'], stored['result']['outcome']) == (
+        'DONE',
+        'CLOUD',
+        'confirmed',
+    )
+    with pytest.raises(FleetError) as ended:
+        online.confirm(ROBOT, confirm_id, reject=True)
+    with pytest.raises(FleetError) as unknown:
+        online.confirm(ROBOT, 'nobody')
+    assert ended.value.code == 'not_waiting' and 'ended DONE' in str(ended.value)
+    assert unknown.value.code == 'unknown_task_id' and "'nobody'" in str(unknown.value)
 
 
 def changes_of(events: list[dict[str, Any]], task_id: str) -> list[tuple[str, str]]:

@@ -12,6 +12,8 @@ from task_manager.core.names import IDS_MAX
 from task_manager.protocol.models import (
     NAME_MAX,
     CancelTasks,
+    Confirmed,
+    ConfirmTask,
     Decision,
     DeclaredTask,
     EnableSchedule,
@@ -130,6 +132,15 @@ class SchedulesRequest(_Addressed):
     )
 
 
+class ConfirmRequest(ConfirmTask, _Addressed):
+    """`confirm`: answer the waiting system/confirm `task_id`, as the bridge's source (its
+    result's `by`); `unknown_task_id` for a task the node does not know, `not_waiting` for one
+    that is no waiting confirmation."""
+
+    op: Literal['confirm']
+    task_id: Name = Field(min_length=1, max_length=NAME_MAX)
+
+
 RequestBody = Annotated[
     StartTaskRequest
     | StartMissionRequest
@@ -143,7 +154,8 @@ RequestBody = Annotated[
     | ScheduleRequest
     | UnscheduleRequest
     | EnableSchedulesRequest
-    | SchedulesRequest,
+    | SchedulesRequest
+    | ConfirmRequest,
     Field(discriminator='op'),
 ]
 
@@ -178,6 +190,7 @@ class Reply(BaseModel):
     schedules: list[Schedule] | None = Field(
         None, description='schedules: those found; enable_schedules: those changed, as now.'
     )
+    confirmed: Confirmed | None = Field(None, description='confirm: the answer, taken.')
     error: ErrorDetail | None = Field(None, description='When ok is false.')
 
 
