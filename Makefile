@@ -130,12 +130,13 @@ lint: install
 
 # The simulated robot, the Task Manager with the demo's tasks and its dashboard; Ctrl-C stops all.
 # `make run PARAMS=file.yaml` gives the Task Manager another parameters file; the dashboard
-# (the web gateway) listens on WEB_PORT.
+# (the web gateway) listens on WEB_PORT. `make run TOKENS=file` gives the gateway a token file
+# (one 'ROLE TOKEN [NAME]' line per token: viewer, operator, admin; docs/web.md).
 # ROS_HOME is DEMO_ROS_HOME; the history file is the Task Manager's default one for its ROS
 # domain (docs/starting-and-watching.md, "Where the history file lives").
 run: install
 	@echo "task history: $(DEMO_ROS_HOME)/task_manager/domain$(or $(ROS_DOMAIN_ID),0)/task_manager/history.sqlite (ROS_HOME=$(DEMO_ROS_HOME))"
-	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS))
+	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS)) $(if $(TOKENS),--token-file $(TOKENS))
 
 # A local mosquitto and three simulated robots (each its own ROS domain, Task Manager and MQTT
 # bridge); prints the broker URL and the example to run. Ctrl-C stops all.

@@ -96,11 +96,19 @@ def banner(tasks: str, robot_pose: str, params_file: Path, dashboard: str = '') 
 class Demo(Supervisor):
     """The robot, the Task Manager and (unless web_port is None) the web gateway."""
 
-    def __init__(self, params_file: Path, events: Events, web_port: int | None) -> None:
-        """`web_port`: where the web gateway listens (0: any free port); None: no gateway."""
+    def __init__(
+        self,
+        params_file: Path,
+        events: Events,
+        web_port: int | None,
+        token_file: Path | None = None,
+    ) -> None:
+        """`web_port`: where the web gateway listens (0: any free port); None: no gateway.
+        `token_file`: the gateway's tokens and their roles; None: one admin token, made."""
         super().__init__(events)
         self.params_file = params_file
         self.web_port = web_port
+        self.token_file = token_file
 
     def start(self) -> None:
         self.start_child('sim_robot', [find_executable(*ROBOT_EXECUTABLE)], ROBOT_READY)
@@ -108,6 +116,8 @@ class Demo(Supervisor):
         self.start_child('task_manager', [*task_manager, str(self.params_file)], TASK_MANAGER_READY)
         if self.web_port is not None:
             web = [find_executable(*WEB_EXECUTABLE), '--port', str(self.web_port)]
+            if self.token_file is not None:
+                web += ['--token-file', str(self.token_file)]
             self.start_child('web', web, WEB_READY)
 
     def banner(self, ready: dict[str, str]) -> str:
@@ -132,6 +142,12 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
         help='port of the dashboard and web API, 0: any free one (default: %(default)s)',
     )
     parser.add_argument('--no-web', action='store_true', help='no web gateway')
+    parser.add_argument(
+        '--token-file',
+        type=Path,
+        help="the web gateway's tokens, one 'ROLE TOKEN [NAME]' line each (default: one admin "
+        'token, made and printed)',
+    )
     return parser.parse_args(argv)
 
 
@@ -143,8 +159,9 @@ def main(argv: list[str] | None = None) -> int:
         say(f'task-manager-demo: no parameters file {params_file}')
         return EXIT_USAGE
     web_port = None if options.no_web else options.web_port
+    token_file = options.token_file.resolve() if options.token_file else None
     return supervise(
-        lambda events: Demo(params_file, events, web_port),
+        lambda events: Demo(params_file, events, web_port, token_file),
         options.ready_timeout,
         'task-manager-demo: the robot and the Task Manager have stopped',
     )

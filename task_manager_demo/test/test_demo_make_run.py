@@ -1,4 +1,5 @@
-"""`make run`: the robot, the Task Manager and the dashboard come up, run a task, stop on Ctrl-C.
+"""`make run`: the robot, the Task Manager and the dashboard come up, run a task, stop on Ctrl-C;
+with TOKENS, the gateway's roles and names hold.
 
 The test gives `make run` a ROS_HOME of its own: nothing it does lands in the user's history.
 """
@@ -8,11 +9,13 @@ import os
 import re
 import signal
 import sqlite3
+import time
 from pathlib import Path
 
 import httpx
 import psutil
 import pytest
+from prometheus_client.parser import text_string_to_metric_families
 
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.probe import TaskManagerProbe
@@ -99,3 +102,74 @@ def test_make_run_serves_tasks_and_stops_cleanly_on_ctrl_c(ros: RosHarness, tmp_
     # the test's own task only: the probe's warm-up leaves none, the user's history is untouched
     assert task_names(history_file(tmp_path)) == ['navigation/navigate_to_pose']
     assert users_history_files() == users_files
+
+
+VIEWER_TOKEN = 'viewer-token-0123456789'
+OPERATOR_TOKEN = 'operator-token-0123456789'
+METRICS_TIMEOUT_SEC = 10.0
+
+
+@pytest.mark.ros
+def test_make_run_with_tokens_refuses_a_viewer_names_who_started_and_counts_it(
+    tmp_path: Path,
+) -> None:
+    tokens = tmp_path / 'tokens'
+    tokens.write_text(f'viewer {VIEWER_TOKEN} hall\noperator {OPERATOR_TOKEN} alice\n')
+    command = ['make', '--no-print-directory', 'run', 'WEB_PORT=0', f'DEMO_ROS_HOME={tmp_path}',
+               f'TOKENS={tokens}']  # fmt: skip
+    make = DemoProcess('make run', command, cwd=REPO)
+    try:
+        make.wait_for_line(r'^Ctrl-C stops', READY_TIMEOUT_SEC)
+        dashboard = re.search(r'dashboard: (http://[^/\s]+)', make.output)
+        assert dashboard is not None, make.output
+        assert VIEWER_TOKEN not in make.output and OPERATOR_TOKEN not in make.output
+        web = httpx.Client(base_url=dashboard[1], timeout=READY_TIMEOUT_SEC)
+        start = {'task_name': 'navigation/navigate_to_pose', 'task_data': {'x': 0.2, 'y': 0.0}}
+
+        refused = web.post('/api/tasks/start', json=start, headers=bearer(VIEWER_TOKEN))
+        assert refused.status_code == 403, refused.text
+        assert 'needs role operator; this token is viewer' in refused.text
+        done = web.post('/api/tasks/start?wait=true', json=start, headers=bearer(OPERATOR_TOKEN))
+        assert done.status_code == 200, done.text
+        assert (done.json()['task']['status'], done.json()['task']['source']) == (
+            'DONE',
+            'WEB:alice',
+        )
+        # the gateway counts from the event stream, which may follow the answer by a moment
+        assert wait_for_ended_count(web, 'navigation/navigate_to_pose', 'DONE') == 1.0
+
+        make.signal_group(signal.SIGINT)
+        assert make.wait_exit(STOP_TIMEOUT_SEC) in (0, -signal.SIGINT)
+    finally:
+        if make.child.exit_code is None:
+            make.stop()
+    # the viewer's start never reached the Task Manager
+    assert task_names(history_file(tmp_path)) == ['navigation/navigate_to_pose']
+
+
+def bearer(token: str) -> dict[str, str]:
+    return {'Authorization': f'Bearer {token}'}
+
+
+def wait_for_ended_count(web: httpx.Client, task_name: str, status: str) -> float:
+    """The count of /metrics once it is not 0, or 0 after METRICS_TIMEOUT_SEC."""
+    deadline = time.monotonic() + METRICS_TIMEOUT_SEC
+    while True:
+        metrics = web.get('/metrics', headers=bearer(VIEWER_TOKEN))
+        assert metrics.status_code == 200, metrics.text
+        count = ended_count(metrics.text, task_name, status)
+        if count or time.monotonic() > deadline:
+            return count
+
+
+def ended_count(exposition: str, task_name: str, status: str) -> float:
+    """task_manager_tasks_ended_total{task_name, status}, read by prometheus_client's parser."""
+    for family in text_string_to_metric_families(exposition):
+        for sample in family.samples:
+            labels = sample.labels
+            if sample.name == 'task_manager_tasks_ended_total' and labels == {
+                'task_name': task_name,
+                'status': status,
+            }:
+                return sample.value
+    return 0.0
