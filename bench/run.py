@@ -29,6 +29,7 @@ from bench import (
     schedules,
     startup,
     throughput,
+    vda5050,
     web,
 )
 from bench.client import BenchClient
@@ -49,6 +50,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'concurrency': concurrency.run,
     'web': web.run,
     'mqtt': mqtt.run,
+    'vda5050': vda5050.run,
     # last: they restart the node for each phase, then once more with the default parameters
     'admission': admission.run,
     'events': events.run,

@@ -61,6 +61,8 @@ class Orders:
         # key: task id, value: the planned task (drives and actions of every segment taken)
         self.tasks: dict[str, PlannedTask] = {}
         self.beside_active: set[str] = set()
+        self._ended: set[str] = set()
+        """The ids of the planned tasks that have ended."""
         self.last_base: tuple[str, int] = ('', 0)
         self._started_beside: set[str] = set()
         if position is not None and position.initial is not None:
@@ -69,7 +71,13 @@ class Orders:
 
     @property
     def active(self) -> bool:
-        return self.running is not None or bool(self.pending) or bool(self.beside_active)
+        """Whether the order has work left: a master may send the next order as soon as
+        state shows every node passed and every action ended, before the mission's own end
+        has reached the adapter. (The subtasks run in turn: the last one ended, all have.)"""
+        running = self.running is not None and (
+            not self.running.steps or self.running.steps[-1].task_id not in self._ended
+        )
+        return running or bool(self.pending) or bool(self.beside_active)
 
     # ---- receiving -----------------------------------------------------------------------
 
@@ -99,6 +107,9 @@ class Orders:
             f'{order["orderId"]}/update/{order["orderUpdateId"]}' if stitched else order['orderId']
         )
         segment = self.planner.plan(order, mission_id, stitched)
+        if not stitched:  # the order before has no work left: forget it
+            self.running = None  # its mission's end is not awaited
+            self.tasks, self._ended, self._started_beside = {}, set(), set()
         self.state.take_order(order, stitched)
         self.last_base = segment.last_base
         for task in (*segment.steps, *segment.beside):
@@ -152,6 +163,7 @@ class Orders:
             self._drive_event(event, planned)
         if event.kind is TaskEventKind.ENDED:
             self.beside_active.discard(task_id)
+            self._ended.add(task_id)
 
     def _drive_event(self, event: TaskEvent, drive: PlannedTask) -> None:
         kind = event.kind

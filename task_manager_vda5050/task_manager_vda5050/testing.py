@@ -47,9 +47,12 @@ class BrokerProcess(VdaBroker):
 
 
 class AdapterProcess(NodeProcess):
-    """`task-manager-vda5050` for SERIAL of MANUFACTURER with the demo's mapping."""
+    """`task-manager-vda5050` for SERIAL of MANUFACTURER with the demo's mapping (or
+    `mapping`)."""
 
-    def __init__(self, broker: VdaBroker, *args: str, wait: bool = True) -> None:
+    def __init__(
+        self, broker: VdaBroker, *args: str, wait: bool = True, mapping: Path = DEMO_MAPPING
+    ) -> None:
         password_file = broker.folder / f'{SERIAL}.password'
         password_file.write_text(broker.passwords[SERIAL])
         command = [
@@ -63,7 +66,7 @@ class AdapterProcess(NodeProcess):
             '--password-file',
             str(password_file),
             '--mapping',
-            str(DEMO_MAPPING),
+            str(mapping),
             *args,
         ]
         super().__init__(None, command=command)

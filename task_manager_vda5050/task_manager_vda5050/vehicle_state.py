@@ -22,6 +22,8 @@ ACTION_STATUS = {
 }
 ENDED = ('FINISHED', 'FAILED')
 MAX_ERRORS = 20
+MAX_INSTANT = 50
+"""Instant actions kept in actionStates (until a new order clears the order's)."""
 """The errors kept in state (the oldest go first): a master sending bad messages in a loop
 must not grow the state without end."""
 
@@ -82,7 +84,12 @@ class VehicleState:
         self.edge_states = [e for e in self.edge_states if e['sequenceId'] > sequence_id]
 
     def add_instant(self, action: dict[str, Any]) -> None:
+        """An instant action, WAITING; the oldest ended ones beyond MAX_INSTANT go."""
         self.action_states[action['actionId']] = {**_action_state(action), '_instant': True}
+        instant = [k for k, v in self.action_states.items() if v.get('_instant')]
+        for action_id in instant[: max(len(instant) - MAX_INSTANT, 0)]:
+            if self.action_states[action_id]['actionStatus'] in ENDED:
+                del self.action_states[action_id]
 
     def set_action(self, action_id: str, status: str, description: str = '') -> bool:
         """An action's new status (an actionStatus); whether anything changed. An ended
