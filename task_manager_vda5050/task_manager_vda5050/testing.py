@@ -14,6 +14,8 @@ from typing import Any
 
 from task_manager_mqtt.broker import READY_LINE
 
+from task_manager.client import TaskManagerClient, TaskState
+from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import WaitTimeoutError
 from task_manager.testing.process import NodeProcess
 from task_manager_vda5050.broker import VdaBroker
@@ -249,3 +251,16 @@ def latest_state(master: Master, condition: Any, what: str) -> dict[str, Any]:
     )
     state: dict[str, Any] = event['object']
     return state
+
+
+def ended(client: TaskManagerClient, *task_ids: str) -> list[TaskState]:
+    """The states of these tasks once the Task Manager has them all ended (a mission ends just
+    after the state that shows its order done)."""
+
+    def states() -> list[TaskState] | None:
+        found = client.task_states(list(task_ids))
+        done = len(found) == len(task_ids) and all(s.is_final for s in found)
+        return sorted(found, key=lambda s: task_ids.index(s.task_id)) if done else None
+
+    result: list[TaskState] = wait_until(states, f'{task_ids} ended', TIMEOUT_SEC)
+    return result

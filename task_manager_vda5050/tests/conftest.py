@@ -6,12 +6,18 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from vda5050.model.base import VDA5050Model
+from vda5050.model.connection import Connection
+from vda5050.model.factsheet import Factsheet
+from vda5050.model.state import State
+from vda5050.model.visualization import Visualization
 
 from task_manager.client import TaskManagerClient
 from task_manager.testing.process import NodeProcess
 from task_manager_demo.robot_interface import ROBOT_READY_LOG
 from task_manager_demo.testing import DemoProcess, robot_command
 from task_manager_vda5050.broker import MASTER_USER
+from task_manager_vda5050.schemas import problems
 from task_manager_vda5050.testing import (
     MANUFACTURER,
     SERIAL,
@@ -82,9 +88,18 @@ def master(broker: BrokerProcess, adapter: AdapterProcess) -> Iterator[Master]:
         master.stop()
 
 
-def check_every_message(master: Master) -> None:
-    from task_manager_vda5050.schemas import problems
+# key: topic, value: the SDK's model of its messages (2.1)
+SDK_MODELS: dict[str, type[VDA5050Model]] = {
+    'state': State,
+    'connection': Connection,
+    'factsheet': Factsheet,
+    'visualization': Visualization,
+}
 
+
+def check_every_message(master: Master) -> None:
+    """Valid for vda-5050-lib (none dropped, and its 2.0 validators), against the 2.1.0
+    schemas, and read by the SDK's models back into the same message."""
     assert master.dropped() == []
     seen: list[tuple[str, dict[str, Any]]] = [
         (e['topic'], e['object']) for e in master.events if e['event'] == 'message'
@@ -93,3 +108,4 @@ def check_every_message(master: Master) -> None:
     for topic, document in seen:
         assert problems(topic, document) == [], (topic, document)
         assert master.validate_2_0(topic, document) == [], (topic, document)
+        assert SDK_MODELS[topic].model_validate(document).to_wire() == document

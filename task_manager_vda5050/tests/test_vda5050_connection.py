@@ -6,11 +6,11 @@ import pytest
 
 from task_manager.client import TaskManagerClient
 from task_manager.core.status import TaskStatus
-from task_manager.testing.gateway import wait_until
 from task_manager_vda5050.testing import (
     AdapterProcess,
     BrokerProcess,
     Master,
+    ended,
     latest_state,
     node,
     order,
@@ -56,10 +56,8 @@ def test_an_order_goes_on_while_the_broker_is_away_and_state_returns_with_it(
     latest_state(master, lambda s: s['driving'], 'driving')
 
     broker.stop()
-    wait_until(
-        lambda: demo_robot.task_states(['order-away'])[0].status is TaskStatus.DONE,
-        'the order done offline',
-    )
+    (mission,) = ended(demo_robot, 'order-away')  # while the broker is away
+    assert mission.status is TaskStatus.DONE
     seen_before = len(master.messages('state'))
     broker.start()
 

@@ -11,6 +11,7 @@ from task_manager.client import TaskManagerClient
 from task_manager.core.status import TaskStatus
 from task_manager_vda5050.testing import (
     Master,
+    ended,
     instant,
     instant_state,
     latest_state,
@@ -40,9 +41,9 @@ def test_the_master_completes_an_order_with_an_action(
         'the photo FINISHED',
     )
     assert json.loads(finished['actionState']['resultDescription'])['success'] is True
-    (mission,) = demo_robot.task_states(['order-photo'])
+    (mission,) = ended(demo_robot, 'order-photo')
     assert (mission.task_name, mission.status) == ('system/mission', TaskStatus.DONE)
-    (photo_task,) = demo_robot.task_states([f'order-photo/{action["actionId"]}'])
+    (photo_task,) = ended(demo_robot, f'order-photo/{action["actionId"]}')
     assert (photo_task.task_name, photo_task.mission_id) == ('camera/take_photo', 'order-photo')
     state = latest_state(master, lambda s: s['lastNodeId'] == 'shelf', 'lastNodeId shelf')
     assert state['agvPosition']['x'] == pytest.approx(2.0, abs=0.05)
@@ -82,7 +83,7 @@ def test_the_master_cancels_a_long_order(master: Master, demo_robot: TaskManager
     done = processed(master, 'order-long')
     assert (done['error'], done['byCancelation']) == (None, True)
     instant_state(master, cancel, 'FINISHED')
-    (mission,) = demo_robot.task_states(['order-long'])
+    (mission,) = ended(demo_robot, 'order-long')
     assert mission.status is TaskStatus.CANCELED
     nothing_left = latest_state(master, lambda s: not s['nodeStates'], 'no node left')
     assert nothing_left['driving'] is False

@@ -15,6 +15,7 @@ from task_manager_vda5050.testing import (
     SERIAL,
     Master,
     edge,
+    ended,
     latest_state,
     node,
     order,
@@ -81,9 +82,9 @@ def test_an_update_extends_the_running_order_from_its_last_base_node(
         1,
         4,
     )
-    base, extension = demo_robot.task_states(['order-up', 'order-up/update/1'])
+    base, extension = ended(demo_robot, 'order-up', 'order-up/update/1')
     assert (base.status, extension.status) == (TaskStatus.DONE, TaskStatus.DONE)
-    (drive,) = demo_robot.task_states(['order-up/e/4'])
+    (drive,) = ended(demo_robot, 'order-up/e/4')
     assert drive.mission_id == 'order-up/update/1'
 
 
@@ -143,7 +144,7 @@ def test_a_none_action_runs_beside_the_drive_after_its_node(
     done = processed(master, 'order-none')
 
     assert done['error'] is None
-    (photo_task,) = demo_robot.task_states([f'order-none/{action["actionId"]}'])
+    (photo_task,) = ended(demo_robot, f'order-none/{action["actionId"]}')
     assert (photo_task.status, photo_task.mission_id) == (TaskStatus.DONE, '')
 
 
