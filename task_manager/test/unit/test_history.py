@@ -79,6 +79,19 @@ def test_changes_wait_for_the_flush_and_one_flush_is_one_transaction(tmp_path: P
     assert history.pending == 0
 
 
+def test_a_query_sees_the_changes_not_yet_flushed(tmp_path: Path) -> None:
+    # a task that has just ended has left the registry: GetTaskStates must find it here
+    path = str(tmp_path / 'h.sqlite')
+    history = TaskHistory(path)
+    history.write(ended('t1'))
+
+    rows = history.query(HistoryQuery(task_id='t1', limit=1))
+
+    assert [(row.task_id, row.status) for row in rows] == [('t1', 'DONE')]
+    assert history.pending == 0
+    assert sqlite3.connect(path).execute('SELECT count(*) FROM tasks').fetchone()[0] == 1
+
+
 def test_sequences_only_grow_across_restarts_and_an_id_may_come_again(tmp_path: Path) -> None:
     path = str(tmp_path / 'h.sqlite')
     first = TaskHistory(path)

@@ -311,6 +311,11 @@ class TaskHistory:
         return closed
 
     def query(self, query: HistoryQuery) -> list[HistoryRow]:
+        """The rows asked for, buffered changes included: they are flushed first, so that a
+        task that has just left the active ones is never missing from both (a flush that fails
+        leaves them buffered, for the writer's next flush and its log line)."""
+        with contextlib.suppress(sqlite3.Error):
+            self.flush()
         where, values = query.where()
         order = 'sequence' if query.oldest_first else 'sequence DESC'
         return self._select(where, values, order, query.limit)
