@@ -1,5 +1,6 @@
 """Helpers for tests that run the demo: its processes and the feedback of its actions."""
 
+import contextlib
 import os
 import queue
 import re
@@ -66,15 +67,23 @@ class DemoProcess:
         os.killpg(self.pid, signum)
 
     def wait_exit(self, timeout_sec: float) -> int:
+        """Its exit code; past the timeout, its whole process group is killed (a launcher
+        under `make` is not left running on the test's ROS domain)."""
         code = self.child.wait(timeout_sec)
         if code is None:
             self.child.kill()
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.pid, signal.SIGKILL)
             raise self._failure(f'still running after {timeout_sec} s (killed)')
         return code
 
     def stop(self, timeout_sec: float = STOP_TIMEOUT_SEC) -> int:
-        """SIGINT, then a bounded wait; a kill only as a last resort."""
-        self.child.interrupt()
+        """SIGINT to its process group, as Ctrl-C, then a bounded wait; a kill only as a last
+        resort."""
+        try:
+            self.signal_group(signal.SIGINT)
+        except ProcessLookupError:  # the group has gone: the process too, or about to
+            self.child.interrupt()
         return self.wait_exit(timeout_sec)
 
 

@@ -17,6 +17,7 @@ import psutil
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
 
+from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager_demo.testing import DemoProcess
@@ -124,6 +125,8 @@ def test_make_run_with_tokens_refuses_a_viewer_names_who_started_and_counts_it(
         assert dashboard is not None, make.output
         assert VIEWER_TOKEN not in make.output and OPERATOR_TOKEN not in make.output
         web = httpx.Client(base_url=dashboard[1], timeout=READY_TIMEOUT_SEC)
+        # the gateway's client discovers the Task Manager a moment after both are ready
+        wait_until(lambda: web.get('/api/health').json()['connected'], 'gateway connected')
         start = {'task_name': 'navigation/navigate_to_pose', 'task_data': {'x': 0.2, 'y': 0.0}}
 
         refused = web.post('/api/tasks/start', json=start, headers=bearer(VIEWER_TOKEN))

@@ -58,9 +58,9 @@ def test_unknown_task_is_an_error_whose_result_lists_the_declared_tasks(
     assert (response.result.task_status, response.result.error_code) == ('ERROR', 'unknown_task')
     assert json.loads(response.result.task_result) == {
         'error': "unknown task 'no/such_task'; declared tasks: fib, system/cancel_task, "
-        'system/cancel_tasks, system/enable_schedule, system/mission, system/pause, '
-        'system/reprioritize, system/resume, system/schedule, system/stop, system/unschedule, '
-        'system/wait'
+        'system/cancel_tasks, system/confirm, system/enable_schedule, system/mission, '
+        'system/pause, system/reprioritize, system/resume, system/schedule, system/stop, '
+        'system/unschedule, system/wait'
     }
     assert response.status == GoalStatus.STATUS_ABORTED
     published = tm.wait_result_message('u1')

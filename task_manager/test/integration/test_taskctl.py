@@ -57,9 +57,9 @@ def test_start_waits_and_exits_by_status(
     # why, on stderr, in one line (the same text as the result's `error`)
     why = (
         "unknown task 'no/such'; declared tasks: math/fib, system/cancel_task, "
-        'system/cancel_tasks, system/enable_schedule, system/mission, system/pause, '
-        'system/reprioritize, system/resume, system/schedule, system/stop, system/unschedule, '
-        'system/wait'
+        'system/cancel_tasks, system/confirm, system/enable_schedule, system/mission, '
+        'system/pause, system/reprioritize, system/resume, system/schedule, system/stop, '
+        'system/unschedule, system/wait'
     )
     assert json.loads(unknown.stdout)['result'] == {'error': why}
     assert unknown.stderr.strip().splitlines()[-1] == f'unknown_task: {why}'
@@ -152,6 +152,7 @@ def test_active_results_and_tasks(
         'priority': 0,
         'queue_position': 0,
         'attempt': 1,
+        'prompt': '',  # a waiting system/confirm's prompt
     }
     assert stamps['received_at'] <= stamps['started_at'] and stamps['duration_sec'] >= 0
     lines = [json.loads(line) for line in results.stdout.splitlines()]
