@@ -8,14 +8,19 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from task_manager.client import TaskManagerClient
 from task_manager.testing.harness import WaitTimeoutError
+from task_manager.testing.process import NodeProcess
 from task_manager_demo.children import Child, Events, Exited, Line
+from task_manager_demo.robot_interface import ROBOT_READY_LOG
+from task_manager_demo.run_demo import default_params_file
 
 STOP_TIMEOUT_SEC = 10.0
+START_TIMEOUT_SEC = 30.0
 
 
 def robot_command(*parameters: str) -> list[str]:
@@ -109,3 +114,22 @@ class FeedbackRecorder:
     def snapshot(self) -> list[Any]:
         with self._changed:
             return list(self.messages)
+
+
+@contextlib.contextmanager
+def demo_robot(
+    client_name: str, *robot_parameters: str, client_timeout_sec: float = START_TIMEOUT_SEC
+) -> Iterator[TaskManagerClient]:
+    """The simulated robot (with these `name:=value` parameters) and a Task Manager with the
+    demo's tasks, both ready, and a client of it; at the end both must stop cleanly."""
+    robot = DemoProcess('robot', robot_command(*robot_parameters))
+    task_manager = NodeProcess(default_params_file())
+    try:
+        robot.wait_for_line(ROBOT_READY_LOG, START_TIMEOUT_SEC)
+        task_manager.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
+        with TaskManagerClient(client_name, timeout_sec=client_timeout_sec) as client:
+            client.wait_until_available()
+            yield client
+    finally:
+        assert task_manager.stop() == 0, '\n'.join(task_manager.log_lines)
+        assert robot.stop() == 0, robot.output

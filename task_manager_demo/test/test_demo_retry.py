@@ -3,18 +3,13 @@ demo_tasks.yaml, against the simulated robot's uplink, which drops as many uploa
 a request says."""
 
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
 from task_manager.client import TaskManagerClient
 from task_manager.core.status import TaskStatus
-from task_manager.testing.process import NodeProcess
-from task_manager_demo.robot_interface import ROBOT_READY_LOG
-from task_manager_demo.testing import DemoProcess, robot_command
+from task_manager_demo.testing import demo_robot
 
-PARAMS = Path(__file__).resolve().parents[1] / 'params' / 'demo_tasks.yaml'
-START_TIMEOUT_SEC = 30.0
 TIMEOUT_SEC = 15.0
 UPLOAD = 'cloud/upload_photos'
 
@@ -24,17 +19,8 @@ pytestmark = pytest.mark.ros
 @pytest.fixture(scope='module')
 def client(ros_context: None) -> Iterator[TaskManagerClient]:
     """The simulated robot, the Task Manager with the demo's tasks, and a client of it."""
-    robot = DemoProcess('robot', robot_command())
-    task_manager = NodeProcess(PARAMS)
-    try:
-        robot.wait_for_line(ROBOT_READY_LOG, START_TIMEOUT_SEC)
-        task_manager.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
-        with TaskManagerClient('demo_retry_test', timeout_sec=TIMEOUT_SEC) as client:
-            client.wait_until_available()
-            yield client
-    finally:
-        assert task_manager.stop() == 0, '\n'.join(task_manager.log_lines)
-        assert robot.stop() == 0, robot.output
+    with demo_robot('demo_retry_test', client_timeout_sec=TIMEOUT_SEC) as client:
+        yield client
 
 
 def test_an_upload_the_link_drops_twice_ends_done_on_its_third_attempt(

@@ -13,24 +13,18 @@ from vda5050.model.state import State
 from vda5050.model.visualization import Visualization
 
 from task_manager.client import TaskManagerClient
-from task_manager.testing.process import NodeProcess
-from task_manager_demo.robot_interface import ROBOT_READY_LOG
-from task_manager_demo.testing import DemoProcess, robot_command
+from task_manager_demo.testing import demo_robot as demo_robot_and_task_manager
 from task_manager_vda5050.broker import MASTER_USER
 from task_manager_vda5050.schemas import problems
 from task_manager_vda5050.testing import (
     MANUFACTURER,
     SERIAL,
-    START_TIMEOUT_SEC,
     TESTER,
     AdapterProcess,
     BrokerProcess,
     Master,
 )
 
-DEMO_PARAMS = (
-    Path(__file__).resolve().parents[2] / 'task_manager_demo' / 'params' / 'demo_tasks.yaml'
-)
 # fast enough for short tests, slow enough that a 40 m leg is still driving when paused
 ROBOT_SPEEDS = ('linear_speed:=8.0', 'angular_speed:=20.0')
 
@@ -39,17 +33,8 @@ ROBOT_SPEEDS = ('linear_speed:=8.0', 'angular_speed:=20.0')
 def demo_robot(ros_context: None) -> Iterator[TaskManagerClient]:
     """The simulated robot and a Task Manager with the demo's tasks (for the module), and a
     client of it."""
-    robot = DemoProcess('robot', robot_command(*ROBOT_SPEEDS))
-    task_manager = NodeProcess(DEMO_PARAMS)
-    try:
-        robot.wait_for_line(ROBOT_READY_LOG, START_TIMEOUT_SEC)
-        task_manager.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
-        with TaskManagerClient('vda5050_test', timeout_sec=START_TIMEOUT_SEC) as client:
-            client.wait_until_available()
-            yield client
-    finally:
-        assert task_manager.stop() == 0, '\n'.join(task_manager.log_lines)
-        assert robot.stop() == 0, robot.output
+    with demo_robot_and_task_manager('vda5050_test', *ROBOT_SPEEDS) as client:
+        yield client
 
 
 @pytest.fixture
