@@ -29,9 +29,14 @@ def wake(node: Node) -> None:
 
 
 async def resolved(node: Node, future: Future[T]) -> T | None:
-    """Await `future` and return its result (None if cancelled), waking the executor at once."""
+    """Await `future` and return its result (None if cancelled), waking the executor at once.
+
+    An executor that resumes a coroutine itself when the future it awaits completes (its
+    `resumes_waiters` is true: the node's ParkingExecutor) needs no wake-up task.
+    """
     if not future.done():
-        future.add_done_callback(lambda _: wake(node))
+        if not getattr(node.executor, 'resumes_waiters', False):
+            future.add_done_callback(lambda _: wake(node))
         await future
     return future.result()
 

@@ -74,6 +74,12 @@ class _ParkingTask(Task[Any]):
 class ParkingExecutor(SingleThreadedExecutor):
     """A SingleThreadedExecutor whose coroutine tasks wait off its list (see the module)."""
 
+    @property
+    def resumes_waiters(self) -> bool:
+        """Whether a coroutine awaiting a future is resumed when it completes (once `install()`
+        has run): then rclpy_tools.futures.resolved queues no wake-up task for it."""
+        return Future.__await__ is _await_noting_the_future
+
     def __init__(self) -> None:
         super().__init__()
         self._ready: deque[Task[Any]] = deque()

@@ -12,6 +12,7 @@ from rclpy.client import Client
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
+from task_manager.rclpy_tools.futures import resolved
 from task_manager.ros import parking_executor
 from task_manager.ros.parking_executor import ParkingExecutor
 
@@ -159,5 +160,24 @@ def test_tasks_that_keep_waking_each_other_do_not_starve_a_ready_entity(
         if called.is_set():
             break
     assert called.is_set() and steps[0] <= parking_executor.RUN_AHEAD_LIMIT + 1
+    executor.shutdown()
+    node.destroy_node()
+
+
+def test_a_coroutine_in_resolved_goes_on_when_its_future_completes_with_no_wake_up_task(
+    ros_context: None,
+) -> None:
+    parking_executor.install()
+    executor = ParkingExecutor()
+    assert executor.resumes_waiters  # resolved() queues no wake-up task on it
+    node = rclpy.create_node(f'parking_resolved_{os.getpid()}')
+    executor.add_node(node)
+    future: Future[int] = Future()
+    task = executor.create_task(resolved, node, future)
+    executor.spin_once(timeout_sec=0.0)  # up to its await, where it parks
+    threading.Thread(target=future.set_result, args=(5,)).start()
+    started = time.monotonic()
+    executor.spin_until_future_complete(task, timeout_sec=5.0)
+    assert task.result() == 5 and time.monotonic() - started < 1.0
     executor.shutdown()
     node.destroy_node()
