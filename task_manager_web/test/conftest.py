@@ -14,8 +14,9 @@ import httpx
 import pytest
 from playwright.sync_api import Browser, Page, expect, sync_playwright
 
-from task_manager.testing.gateway import TIMEOUT_SEC, Robot, wait_until
-from task_manager_web.testing import GatewayProcess
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, SharedBaseRobot
+from task_manager.testing.harness import RosHarness
+from task_manager_web.testing import GatewayProcess, gateway_client
 
 
 @pytest.fixture
@@ -42,13 +43,16 @@ def gateway(start_gateway: Callable[..., GatewayProcess]) -> GatewayProcess:
 @pytest.fixture
 def http(robot: Robot, gateway: GatewayProcess) -> Iterator[httpx.Client]:
     """An HTTP client of the gateway, with its token, once the gateway reaches the node."""
-    with httpx.Client(
-        base_url=gateway.url,
-        headers={'Authorization': f'Bearer {gateway.token}'},
-        timeout=TIMEOUT_SEC,
-    ) as client:
-        wait_until(lambda: client.get('/api/health').json()['connected'], 'gateway connected')
+    with gateway_client(gateway) as client:
         yield client
+
+
+@pytest.fixture
+def base(ros: RosHarness, tmp_path: Path) -> Iterator[SharedBaseRobot]:
+    """A Task Manager whose `drive` and `dock` both hold `base` (scripted servers here)."""
+    robot = SharedBaseRobot(ros, tmp_path)
+    yield robot
+    robot.close()
 
 
 CHROMIUM = shutil.which('chromium') or '/usr/bin/chromium'

@@ -2,67 +2,20 @@
 why, against a real gateway process and a real Task Manager whose drive and dock share `base`."""
 
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
-from test_msgs.action import Fibonacci
 
-from task_manager.testing.gateway import START_TIMEOUT_SEC, TIMEOUT_SEC, check, wait_until
-from task_manager.testing.harness import RosHarness
-from task_manager.testing.probe import TaskManagerProbe
-from task_manager.testing.process import NodeProcess, action_task, write_params_file
-from task_manager.testing.servers import ScriptedActionServer
-from task_manager_web.testing import GatewayProcess
+from task_manager.testing.gateway import TIMEOUT_SEC, SharedBaseRobot, check
+from task_manager_web.testing import GatewayProcess, gateway_client
 
 pytestmark = pytest.mark.ros
 
 
-class Base:
-    """A Task Manager whose `drive` and `dock` both hold `base` (scripted servers here)."""
-
-    def __init__(self, ros: RosHarness, folder: Path) -> None:
-        prefix = f'/d{abs(hash(folder)) % 10**8}'
-        names = ('drive', 'dock')
-        tasks = {name: action_task(name, f'{prefix}/{name}', resources=['base']) for name in names}
-        self.servers = {
-            name: ScriptedActionServer(ros.node, Fibonacci, entry['topic'])
-            for name, entry in tasks.items()
-        }
-        params = {
-            'tasks': list(tasks),
-            **tasks,
-            'history_path': str(folder / 'history.sqlite'),
-            'instance_check_timeout': 0,
-        }
-        self.process = NodeProcess(write_params_file(folder / 'params.yaml', params))
-        self.process.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
-        self.probe = TaskManagerProbe(ros)
-        self.probe.wait_until_connected()
-
-    def close(self) -> None:
-        self.probe.destroy()
-        self.process.stop()
-        for server in self.servers.values():
-            server.destroy()
-
-
 @pytest.fixture
-def base(ros: RosHarness, tmp_path: Path) -> Iterator[Base]:
-    robot = Base(ros, tmp_path)
-    yield robot
-    robot.close()
-
-
-@pytest.fixture
-def http(base: Base, gateway: GatewayProcess) -> Iterator[httpx.Client]:
-    with httpx.Client(
-        base_url=gateway.url,
-        headers={'Authorization': f'Bearer {gateway.token}'},
-        timeout=TIMEOUT_SEC,
-    ) as client:
-        wait_until(lambda: client.get('/api/health').json()['connected'], 'gateway connected')
+def http(base: SharedBaseRobot, gateway: GatewayProcess) -> Iterator[httpx.Client]:
+    with gateway_client(gateway) as client:
         yield client
 
 
@@ -71,7 +24,7 @@ def start(http: httpx.Client, body: dict[str, Any], **params: Any) -> httpx.Resp
 
 
 def test_a_start_with_options_queues_is_reprioritized_and_why_names_the_drive(
-    base: Base, http: httpx.Client
+    base: SharedBaseRobot, http: httpx.Client
 ) -> None:
     drive = {'task_name': 'drive', 'task_data': {'order': 1}, 'task_id': 'drive-12', 'priority': 5}
     assert start(http, drive).status_code == 202
@@ -122,7 +75,7 @@ def test_a_start_with_options_queues_is_reprioritized_and_why_names_the_drive(
 
 
 def test_a_timeout_of_a_start_or_a_mission_ends_it_error_timeout(
-    base: Base, http: httpx.Client
+    base: SharedBaseRobot, http: httpx.Client
 ) -> None:
     body = {'task_name': 'drive', 'task_data': {'order': 1}, 'timeout_sec': 0.5}
     mission = {
@@ -152,7 +105,7 @@ def test_a_timeout_of_a_start_or_a_mission_ends_it_error_timeout(
     ],
 )
 def test_an_unusable_option_is_a_422_naming_the_field_and_starts_nothing(
-    base: Base, http: httpx.Client, path: str, body: dict[str, Any], field: str
+    base: SharedBaseRobot, http: httpx.Client, path: str, body: dict[str, Any], field: str
 ) -> None:
     response = http.post(path, json=body)
 
@@ -163,7 +116,7 @@ def test_an_unusable_option_is_a_422_naming_the_field_and_starts_nothing(
 
 
 def test_without_the_token_nothing_is_reprioritized_nor_explained_401(
-    base: Base, http: httpx.Client, start_gateway: Callable[..., GatewayProcess]
+    base: SharedBaseRobot, http: httpx.Client, start_gateway: Callable[..., GatewayProcess]
 ) -> None:
     with httpx.Client(base_url=str(http.base_url)) as stranger:
         responses = [
@@ -177,7 +130,7 @@ def test_without_the_token_nothing_is_reprioritized_nor_explained_401(
     assert not base.servers['drive'].goals.items
 
 
-def test_why_of_an_unknown_task_is_a_404(base: Base, http: httpx.Client) -> None:
+def test_why_of_an_unknown_task_is_a_404(base: SharedBaseRobot, http: httpx.Client) -> None:
     for task_id in ('nobody', 'no%00body'):
         response = http.get(f'/api/tasks/{task_id}/why')
 

@@ -3,20 +3,14 @@ parser, against a real gateway process and a real Task Manager whose drive and d
 `base` (so that a dock waits in the queue)."""
 
 from collections.abc import Callable, Iterator
-from pathlib import Path
 
 import httpx
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from prometheus_client.samples import Sample
-from test_msgs.action import Fibonacci
 
-from task_manager.testing.gateway import START_TIMEOUT_SEC, TIMEOUT_SEC, check, wait_until
-from task_manager.testing.harness import RosHarness
-from task_manager.testing.probe import TaskManagerProbe
-from task_manager.testing.process import NodeProcess, action_task, write_params_file
-from task_manager.testing.servers import ScriptedActionServer
-from task_manager_web.testing import GatewayProcess
+from task_manager.testing.gateway import TIMEOUT_SEC, SharedBaseRobot, check, wait_until
+from task_manager_web.testing import GatewayProcess, gateway_client
 
 pytestmark = pytest.mark.ros
 
@@ -24,52 +18,9 @@ pytestmark = pytest.mark.ros
 Samples = dict[tuple[str, tuple[tuple[str, str], ...]], float]
 
 
-class Base:
-    """A Task Manager whose `drive` and `dock` both hold `base` (scripted servers here)."""
-
-    def __init__(self, ros: RosHarness, folder: Path) -> None:
-        prefix = f'/m{abs(hash(folder)) % 10**8}'
-        tasks = {
-            name: action_task(name, f'{prefix}/{name}', resources=['base'])
-            for name in ('drive', 'dock')
-        }
-        self.servers = {
-            name: ScriptedActionServer(ros.node, Fibonacci, entry['topic'])
-            for name, entry in tasks.items()
-        }
-        params = {
-            'tasks': list(tasks),
-            **tasks,
-            'history_path': str(folder / 'history.sqlite'),
-            'instance_check_timeout': 0,
-        }
-        self.process = NodeProcess(write_params_file(folder / 'params.yaml', params))
-        self.process.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
-        self.probe = TaskManagerProbe(ros)
-        self.probe.wait_until_connected()
-
-    def close(self) -> None:
-        self.probe.destroy()
-        self.process.stop()
-        for server in self.servers.values():
-            server.destroy()
-
-
 @pytest.fixture
-def base(ros: RosHarness, tmp_path: Path) -> Iterator[Base]:
-    robot = Base(ros, tmp_path)
-    yield robot
-    robot.close()
-
-
-@pytest.fixture
-def http(base: Base, gateway: GatewayProcess) -> Iterator[httpx.Client]:
-    with httpx.Client(
-        base_url=gateway.url,
-        headers={'Authorization': f'Bearer {gateway.token}'},
-        timeout=TIMEOUT_SEC,
-    ) as client:
-        wait_until(lambda: client.get('/api/health').json()['connected'], 'gateway connected')
+def http(base: SharedBaseRobot, gateway: GatewayProcess) -> Iterator[httpx.Client]:
+    with gateway_client(gateway) as client:
         yield client
 
 
@@ -97,7 +48,7 @@ def start(http: httpx.Client, task_name: str, task_id: str, **options: str) -> N
 
 
 def test_metrics_count_the_tasks_ended_the_active_and_queued_ones_and_the_requests(
-    base: Base, http: httpx.Client
+    base: SharedBaseRobot, http: httpx.Client
 ) -> None:
     nightly = {
         'schedule_id': 'nightly',

@@ -15,6 +15,7 @@ from test_msgs.action import Fibonacci
 
 from task_manager.protocol.__main__ import SCHEMA_FOLDER
 from task_manager.testing.harness import RosHarness, WaitTimeoutError
+from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import NodeProcess, action_task, service_task, write_params_file
 from task_manager.testing.servers import ScriptedActionServer, ScriptedService
 
@@ -73,6 +74,39 @@ class ScriptedRobot:
             process.stop()
         self.fib.destroy()
         self.instant.destroy()
+
+
+class SharedBaseRobot:
+    """A Task Manager (a real process) whose `drive` and `dock` both hold the resource `base`,
+    each served by a scripted Fibonacci action server in the test process (`servers`), with a
+    probe of the node (`probe`), so that one of them queues or pre-empts the other."""
+
+    def __init__(self, ros: RosHarness, folder: Path) -> None:
+        prefix = f'/b{abs(hash(folder)) % 10**8}'
+        tasks = {
+            name: action_task(name, f'{prefix}/{name}', resources=['base'])
+            for name in ('drive', 'dock')
+        }
+        self.servers = {
+            name: ScriptedActionServer(ros.node, Fibonacci, entry['topic'])
+            for name, entry in tasks.items()
+        }
+        params = {
+            'tasks': list(tasks),
+            **tasks,
+            'history_path': str(folder / 'history.sqlite'),
+            'instance_check_timeout': 0,
+        }
+        self.process = NodeProcess(write_params_file(folder / 'params.yaml', params))
+        self.process.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
+        self.probe = TaskManagerProbe(ros)
+        self.probe.wait_until_connected()
+
+    def close(self) -> None:
+        self.probe.destroy()
+        self.process.stop()
+        for server in self.servers.values():
+            server.destroy()
 
 
 def wait_until(condition: Callable[[], Any], what: str, timeout_sec: float = TIMEOUT_SEC) -> Any:
