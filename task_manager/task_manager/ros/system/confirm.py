@@ -5,9 +5,9 @@ answers come through /task_manager/confirm_task (ConfirmTask), served by the nod
 """
 
 import sqlite3
+from typing import Any
 
 from rclpy.node import Node
-from rclpy.task import Future
 from task_manager_msgs.action import Confirm
 from task_manager_msgs.srv import ConfirmTask
 
@@ -29,52 +29,36 @@ from task_manager.core.request_text import loggable
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import CONFIRM_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.system.timed_execution import TimedExecution
 
-FEEDBACK_PERIOD_SEC = 1.0
-"""How often a waiting confirmation publishes its prompt and the seconds left."""
 ANSWERS_KEPT = 1000
 """The latest answers taken, so that one asked again (its reply was lost) is taken again."""
 
 
-class ConfirmExecution:
+class ConfirmExecution(TimedExecution):
     """A confirmation waiting for its answer, its timeout or a cancel."""
 
     def __init__(self, node: Node, goal: ConfirmGoal, record: TaskRecord) -> None:
-        self._node = node
         self._goal = goal
-        self._record = record
-        self._started = node.get_clock().now()
-        self.outcome: Future[TaskEnd] = Future()
-        self._timers = [
-            node.create_timer(FEEDBACK_PERIOD_SEC, self._publish_feedback),
-            node.create_timer(goal.timeout_sec, lambda: self._end(end_of_timeout(goal))),
-        ]
-        self._publish_feedback()
+        super().__init__(node, record, goal.timeout_sec)
 
     @property
     def waiting(self) -> bool:
         return not self.outcome.done()
 
-    def _publish_feedback(self) -> None:
-        elapsed_sec = (self._node.get_clock().now() - self._started).nanoseconds / 1e9
-        self._record.record_feedback(feedback(self._goal, elapsed_sec))
+    def feedback_at(self, elapsed_sec: float) -> dict[str, Any]:
+        return feedback(self._goal, elapsed_sec)
+
+    def at_deadline(self) -> TaskEnd:
+        return end_of_timeout(self._goal)
 
     def answer(self, answer: Answer) -> None:
-        self._end(end_of_answer(answer))
-
-    def _end(self, end: TaskEnd) -> None:
-        for timer in self._timers:
-            timer.cancel()
-            destroy_timer(self._node, timer)
-        self._timers.clear()
-        if not self.outcome.done():
-            self.outcome.set_result(end)
+        self.end(end_of_answer(answer))
 
     async def cancel(self, timeout_sec: float) -> bool:
-        self._end(TaskEnd(TaskStatus.CANCELED, {}))
+        self.end(TaskEnd(TaskStatus.CANCELED, {}))
         return True
 
 
