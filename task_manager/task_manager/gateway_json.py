@@ -130,32 +130,7 @@ def _goal_schema(msg_interface: str) -> dict[str, Any]:
 
 def schedule_json(schedule: ScheduleInfo) -> dict[str, Any]:
     """A Schedule document."""
-    return {
-        'schedule_id': schedule.schedule_id,
-        'task_name': schedule.task_name,
-        'task_data': schedule.task_data,
-        'options': schedule.options,
-        'created_by': schedule.created_by,
-        'description': schedule.description,
-        'at': iso(schedule.at),
-        'period_sec': None if schedule.period is None else schedule.period.total_seconds(),
-        'cron': schedule.cron,
-        'time_zone': schedule.time_zone,
-        'window_start': iso(schedule.window_start),
-        'window_end': iso(schedule.window_end),
-        'max_runs': schedule.max_runs,
-        'overlap': str(schedule.overlap),
-        'misfire_grace_sec': schedule.misfire_grace.total_seconds(),
-        'enabled': schedule.enabled,
-        'created': iso(schedule.created),
-        'next_run': iso(schedule.next_run),
-        'last_run': iso(schedule.last_run),
-        'last_task_id': schedule.last_task_id,
-        'last_status': None if schedule.last_status is None else str(schedule.last_status),
-        'run_count': schedule.run_count,
-        'missed_count': schedule.missed_count,
-        'skipped_count': schedule.skipped_count,
-    }
+    return schedule.as_dict(iso)
 
 
 def paused_json(result: TaskResult) -> dict[str, Any]:

@@ -6,7 +6,7 @@ methods also take its fields as keywords (`schedule_task('dock', period=3600)`).
 """
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any, TypeAlias, TypedDict, Unpack
@@ -84,6 +84,36 @@ class ScheduleInfo:
     def run_source(self) -> str:
         """The source of its runs."""
         return f'{RUN_SOURCE_PREFIX}{self.schedule_id}'
+
+    def as_dict(self, stamp: Callable[[datetime | None], str | None]) -> dict[str, Any]:
+        """Its fields as JSON values, each stamp written by `stamp` (the Schedule document of
+        the gateways, taskctl's JSON lines); durations in seconds, enums as their names."""
+        return {
+            'schedule_id': self.schedule_id,
+            'task_name': self.task_name,
+            'task_data': self.task_data,
+            'options': self.options,
+            'created_by': self.created_by,
+            'description': self.description,
+            'at': stamp(self.at),
+            'period_sec': None if self.period is None else self.period.total_seconds(),
+            'cron': self.cron,
+            'time_zone': self.time_zone,
+            'window_start': stamp(self.window_start),
+            'window_end': stamp(self.window_end),
+            'max_runs': self.max_runs,
+            'overlap': str(self.overlap),
+            'misfire_grace_sec': self.misfire_grace.total_seconds(),
+            'enabled': self.enabled,
+            'created': stamp(self.created),
+            'next_run': stamp(self.next_run),
+            'last_run': stamp(self.last_run),
+            'last_task_id': self.last_task_id,
+            'last_status': None if self.last_status is None else str(self.last_status),
+            'run_count': self.run_count,
+            'missed_count': self.missed_count,
+            'skipped_count': self.skipped_count,
+        }
 
     @classmethod
     def from_message(cls, message: Any) -> 'ScheduleInfo':

@@ -237,32 +237,7 @@ def add(
 
 def schedule_data(info: ScheduleInfo) -> dict[str, Any]:
     """A schedule as `taskctl schedule list --json` prints it: stamps in ISO 8601."""
-    return {
-        'schedule_id': info.schedule_id,
-        'task_name': info.task_name,
-        'task_data': info.task_data,
-        'options': info.options,
-        'created_by': info.created_by,
-        'description': info.description,
-        'at': iso(info.at),
-        'period_sec': None if info.period is None else info.period.total_seconds(),
-        'cron': info.cron,
-        'time_zone': info.time_zone,
-        'window_start': iso(info.window_start),
-        'window_end': iso(info.window_end),
-        'max_runs': info.max_runs,
-        'overlap': str(info.overlap),
-        'misfire_grace_sec': info.misfire_grace.total_seconds(),
-        'enabled': info.enabled,
-        'created': iso(info.created),
-        'next_run': iso(info.next_run),
-        'last_run': iso(info.last_run),
-        'last_task_id': info.last_task_id,
-        'last_status': None if info.last_status is None else str(info.last_status),
-        'run_count': info.run_count,
-        'missed_count': info.missed_count,
-        'skipped_count': info.skipped_count,
-    }
+    return info.as_dict(iso)
 
 
 def schedules_table(schedules: list[ScheduleInfo]) -> Table:
