@@ -15,9 +15,21 @@ function historyQuery(extra = {}) {
   return query;
 }
 
+// One list per read in flight: the tasks that ended while it was read, which its answer may
+// not hold yet; they are put back on top once it has replaced the rows.
+const endedDuringReads = new Set();
+
 export async function loadHistory() {
-  const tasks = await api(`/api/history?${historyQuery()}`);
-  $('#history tbody').replaceChildren(...tasks.map((task) => historyRow(task)));
+  const endedMeanwhile = [];
+  endedDuringReads.add(endedMeanwhile);
+  try {
+    const tasks = await api(`/api/history?${historyQuery()}`);
+    const read = new Set(tasks.map((task) => task.task_id));
+    $('#history tbody').replaceChildren(...tasks.map((task) => historyRow(task)));
+    for (const task of endedMeanwhile) if (!read.has(task.task_id)) showRow(task);
+  } finally {
+    endedDuringReads.delete(endedMeanwhile);
+  }
 }
 
 function historyRow(task) {
@@ -39,6 +51,11 @@ function matchesFilters(task) {
 
 export function addHistoryRow(task) {
   if (!matchesFilters(task)) return;
+  for (const endedMeanwhile of endedDuringReads) endedMeanwhile.push(task);
+  showRow(task);
+}
+
+function showRow(task) {
   const body = $('#history tbody');
   body.prepend(historyRow(task));
   while (body.children.length > HISTORY_ROWS) body.lastElementChild.remove();
