@@ -38,6 +38,9 @@ THROUGHPUT_TASKS = 500
 THROUGHPUT_ROUNDS = 3
 CONCURRENT_TASKS = 1000
 LOADED_SAMPLES = 20
+# concurrency: more instant tasks, up to MAX_LOADED_SAMPLES, until this many publications
+MIN_PUBLICATION_GAPS = 5
+MAX_LOADED_SAMPLES = 400
 # the node's CPU while the CONCURRENT_TASKS wait on their server
 WAITING_CPU_SEC = 5.0
 # the leak check: the node's RSS while this many instant tasks run, in bursts
