@@ -7,6 +7,13 @@ is *parked*: taken out of the executor's task list until that future completes, 
 put back and the executor woken. A task suspended on anything else is resumed at each
 wake-up, as before.
 
+A task put back (or created) is also queued to run at the end of the executor's turn, before
+it builds its wait set again: rclpy runs tasks created or woken during a turn only after
+another wait, so each link of a chain (a response completes a future, whose callbacks complete
+another, whose waiter answers) cost a rebuild of the wait set in Python. Here a turn goes on
+with them, at most RUN_AHEAD_LIMIT, so that tasks waking each other never starve ready entities;
+the entities found ready by one wait are still all handled before any of them.
+
 Coroutine tasks made with `create_task` and the handlers rclpy makes for ready entities (an
 async service callback) both park.
 
@@ -16,6 +23,7 @@ reads the note after each step. Nothing else about futures changes.
 """
 
 import threading
+from collections import deque
 from collections.abc import Callable, Generator
 from typing import Any, cast
 
@@ -23,6 +31,8 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.task import Future, Task
 
 _noted = threading.local()
+# tasks run from the ready queue before the executor looks at its wait set again
+RUN_AHEAD_LIMIT = 100
 
 
 def _await_noting_the_future(self: Future[Any]) -> Generator[None, None, Any]:
@@ -70,6 +80,28 @@ class ParkingExecutor(SingleThreadedExecutor):
         has run): then rclpy_tools.futures.resolved queues no wake-up task for it."""
         return Future.__await__ is _await_noting_the_future
 
+    def __init__(self) -> None:
+        super().__init__()
+        self._ready: deque[Task[Any]] = deque()
+
+    def _wait_for_ready_callbacks(self, *args: Any, **kwargs: Any) -> Any:
+        """rclpy's turn (the tasks in progress, a wait, the entities found ready), then the tasks
+        that turn woke or created and those they woke in turn, at most RUN_AHEAD_LIMIT, before
+        the next wait."""
+        yield from super()._wait_for_ready_callbacks(*args, **kwargs)
+        for _ in range(RUN_AHEAD_LIMIT):
+            task = self._next_ready()
+            if task is None:
+                return
+            yield task, None, None
+
+    def _next_ready(self) -> Task[Any] | None:
+        while self._ready and not self._is_shutdown:
+            task = self._ready.popleft()
+            if not (task.done() or task.executing() or getattr(task, 'parked', False)):
+                return task
+        return None
+
     def create_task(self, callback: Callable[..., Any], *args: Any, **kwargs: Any) -> Task[Any]:
         task = _ParkingTask(self, callback, args, kwargs)
         self._resume(task)
@@ -99,5 +131,6 @@ class ParkingExecutor(SingleThreadedExecutor):
         """Put `task` on the list and wake the executor (thread-safe)."""
         with self._tasks_lock:
             self._tasks.append((task, None, None))
+            self._ready.append(task)
             if self._guard:
                 self._guard.trigger()

@@ -1,4 +1,5 @@
-"""ParkingExecutor: a coroutine waiting on a future is not stepped until the future completes."""
+"""ParkingExecutor: a coroutine waiting on a future is not stepped until the future completes;
+woken tasks run before the executor waits again, without starving ready entities."""
 
 import os
 import threading
@@ -17,6 +18,7 @@ from task_manager.ros.parking_executor import ParkingExecutor
 
 pytestmark = pytest.mark.ros
 UNRELATED_WAKE_UPS = 20
+CHAIN_LENGTH = 20
 
 
 class CountingFuture(Future[int]):
@@ -101,6 +103,63 @@ def test_an_async_service_callback_waiting_on_a_future_is_parked_too(ros_context
     executor.spin_until_future_complete(reply, timeout_sec=5.0)
     response = reply.result()
     assert reply.done() and response is not None and response.success
+    executor.shutdown()
+    node.destroy_node()
+
+
+def test_coroutines_woken_by_each_other_run_before_the_executor_waits_again(
+    ros_context: None,
+) -> None:
+    parking_executor.install()
+    executor = ParkingExecutor()
+    node = rclpy.create_node(f'parking_chain_{os.getpid()}')
+    executor.add_node(node)
+    order: list[str] = []
+    guard = node.create_guard_condition(lambda: order.append('ready entity'))
+    links: list[Future[None]] = [Future() for _ in range(CHAIN_LENGTH + 1)]
+
+    async def link(index: int) -> None:
+        await links[index]
+        order.append(f'link {index}')
+        if index == 0:
+            guard.trigger()  # ready at the next wait
+        links[index + 1].set_result(None)
+
+    for index in range(CHAIN_LENGTH):
+        executor.create_task(link, index)
+    for _ in range(CHAIN_LENGTH):
+        executor.spin_once(timeout_sec=0.0)  # each up to its await, where it parks
+    executor.create_task(lambda: links[0].set_result(None))
+    executor.spin_until_future_complete(links[CHAIN_LENGTH], timeout_sec=5.0)
+    executor.spin_once(timeout_sec=1.0)
+    # rclpy's executor waits on its wait set (and calls the ready entity) between two links
+    assert order == [*(f'link {i}' for i in range(CHAIN_LENGTH)), 'ready entity']
+    executor.shutdown()
+    node.destroy_node()
+
+
+def test_tasks_that_keep_waking_each_other_do_not_starve_a_ready_entity(
+    ros_context: None,
+) -> None:
+    parking_executor.install()
+    executor = ParkingExecutor()
+    node = rclpy.create_node(f'parking_fair_{os.getpid()}')
+    executor.add_node(node)
+    called = threading.Event()
+    guard = node.create_guard_condition(called.set)
+    steps = [0]
+
+    def again() -> None:
+        steps[0] += 1
+        executor.create_task(again)
+
+    executor.create_task(again)
+    guard.trigger()
+    for _ in range(3 * parking_executor.RUN_AHEAD_LIMIT):
+        executor.spin_once(timeout_sec=0.0)
+        if called.is_set():
+            break
+    assert called.is_set() and steps[0] <= parking_executor.RUN_AHEAD_LIMIT + 1
     executor.shutdown()
     node.destroy_node()
 
