@@ -16,9 +16,10 @@ Rules (docs/deciding-what-runs.md):
   it, it holds its resources again (`reinstate`).
 """
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from enum import StrEnum
+from types import MappingProxyType
 
 from task_manager.core.admission.claims import Claim, resource_words
 from task_manager.core.admission.options import OnConflict
@@ -59,7 +60,11 @@ class Arbiter:
     def __init__(self, max_queued: int = DEFAULT_MAX_QUEUED) -> None:
         self.max_queued = max_queued
         # key: task id, value: the claim of a task that holds its resources (started or starting)
-        self.holders: dict[str, Claim] = {}
+        self._holders: dict[str, Claim] = {}
+        # key: a resource, value: the ids of its holders, each with the order it took it in;
+        # a thousand reentrant tasks that hold nothing cost a new request nothing
+        self._holders_of: dict[str, dict[str, int]] = {}
+        self._holds = 0
         # key: task id, value: the claim of a holder pre-empted but not yet ended
         self.displaced: dict[str, Claim] = {}
         # key: the id of a displaced task, value: the id of the task that pre-empted it
@@ -69,6 +74,12 @@ class Arbiter:
         self._arrivals = 0
 
     # ---- questions ----------------------------------------------------------------------------
+
+    @property
+    def holders(self) -> Mapping[str, Claim]:
+        """key: task id, value: the claim of a task that holds its resources (started or
+        starting), in the order they took them."""
+        return MappingProxyType(self._holders)
 
     @property
     def queued(self) -> list[Claim]:
@@ -87,12 +98,17 @@ class Arbiter:
 
     def blockers(self, claim: Claim) -> list[tuple[Claim, frozenset[str]]]:
         """Holders that share a resource with `claim`, and what they share."""
+        held_since: dict[str, int] = {}
+        for resource in claim.resources:
+            held_since.update(self._holders_of.get(resource, {}))
+        if not held_since:
+            return []
         related = self._lineage(claim)
         found = []
-        for holder in self.holders.values():
-            shared = holder.resources & claim.resources
-            if shared and holder.task_id not in related:
-                found.append((holder, shared))
+        for task_id in sorted(held_since, key=held_since.__getitem__):
+            holder = self._holders[task_id]
+            if task_id not in related:
+                found.append((holder, holder.resources & claim.resources))
         return found
 
     def still_ending(self, claim: Claim) -> list[Claim]:
@@ -118,7 +134,7 @@ class Arbiter:
         preemptor = self._preempted_by.get(task_id)
         if any(holder.task_id != preemptor for holder, _ in self.blockers(claim)):
             return False
-        self.holders[task_id] = self.displaced.pop(task_id)
+        self._hold(self.displaced.pop(task_id))
         self._preempted_by.pop(task_id, None)
         return True
 
@@ -131,7 +147,7 @@ class Arbiter:
         holders = self.blockers(claim)
         ahead = self._queued_ahead(claim)
         if not holders and not ahead:
-            self.holders[claim.task_id] = claim
+            self._hold(claim)
             return Decision(Verdict.START)
         if on_conflict is OnConflict.QUEUE:
             return self._enqueue(claim, holders, ahead)
@@ -145,7 +161,7 @@ class Arbiter:
 
     def release(self, task_id: str) -> list[Claim]:
         """A task ended (or left the queue): the queued tasks that start now, in order."""
-        self.holders.pop(task_id, None)
+        self._release_hold(task_id)
         self.displaced.pop(task_id, None)
         self._preempted_by.pop(task_id, None)
         self._queue = [claim for claim in self._queue if claim.task_id != task_id]
@@ -156,7 +172,7 @@ class Arbiter:
 
         A queued task moves in the queue; the queued tasks that may start now are returned.
         """
-        claim = self.holders.get(task_id) or next(
+        claim = self._holders.get(task_id) or next(
             (queued for queued in self._queue if queued.task_id == task_id), None
         )
         if claim is None:
@@ -167,13 +183,29 @@ class Arbiter:
 
     # ---- inside -----------------------------------------------------------------------------
 
+    def _hold(self, claim: Claim) -> None:
+        self._holds += 1
+        self._holders[claim.task_id] = claim
+        for resource in claim.resources:
+            self._holders_of.setdefault(resource, {})[claim.task_id] = self._holds
+
+    def _release_hold(self, task_id: str) -> None:
+        claim = self._holders.pop(task_id, None)
+        if claim is None:
+            return
+        for resource in claim.resources:
+            holders = self._holders_of[resource]
+            del holders[task_id]
+            if not holders:
+                del self._holders_of[resource]
+
     def _lineage(self, claim: Claim) -> set[str]:
         """The ids of the missions `claim` runs in (their holds are its own)."""
         lineage: set[str] = set()
         parent_id = claim.parent_id
         while parent_id and parent_id not in lineage:
             lineage.add(parent_id)
-            parent = self.holders.get(parent_id)
+            parent = self._holders.get(parent_id)
             parent_id = parent.parent_id if parent is not None else ''
         return lineage
 
@@ -197,7 +229,7 @@ class Arbiter:
         if not shared or not claim.parent_id:
             return shared
         for mission_id in self._lineage(claim) - self._lineage(ahead):
-            mission = self.holders.get(mission_id)
+            mission = self._holders.get(mission_id)
             if mission is not None:
                 shared -= mission.resources
         return shared
@@ -252,9 +284,10 @@ class Arbiter:
             for holder, shared in holders
         )
         for holder, _ in holders:
-            self.displaced[holder.task_id] = self.holders.pop(holder.task_id)
+            self.displaced[holder.task_id] = holder
+            self._release_hold(holder.task_id)
             self._preempted_by[holder.task_id] = claim.task_id
-        self.holders[claim.task_id] = claim
+        self._hold(claim)
         victims = ', '.join(p.victim.label() for p in preemptions)
         return Decision(Verdict.START, f'pre-empts {victims}', preemptions=preemptions)
 
@@ -268,7 +301,7 @@ class Arbiter:
                 held_back = any(self._contended(ahead, claim) for ahead in waiting)
             if not held_back and not self.blockers(claim):
                 self._queue.remove(claim)
-                self.holders[claim.task_id] = claim
+                self._hold(claim)
                 started.append(claim)
             else:
                 waiting.append(claim)
