@@ -14,6 +14,13 @@ another, whose waiter answers) cost a rebuild of the wait set in Python. Here a 
 with them, at most RUN_AHEAD_LIMIT, so that tasks waking each other never starve ready entities;
 the entities found ready by one wait are still all handled before any of them.
 
+A service or a client that had a request (a response) taken in a turn is taken from again at
+the end of that turn, within the same limit, until it has none: rclpy takes one message per
+entity per wait, so a burst of 500 goals cost 500 wait sets on ExecuteTask's send_goal alone.
+
+What gathers the changes of a turn (a history commit, a list published whole) is queued with
+`spawn_after_turn`: it runs once nothing else is ready, just before the executor waits again.
+
 Coroutine tasks made with `create_task` and the handlers rclpy makes for ready entities (an
 async service callback) both park.
 
@@ -24,15 +31,23 @@ reads the note after each step. Nothing else about futures changes.
 
 import threading
 from collections import deque
-from collections.abc import Callable, Generator
+from collections.abc import Callable, Coroutine, Generator
 from typing import Any, cast
 
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.client import Client
+from rclpy.exceptions import InvalidHandle
+from rclpy.executors import SingleThreadedExecutor, TimeoutException, await_or_execute
+from rclpy.node import Node
+from rclpy.service import Service
 from rclpy.task import Future, Task
 
 _noted = threading.local()
-# tasks run from the ready queue before the executor looks at its wait set again
+# tasks run, and messages taken, at the end of a turn before the executor waits again
 RUN_AHEAD_LIMIT = 100
+
+_Execute = Callable[[], Coroutine[None, None, None]]
+_Take = Callable[[Any], _Execute | None]
+_Handler = Callable[..., Any] | Coroutine[Any, Any, Any]
 
 
 def _await_noting_the_future(self: Future[Any]) -> Generator[None, None, Any]:
@@ -47,10 +62,22 @@ def install() -> None:
     Future.__await__ = _await_noting_the_future  # type: ignore[method-assign]
 
 
+def spawn_after_turn(node: Node, coroutine: Coroutine[Any, Any, Any]) -> None:
+    """Run `coroutine` once the node's executor has handled what is ready now: on a
+    ParkingExecutor just before it waits again, on another executor as a task."""
+    executor = node.executor
+    assert executor is not None, 'the node must be added to an executor'
+    if isinstance(executor, ParkingExecutor):
+        executor.create_task_after_turn(coroutine)
+    else:
+        executor.create_task(coroutine)  # type: ignore[call-overload]
+
+
 class _ParkingTask(Task[Any]):
-    def __init__(self, executor: 'ParkingExecutor', handler: Callable[..., Any], args: Any,
+    def __init__(self, executor: 'ParkingExecutor', handler: '_Handler', args: Any,
                  kwargs: Any) -> None:  # fmt: skip
-        super().__init__(handler, args, kwargs, executor=executor)
+        # rclpy runs a coroutine object too, but types its handler as a callable only
+        super().__init__(handler, args, kwargs, executor=executor)  # type: ignore[arg-type]
         self._parking = executor
         self.parked = False
 
@@ -83,35 +110,114 @@ class ParkingExecutor(SingleThreadedExecutor):
     def __init__(self) -> None:
         super().__init__()
         self._ready: deque[Task[Any]] = deque()
+        # services and clients a message was taken from this turn: maybe more are waiting
+        self._taken: deque[tuple[Service[Any, Any] | Client[Any, Any], Node, _Take]] = deque()
+        self._after_turn: deque[Task[Any]] = deque()
 
     def _wait_for_ready_callbacks(self, *args: Any, **kwargs: Any) -> Any:
         """rclpy's turn (the tasks in progress, a wait, the entities found ready), then the tasks
-        that turn woke or created and those they woke in turn, at most RUN_AHEAD_LIMIT, before
-        the next wait."""
-        yield from super()._wait_for_ready_callbacks(*args, **kwargs)
+        that turn woke or created and those they woke in turn, and the next messages of the
+        services and clients it took from, at most RUN_AHEAD_LIMIT, before the next wait."""
+        try:
+            yield from super()._wait_for_ready_callbacks(*args, **kwargs)
+        except TimeoutException:
+            if not (self._ready or self._after_turn):
+                raise  # nothing left of this turn: spin_once(timeout) returns
         for _ in range(RUN_AHEAD_LIMIT):
-            task = self._next_ready()
-            if task is None:
-                return
-            yield task, None, None
+            work = self._next_ready() or self._next_take() or self._next_after_turn()
+            if work is None:
+                break
+            yield work
+        self._taken.clear()
+        if self._after_turn and self._guard:
+            self._guard.trigger()  # the limit was reached first: they run after the next wait
 
-    def _next_ready(self) -> Task[Any] | None:
+    def create_task_after_turn(self, callback: _Handler) -> Task[Any]:
+        """A task that runs once nothing else is ready, just before the executor waits again."""
+        task = _ParkingTask(self, callback, (), {})
+        self._after_turn.append(task)
+        if self._guard:
+            self._guard.trigger()
+        return task
+
+    def _next_ready(self) -> tuple[Task[Any], None, None] | None:
         while self._ready and not self._is_shutdown:
             task = self._ready.popleft()
             if not (task.done() or task.executing() or getattr(task, 'parked', False)):
-                return task
+                return task, None, None
         return None
+
+    def _next_after_turn(self) -> tuple[Task[Any], None, None] | None:
+        if not self._after_turn or self._is_shutdown:
+            return None
+        task = self._after_turn.popleft()
+        with self._tasks_lock:
+            self._tasks.append((task, None, None))  # resumed like any task if it waits
+        return task, None, None
+
+    def _next_take(self) -> tuple[Task[None], Any, Node] | None:
+        while self._taken and not self._is_shutdown:
+            entity, node, take = self._taken.popleft()
+            if self.can_execute(entity):
+                return self._make_handler(entity, node, take), entity, node
+        return None
+
+    def _take_service(self, srv: Service[Any, Any]) -> _Execute | None:
+        """rclpy's take of one request, but None when there was none."""
+        try:
+            with srv.handle:
+                request, header = srv.handle.service_take_request(srv.srv_type.Request)
+        except InvalidHandle:
+            return None
+        if header is None:
+            return None
+
+        async def execute() -> None:
+            response = await await_or_execute(srv.callback, request, srv.srv_type.Response())
+            srv.send_response(response, header)
+
+        return execute
+
+    def _take_client(self, client: Client[Any, Any]) -> _Execute | None:
+        """rclpy's take of one response, but None when there was none."""
+        try:
+            with client.handle:
+                header, response = client.handle.take_response(client.srv_type.Response)
+        except InvalidHandle:
+            return None
+        if header is None:
+            return None
+
+        async def execute() -> None:
+            try:
+                future = client.get_pending_request(header.request_id.sequence_number)
+            except KeyError:
+                return  # the request was cancelled
+            future._set_executor(self)
+            future.set_result(response)
+
+        return execute
 
     def create_task(self, callback: Callable[..., Any], *args: Any, **kwargs: Any) -> Task[Any]:
         task = _ParkingTask(self, callback, args, kwargs)
         self._resume(task)
         return task
 
-    def _make_handler(self, *args: Any, **kwargs: Any) -> Task[None]:
+    def _make_handler(self, entity: Any, node: Node, take_from_wait_list: _Take) -> Task[None]:
         """rclpy's handler of a ready entity (a service request, a message), made to park too:
         an async callback awaiting a future (ExecuteTask's get_result answers, one per task in
-        flight) then waits off the list like any coroutine here."""
-        return _ParkingTask.adopt(super()._make_handler(*args, **kwargs), self)
+        flight) then waits off the list like any coroutine here. A service or client it takes
+        a message from is noted, to be taken from again at the end of the turn."""
+        take = take_from_wait_list
+        if isinstance(entity, Service | Client):
+
+            def take(taken_from: Any) -> _Execute | None:
+                execute = take_from_wait_list(taken_from)
+                if execute is not None:
+                    self._taken.append((taken_from, node, take_from_wait_list))
+                return execute
+
+        return _ParkingTask.adopt(super()._make_handler(entity, node, take), self)
 
     def park(self, task: _ParkingTask, awaited: Future[Any]) -> None:
         """Take `task` off the list until `awaited` completes (or is cancelled)."""

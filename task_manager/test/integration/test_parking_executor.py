@@ -1,24 +1,30 @@
 """ParkingExecutor: a coroutine waiting on a future is not stepped until the future completes;
-woken tasks run before the executor waits again, without starving ready entities."""
+woken tasks run, and waiting requests and responses are taken, before the executor waits
+again, without starving ready entities."""
 
 import os
 import threading
 import time
+from collections.abc import Callable
+from typing import Any
 
 import pytest
 import rclpy
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.client import Client
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
 from task_manager.rclpy_tools.futures import resolved
+from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 from task_manager.ros import parking_executor
-from task_manager.ros.parking_executor import ParkingExecutor
+from task_manager.ros.parking_executor import ParkingExecutor, spawn_after_turn
 
 pytestmark = pytest.mark.ros
 UNRELATED_WAKE_UPS = 20
 CHAIN_LENGTH = 20
+BURST = 50
 
 
 class CountingFuture(Future[int]):
@@ -181,3 +187,80 @@ def test_a_coroutine_in_resolved_goes_on_when_its_future_completes_with_no_wake_
     assert task.result() == 5 and time.monotonic() - started < 1.0
     executor.shutdown()
     node.destroy_node()
+
+
+def turns_to_answer_a_burst(
+    executor: SingleThreadedExecutor,
+    name: str,
+    on_request: Callable[[rclpy.node.Node], None] = lambda _: None,
+) -> int:
+    """Executor turns (wait sets) from BURST requests sent at once to all their responses."""
+    node = rclpy.create_node(f'{name}_{os.getpid()}')
+    service = f'/{name}_{os.getpid()}'
+
+    def answer(_: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        on_request(node)
+        return response
+
+    node.create_service(Trigger, service, answer, qos_profile=DEEP_RELIABLE)
+    client: Client[Any, Any] = node.create_client(Trigger, service, qos_profile=DEEP_RELIABLE)
+    assert client.wait_for_service(timeout_sec=5.0)
+    executor.add_node(node)
+    turns = [0]
+    wait_for_ready_callbacks = executor._wait_for_ready_callbacks
+
+    def counted(*args: Any, **kwargs: Any) -> Any:
+        turns[0] += 1
+        return wait_for_ready_callbacks(*args, **kwargs)
+
+    executor._wait_for_ready_callbacks = counted  # type: ignore[method-assign]
+    replies = [client.call_async(Trigger.Request()) for _ in range(BURST)]
+    everything: Future[None] = Future()
+    remaining = [BURST]
+
+    def one_more(_: Future) -> None:
+        remaining[0] -= 1
+        if not remaining[0]:
+            everything.set_result(None)
+
+    for reply in replies:
+        reply.add_done_callback(one_more)
+    executor.spin_until_future_complete(everything, timeout_sec=10.0)
+    assert everything.done()
+    executor.shutdown()
+    node.destroy_node()
+    return turns[0]
+
+
+def test_waiting_requests_and_responses_are_taken_in_the_turn_that_found_the_first(
+    ros_context: None,
+) -> None:
+    parking_executor.install()
+    # rclpy takes one request per service and one response per client per wait
+    rclpy_turns = turns_to_answer_a_burst(SingleThreadedExecutor(), 'burst_rclpy')
+    parking_turns = turns_to_answer_a_burst(ParkingExecutor(), 'burst_parking')
+    assert rclpy_turns >= BURST and parking_turns <= BURST // 5, (rclpy_turns, parking_turns)
+
+
+def test_what_is_spawned_after_the_turn_runs_once_the_waiting_requests_are_answered(
+    ros_context: None,
+) -> None:
+    parking_executor.install()
+    answered = [0]
+    # how many requests had been answered each time the after-turn coroutine ran
+    flushes: list[int] = []
+    pending = [False]
+
+    async def flush() -> None:
+        pending[0] = False
+        flushes.append(answered[0])
+
+    def on_request(node: rclpy.node.Node) -> None:
+        answered[0] += 1
+        if not pending[0]:
+            pending[0] = True
+            spawn_after_turn(node, flush())
+
+    turns_to_answer_a_burst(ParkingExecutor(), 'after_turn', on_request)
+    # as a task, it would run after each request (the run-ahead runs tasks first)
+    assert flushes and flushes[-1] == BURST and len(flushes) <= BURST // 5, flushes

@@ -9,8 +9,7 @@ a change does not grow with the number of tasks. Each change still goes out on i
 /task_manager/task_events.
 """
 
-from collections.abc import Callable, Coroutine
-from typing import Any, Protocol
+from typing import Protocol
 
 from rclpy.node import Node
 
@@ -37,14 +36,11 @@ class ActiveTasksPublication:
         node: Node,
         registry: TaskRegistry,
         sink: ActiveTasksSink,
-        spawn: Callable[[Coroutine[Any, Any, Any]], Any],
     ) -> None:
         self._registry = registry
         self._sink = sink
         self._ended_unpublished: list[TaskRecord] = []
-        self._publication = TurnPublication(
-            node, spawn, self._publish, self._is_large, LARGE_LIST_RATE_HZ
-        )
+        self._publication = TurnPublication(node, self._publish, self._is_large, LARGE_LIST_RATE_HZ)
 
     def ended(self, record: TaskRecord) -> None:
         """A started task ended: shown once with its final status, then left out."""

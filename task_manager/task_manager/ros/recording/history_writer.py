@@ -10,8 +10,7 @@ logged at most once a minute, and the buffered changes are written again on the 
 
 import sqlite3
 import time
-from collections.abc import Callable, Coroutine
-from typing import Any
+from collections.abc import Callable
 
 from rclpy.node import Node
 from rclpy.task import Future
@@ -20,6 +19,7 @@ from rclpy.timer import Timer
 from task_manager.core.history.store import TaskHistory
 from task_manager.core.task import TaskRecord
 from task_manager.rclpy_tools.cleanup import destroy_timer
+from task_manager.ros.parking_executor import spawn_after_turn
 
 WRITE_ERROR_LOG_PERIOD_SEC = 60.0
 RETRY_AFTER_SEC = 5.0
@@ -32,12 +32,10 @@ class HistoryWriter:
         self,
         node: Node,
         history: TaskHistory,
-        spawn: Callable[[Coroutine[Any, Any, Any]], Any],
         announce: Callable[[TaskRecord], None],
     ) -> None:
         self.history = history
         self._node = node
-        self._spawn = spawn
         self._announce = announce
         self._to_announce: list[TaskRecord] = []
         self._flushed: Future[None] | None = None
@@ -58,7 +56,7 @@ class HistoryWriter:
     def _flush_soon(self) -> Future[None]:
         if self._flushed is None:
             self._flushed = Future()
-            self._spawn(self._flush())
+            spawn_after_turn(self._node, self._flush())
         return self._flushed
 
     async def _flush(self) -> None:

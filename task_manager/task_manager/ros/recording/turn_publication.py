@@ -7,13 +7,13 @@ time share one. A timer waits out the gap: nothing polls.
 """
 
 import time
-from collections.abc import Callable, Coroutine
-from typing import Any
+from collections.abc import Callable
 
 from rclpy.node import Node
 from rclpy.timer import Timer
 
 from task_manager.rclpy_tools.cleanup import destroy_timer
+from task_manager.ros.parking_executor import spawn_after_turn
 
 
 class TurnPublication:
@@ -22,13 +22,11 @@ class TurnPublication:
     def __init__(
         self,
         node: Node,
-        spawn: Callable[[Coroutine[Any, Any, Any]], Any],
         publish: Callable[[], None],
         is_large: Callable[[], bool],
         rate_hz: float,
     ) -> None:
         self._node = node
-        self._spawn = spawn
         self._publish = publish
         self._is_large = is_large
         self._period_sec = 1.0 / rate_hz
@@ -39,7 +37,7 @@ class TurnPublication:
     def changed(self) -> None:
         if not self._pending:
             self._pending = True
-            self._spawn(self._after_turn())
+            spawn_after_turn(self._node, self._after_turn())
 
     async def _after_turn(self) -> None:
         wait_sec = self._last_published + self._period_sec - time.monotonic()

@@ -71,7 +71,7 @@ class TaskDispatcher:
     ) -> None:
         self.registry = TaskRegistry()
         self.events = events
-        self.history = HistoryWriter(node, history, spawn, self.announce_end)
+        self.history = HistoryWriter(node, history, self.announce_end)
         self.runners_by_name = runners
         self.node = node
         self._reporter = reporter
@@ -80,7 +80,7 @@ class TaskDispatcher:
         # key: task id, value: the run state of the admitted task, until it ends
         self.runs_by_id: dict[str, TaskRun] = {}
         self._closing_reason = ''
-        self._active = ActiveTasksPublication(node, self.registry, reporter, spawn)
+        self._active = ActiveTasksPublication(node, self.registry, reporter)
         # completes once no task is active; replaced whenever a task is admitted
         self._idle: Future = completed_future()
         self.pauses = PauseControl(self)

@@ -162,7 +162,6 @@ class ActionServicesServer:
         self._expiry_timer: Timer | None = None
         self._status_publication = TurnPublication(
             node,
-            self._spawn,
             self._publish_status,
             lambda: len(self._goals) > LARGE_STATUS,
             STATUS_RATE_HZ,
