@@ -11,6 +11,8 @@ from bench.stats import Summary, ratio
 ACTION_TARGET = 2.3
 SERVICE_TARGET = 3.0  # issue 16: one hop each way is the floor of both
 DRIFT_EDGE_SAMPLES = 50
+# after the measured samples: where a single task's time goes in the node
+PROFILED_TASKS = 300
 
 
 def interleaved(
@@ -54,6 +56,10 @@ def run(ctx: BenchContext) -> None:
         _row('action', *action, ACTION_TARGET), _row('service', *service, SERVICE_TARGET)
     )
     ctx.report.note(drift_note(action[0]))
+    if ctx.profiling:
+        with ctx.profiled(f'dispatch: {PROFILED_TASKS} more instant action tasks, one by one'):
+            for _ in range(PROFILED_TASKS):
+                ctx.fibonacci_task_ms()
 
 
 def drift_note(manager_ms: list[float]) -> str:
