@@ -1,5 +1,6 @@
 """QoS profiles of the Task Manager's ROS interfaces (see INTERFACES.md)."""
 
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Deep enough that a burst of hundreds of requests or results is not dropped.
@@ -32,3 +33,16 @@ LATEST_ACTIVE_TASKS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
+
+
+def without_qos_events() -> PublisherEventCallbacks:
+    """For a publisher whose every reader is made with its QoS (an action's status and
+    feedback, the instance announcements): no incompatible-QoS handlers. rclpy adds two by
+    default to each publisher and subscription, each one more waitable in every wait set the
+    executor builds (at least three per task)."""
+    return PublisherEventCallbacks(use_default_callbacks=False)
+
+
+def subscription_without_qos_events() -> SubscriptionEventCallbacks:
+    """The same for a subscription whose every writer is made with its QoS."""
+    return SubscriptionEventCallbacks(use_default_callbacks=False)

@@ -20,6 +20,7 @@ from rclpy.task import Future
 from task_manager_msgs.msg import TaskManagerInstance
 
 from task_manager.core.names import INSTANCES_TOPIC
+from task_manager.rclpy_tools.qos import subscription_without_qos_events, without_qos_events
 
 NANOSECONDS = 1_000_000_000
 
@@ -70,9 +71,18 @@ class InstanceWatch:
     def __init__(self, node: Node) -> None:
         self.own = this_instance()
         self.older: Future[TaskManagerInstance] = Future()
-        self._publisher = node.create_publisher(TaskManagerInstance, INSTANCES_TOPIC, INSTANCES_QOS)
+        self._publisher = node.create_publisher(
+            TaskManagerInstance,
+            INSTANCES_TOPIC,
+            INSTANCES_QOS,
+            event_callbacks=without_qos_events(),
+        )
         self._subscription = node.create_subscription(
-            TaskManagerInstance, INSTANCES_TOPIC, self._on_instance, INSTANCES_SUBSCRIPTION_QOS
+            TaskManagerInstance,
+            INSTANCES_TOPIC,
+            self._on_instance,
+            INSTANCES_SUBSCRIPTION_QOS,
+            event_callbacks=subscription_without_qos_events(),
         )
         self._publisher.publish(self.own)
 

@@ -35,7 +35,7 @@ from rclpy.timer import Timer
 from task_manager.rclpy_tools.action_services import action_service_name
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.futures import resolved
-from task_manager.rclpy_tools.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.qos import DEEP_RELIABLE, without_qos_events
 from task_manager.ros.recording.turn_publication import TurnPublication
 
 RESULT_TIMEOUT_SEC = 10.0
@@ -150,10 +150,16 @@ class ActionServicesServer:
         ]
         name = action_name.rstrip('/')
         self._feedback = node.create_publisher(
-            self._impl.FeedbackMessage, f'{name}/_action/feedback', FEEDBACK_QOS
+            self._impl.FeedbackMessage,
+            f'{name}/_action/feedback',
+            FEEDBACK_QOS,
+            event_callbacks=without_qos_events(),
         )
         self._status = node.create_publisher(
-            GoalStatusArray, f'{name}/_action/status', qos_profile_action_status_default
+            GoalStatusArray,
+            f'{name}/_action/status',
+            qos_profile_action_status_default,
+            event_callbacks=without_qos_events(),
         )
         # key: goal id (bytes), value: the goal, from acceptance until it expires
         self._goals: dict[bytes, ServedGoal] = {}
