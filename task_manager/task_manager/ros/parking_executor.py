@@ -21,8 +21,15 @@ entity per wait, so a burst of 500 goals cost 500 wait sets on ExecuteTask's sen
 What gathers the changes of a turn (a history commit, a list published whole) is queued with
 `spawn_after_turn`: it runs once nothing else is ready, just before the executor waits again.
 
-Coroutine tasks made with `create_task` and the handlers rclpy makes for ready entities (an
-async service callback) both park.
+Wake-ups are spared where they only cost a turn with nothing ready: rclpy's handler of a ready
+entity wakes the executor twice (for another thread's wait set), and putting a task back or
+making an entity (a timer of a bounded wait) wakes it once; here, in the executor's thread
+after its wait has found work, what was queued runs at the turn's end anyway, and the next
+wait set is built after it. From another thread, or before the wait, the executor is woken as
+in rclpy. An instant service task costs about its three outside events in turns.
+
+Coroutine tasks made with `create_task` and the handlers made for ready entities (an async
+service callback) both park.
 
 How the awaited future is known: `Future.__await__` is replaced (in this process, by
 `install()`) by one that notes the future on a thread-local just before it yields; the task
@@ -32,7 +39,7 @@ reads the note after each step. Nothing else about futures changes.
 import threading
 from collections import deque
 from collections.abc import Callable, Coroutine, Generator
-from typing import Any, cast
+from typing import Any
 
 from rclpy.client import Client
 from rclpy.exceptions import InvalidHandle
@@ -81,15 +88,6 @@ class _ParkingTask(Task[Any]):
         self._parking = executor
         self.parked = False
 
-    @classmethod
-    def adopt(cls, task: Task[Any], executor: 'ParkingExecutor') -> '_ParkingTask':
-        """Make a Task that rclpy created a parking one (same object, same state)."""
-        task.__class__ = cls
-        adopted = cast(_ParkingTask, task)
-        adopted._parking = executor
-        adopted.parked = False
-        return adopted
-
     def __call__(self) -> None:
         _noted.future = None
         super().__call__()
@@ -113,32 +111,52 @@ class ParkingExecutor(SingleThreadedExecutor):
         # services and clients a message was taken from this turn: maybe more are waiting
         self._taken: deque[tuple[Service[Any, Any] | Client[Any, Any], Node, _Take]] = deque()
         self._after_turn: deque[Task[Any]] = deque()
+        # whether this turn has waited and found work: what is queued meanwhile, in the
+        # executor's thread, runs at the turn's end without a wake-up
+        self._waited = False
+        self._thread = 0
 
     def _wait_for_ready_callbacks(self, *args: Any, **kwargs: Any) -> Any:
         """rclpy's turn (the tasks in progress, a wait, the entities found ready), then the tasks
         that turn woke or created and those they woke in turn, and the next messages of the
         services and clients it took from, at most RUN_AHEAD_LIMIT, before the next wait."""
+        self._waited = False
+        self._thread = threading.get_ident()
         try:
             yield from super()._wait_for_ready_callbacks(*args, **kwargs)
         except TimeoutException:
             if not (self._ready or self._after_turn):
                 raise  # nothing left of this turn: spin_once(timeout) returns
+        self._waited = True
+        limit_reached = True
         for _ in range(RUN_AHEAD_LIMIT):
             work = self._next_ready() or self._next_take() or self._next_after_turn()
             if work is None:
+                limit_reached = False
                 break
             yield work
+        self._waited = False
         self._taken.clear()
-        if self._after_turn and self._guard:
-            self._guard.trigger()  # the limit was reached first: they run after the next wait
+        if limit_reached and (self._ready or self._after_turn):
+            self._wake()  # the rest runs after the next wait, which must not block
 
     def create_task_after_turn(self, callback: _Handler) -> Task[Any]:
         """A task that runs once nothing else is ready, just before the executor waits again."""
         task = _ParkingTask(self, callback, (), {})
         self._after_turn.append(task)
-        if self._guard:
-            self._guard.trigger()
+        self._wake()
         return task
+
+    def wake(self) -> None:
+        """rclpy's wake-up (a node made or destroyed an entity, e.g. a timer), spared as in
+        `_wake`: the next wait set is built after this turn and includes it."""
+        self._wake()
+
+    def _wake(self) -> None:
+        """Make the next wait return at once, unless the end of this turn will run what was just
+        queued (then a wake-up would only cost a turn with nothing ready)."""
+        if self._guard and not (self._waited and threading.get_ident() == self._thread):
+            self._guard.trigger()
 
     def _next_ready(self) -> tuple[Task[Any], None, None] | None:
         while self._ready and not self._is_shutdown:
@@ -204,10 +222,10 @@ class ParkingExecutor(SingleThreadedExecutor):
         return task
 
     def _make_handler(self, entity: Any, node: Node, take_from_wait_list: _Take) -> Task[None]:
-        """rclpy's handler of a ready entity (a service request, a message), made to park too:
-        an async callback awaiting a future (ExecuteTask's get_result answers, one per task in
-        flight) then waits off the list like any coroutine here. A service or client it takes
-        a message from is noted, to be taken from again at the end of the turn."""
+        """The handler of a ready entity (a service request, a message) as a parking task: an
+        async callback awaiting a future (ExecuteTask's get_result answers, one per task in
+        flight) waits off the list like any coroutine here. A service or client it takes a
+        message from is noted, to be taken from again at the end of the turn."""
         take = take_from_wait_list
         if isinstance(entity, Service | Client):
 
@@ -217,7 +235,34 @@ class ParkingExecutor(SingleThreadedExecutor):
                     self._taken.append((taken_from, node, take_from_wait_list))
                 return execute
 
-        return _ParkingTask.adopt(super()._make_handler(entity, node, take), self)
+        entity._executor_event = True  # out of the wait sets until its message is taken
+        self._waited = True  # rclpy makes handlers for what its wait found
+        task = _ParkingTask(self, self._handle, (entity, take), {})
+        with self._tasks_lock:
+            self._tasks.append((task, entity, node))
+        return task
+
+    async def _handle(self, entity: Any, take: _Take) -> None:
+        """rclpy's handler (Executor._make_handler in 9.1.2) less its two wake-ups of the
+        executor, once the message is taken and once the callback has run: they let another
+        thread's wait set take the entity back, and here every wait set is built in this thread
+        after the handler's take, so each only cost one more wait set with nothing ready (two
+        turns per outside event)."""
+        group = entity.callback_group
+        if self._is_shutdown or (group is not None and not group.beginning_execution(entity)):
+            entity._executor_event = False
+            if self._guard:
+                self._guard.trigger()
+            return
+        with self._work_tracker:
+            execute = take(entity)
+            entity._executor_event = False
+            try:
+                if execute is not None:
+                    await execute()
+            finally:
+                if group is not None:
+                    group.ending_execution(entity)
 
     def park(self, task: _ParkingTask, awaited: Future[Any]) -> None:
         """Take `task` off the list until `awaited` completes (or is cancelled)."""
@@ -238,5 +283,4 @@ class ParkingExecutor(SingleThreadedExecutor):
         with self._tasks_lock:
             self._tasks.append((task, None, None))
             self._ready.append(task)
-            if self._guard:
-                self._guard.trigger()
+        self._wake()

@@ -2,15 +2,16 @@
 
 import json
 import uuid
+from collections.abc import Callable
 from typing import Any
 
 from action_msgs.msg import GoalStatus
 from rclpy.action.client import ClientGoalHandle
 from task_manager_msgs.action import ExecuteTask, StartTask
-from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult, TaskOptions
+from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult, TaskEvent, TaskOptions
 from unique_identifier_msgs.msg import UUID
 
-from task_manager.core.names import EXECUTE_TASK_ACTION, START_TASK_ACTION
+from task_manager.core.names import EXECUTE_TASK_ACTION, START_TASK_ACTION, TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import (
     RosHarness,
@@ -23,6 +24,8 @@ SendGoalResponse = ExecuteTask.Impl.SendGoalService.Response
 DEFAULT_TIMEOUT_SEC = 15.0
 WARM_UP_ATTEMPTS = 5
 WARM_UP_TIMEOUT_SEC = 2.0
+# an undeclared name: refused at once, with RECEIVED and ENDED events
+EVENTS_WARM_UP_TASK = 'events/warm-up'
 
 
 def execute_task_client(
@@ -61,6 +64,12 @@ def warm_up(client: Any) -> None:
     raise WaitTimeoutError(f'no ExecuteTask round trip in {WARM_UP_ATTEMPTS} tries')
 
 
+def _has_ended(task_id: str) -> Callable[[list[TaskEvent]], bool]:
+    return lambda events: any(
+        e.task.task_id == task_id and e.event == TaskEvent.ENDED for e in events
+    )
+
+
 class TaskManagerProbe:
     """Sends ExecuteTask goals and records /task_manager/active_tasks and /results."""
 
@@ -82,6 +91,26 @@ class TaskManagerProbe:
         self.results.wait_matched(self.timeout_sec)
         self.active.wait_matched(self.timeout_sec)
         warm_up(self.client)
+
+    def record_events(self) -> TopicRecorder:
+        """Record /task_manager/task_events from the moment the node's events reach us.
+
+        The subscription seeing the node's publisher is not enough: the publisher may match
+        it a moment later, and an event sent before that (volatile) never comes. So refused
+        tasks (an unknown name: RECEIVED and ENDED, nothing started) are sent until the ENDED
+        of one arrives; tests pick their own tasks' events by id.
+        """
+        events = self.ros.record(TaskEvent, TASK_EVENTS_TOPIC, qos.TASK_EVENTS)
+        events.wait_matched(self.timeout_sec)
+        for attempt in range(WARM_UP_ATTEMPTS):
+            task_id = f'events-warm-up-{attempt}'
+            self.run(EVENTS_WARM_UP_TASK, {}, task_id=task_id)
+            try:
+                events.wait_until(_has_ended(task_id), WARM_UP_TIMEOUT_SEC, 'warm-up event')
+            except WaitTimeoutError:
+                continue
+            return events
+        raise WaitTimeoutError(f'no task event in {WARM_UP_ATTEMPTS} tries')
 
     def send(
         self, task_name: str, task_data: Any = None, task_id: str = '', source: str = 'test'

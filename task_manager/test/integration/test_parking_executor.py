@@ -189,12 +189,33 @@ def test_a_coroutine_in_resolved_goes_on_when_its_future_completes_with_no_wake_
     node.destroy_node()
 
 
+class WaitSetCount:
+    """Counts the wait sets rclpy's executors build (one per wait), through the module they
+    make them with; nothing else about them changes."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.count = 0
+        real = rclpy.executors._rclpy
+        counter = self
+
+        class Counting:
+            def __getattr__(self, name: str) -> Any:
+                return getattr(real, name)
+
+            def WaitSet(self, *args: Any) -> Any:  # noqa: N802 (rclpy's name)
+                counter.count += 1
+                return real.WaitSet(*args)
+
+        monkeypatch.setattr(rclpy.executors, '_rclpy', Counting())
+
+
 def turns_to_answer_a_burst(
     executor: SingleThreadedExecutor,
     name: str,
+    waits: WaitSetCount,
     on_request: Callable[[rclpy.node.Node], None] = lambda _: None,
 ) -> int:
-    """Executor turns (wait sets) from BURST requests sent at once to all their responses."""
+    """Wait sets built from BURST requests sent at once to all their responses."""
     node = rclpy.create_node(f'{name}_{os.getpid()}')
     service = f'/{name}_{os.getpid()}'
 
@@ -206,14 +227,6 @@ def turns_to_answer_a_burst(
     client: Client[Any, Any] = node.create_client(Trigger, service, qos_profile=DEEP_RELIABLE)
     assert client.wait_for_service(timeout_sec=5.0)
     executor.add_node(node)
-    turns = [0]
-    wait_for_ready_callbacks = executor._wait_for_ready_callbacks
-
-    def counted(*args: Any, **kwargs: Any) -> Any:
-        turns[0] += 1
-        return wait_for_ready_callbacks(*args, **kwargs)
-
-    executor._wait_for_ready_callbacks = counted  # type: ignore[method-assign]
     replies = [client.call_async(Trigger.Request()) for _ in range(BURST)]
     everything: Future[None] = Future()
     remaining = [BURST]
@@ -225,25 +238,28 @@ def turns_to_answer_a_burst(
 
     for reply in replies:
         reply.add_done_callback(one_more)
+    before = waits.count
     executor.spin_until_future_complete(everything, timeout_sec=10.0)
+    turns = waits.count - before
     assert everything.done()
     executor.shutdown()
     node.destroy_node()
-    return turns[0]
+    return turns
 
 
 def test_waiting_requests_and_responses_are_taken_in_the_turn_that_found_the_first(
-    ros_context: None,
+    ros_context: None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     parking_executor.install()
     # rclpy takes one request per service and one response per client per wait
-    rclpy_turns = turns_to_answer_a_burst(SingleThreadedExecutor(), 'burst_rclpy')
-    parking_turns = turns_to_answer_a_burst(ParkingExecutor(), 'burst_parking')
+    waits = WaitSetCount(monkeypatch)
+    rclpy_turns = turns_to_answer_a_burst(SingleThreadedExecutor(), 'burst_rclpy', waits)
+    parking_turns = turns_to_answer_a_burst(ParkingExecutor(), 'burst_parking', waits)
     assert rclpy_turns >= BURST and parking_turns <= BURST // 5, (rclpy_turns, parking_turns)
 
 
 def test_what_is_spawned_after_the_turn_runs_once_the_waiting_requests_are_answered(
-    ros_context: None,
+    ros_context: None, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     parking_executor.install()
     answered = [0]
@@ -261,6 +277,34 @@ def test_what_is_spawned_after_the_turn_runs_once_the_waiting_requests_are_answe
             pending[0] = True
             spawn_after_turn(node, flush())
 
-    turns_to_answer_a_burst(ParkingExecutor(), 'after_turn', on_request)
+    turns_to_answer_a_burst(ParkingExecutor(), 'after_turn', WaitSetCount(monkeypatch), on_request)
     # as a task, it would run after each request (the run-ahead runs tasks first)
     assert flushes and flushes[-1] == BURST and len(flushes) <= BURST // 5, flushes
+
+
+def test_work_done_within_its_turn_leaves_no_wake_up_behind(
+    ros_context: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """rclpy's handler wakes the executor twice, a new task and a new timer once each: every
+    wake-up left behind costs a wait set with nothing ready after the turn that did the work."""
+    parking_executor.install()
+    executor = ParkingExecutor()
+    node = rclpy.create_node(f'parking_no_wake_{os.getpid()}')
+    executor.add_node(node)
+    done: Future[None] = Future()
+
+    async def finish() -> None:
+        done.set_result(None)
+
+    def work() -> None:
+        node.destroy_timer(node.create_timer(60.0, lambda: None))
+        executor.create_task(finish)
+
+    node.create_guard_condition(work).trigger()
+    executor.spin_until_future_complete(done, timeout_sec=5.0)
+    assert done.done()
+    waits = WaitSetCount(monkeypatch)
+    executor.spin_once(timeout_sec=0.05)
+    assert waits.count == 1  # the one that times out
+    executor.shutdown()
+    node.destroy_node()

@@ -10,9 +10,7 @@ from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager_msgs.srv import GetTaskStates
 from test_msgs.action import Fibonacci
 
-from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.rclpy_tools import qos
-from task_manager.testing.harness import RosHarness, TopicRecorder, wait_for_future
+from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import ScriptedActionServer
@@ -58,17 +56,11 @@ def _states(ros: RosHarness, *task_ids: str) -> list[TaskState]:
         ros.node.destroy_client(client)
 
 
-def _events(ros: RosHarness) -> TopicRecorder:
-    recorder = ros.record(TaskEvent, TASK_EVENTS_TOPIC, qos.TASK_EVENTS)
-    recorder.wait_matched(TIMEOUT_SEC)
-    return recorder
-
-
 def test_a_restart_task_pauses_by_cancelling_its_goal_and_resumes_with_the_same_goal(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     tm, nav, _ = _launch(ros, launch_task_manager, topic_prefix)
-    events = _events(ros)
+    events = tm.record_events()
     handle = tm.send('navigate', {'order': 7}, task_id='drive', source='CLOUD')
     result = handle.get_result_async()
     first = nav.wait_for_goals(1, TIMEOUT_SEC)[0]

@@ -15,7 +15,6 @@ from test_msgs.action import Fibonacci
 from test_msgs.srv import BasicTypes
 
 from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,
@@ -35,12 +34,6 @@ FEEDBACK_REPEAT_SEC = 0.2
 
 def _seconds(stamp: Any) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
-
-
-def _events(ros: RosHarness) -> TopicRecorder:
-    recorder = ros.record(TaskEvent, TASK_EVENTS_TOPIC, qos.TASK_EVENTS)
-    recorder.wait_matched(TIMEOUT_SEC)
-    return recorder
 
 
 def _until_ended(events: TopicRecorder, task_id: str) -> list[TaskEvent]:
@@ -93,7 +86,7 @@ def test_a_task_has_received_started_feedback_and_ended_events_in_order(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     server, tm = _launch(ros, launch_task_manager, topic_prefix)
-    events = _events(ros)
+    events = tm.record_events()
 
     handle = tm.send('fib', {'order': 3}, task_id='t1', source='CLOUD')
     goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
@@ -120,7 +113,7 @@ def test_a_refused_task_is_received_and_ended_without_starting(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     _, tm = _launch(ros, launch_task_manager, topic_prefix)
-    events = _events(ros)
+    events = tm.record_events()
 
     tm.run('no/such', {}, task_id='t2')
     mine = _until_ended(events, 't2')
@@ -135,7 +128,7 @@ def test_fast_feedback_is_rate_limited_and_the_latest_comes_before_the_end(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     server, tm = _launch(ros, launch_task_manager, topic_prefix, feedback_rate_hz=RATE_HZ)
-    events = _events(ros)
+    events = tm.record_events()
     handle = tm.send('fib', {'order': 3}, task_id='fast')
     goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
     sent = [0]
@@ -174,7 +167,7 @@ def test_a_mission_publishes_its_progress_as_feedback(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     server_goals, tm = _launch(ros, launch_task_manager, topic_prefix)
-    events = _events(ros)
+    events = tm.record_events()
     subtasks = [
         {'task_id': 's1', 'task_name': 'fib', 'task_data': '{"order": 1}'},
         {'task_id': 's2', 'task_name': 'nope', 'task_data': '{}', 'allow_skipping': True},
@@ -211,7 +204,7 @@ def test_a_late_client_gets_the_state_of_every_active_task(
     server, tm = _launch(ros, launch_task_manager, topic_prefix)
     handle = tm.send('fib', {'order': 3}, task_id='running', source='UI')
     goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
-    _feedback_until_seen(goal, Fibonacci.Feedback(sequence=[7]), _events(ros))
+    _feedback_until_seen(goal, Fibonacci.Feedback(sequence=[7]), tm.record_events())
     client: Client[GetTaskStates.Request, GetTaskStates.Response] = ros.node.create_client(
         GetTaskStates, '/task_manager/get_task_states'
     )
@@ -259,7 +252,7 @@ def test_a_result_json_cannot_hold_is_converted_and_the_node_goes_on(
     tm = launch_task_manager(
         {'basic': service_task('basic', f'{topic_prefix}/basic', 'test_msgs/srv/BasicTypes')}
     )
-    events = _events(ros)
+    events = tm.record_events()
 
     result = tm.run('basic', {'bool_value': True}, task_id='nan')
     ended = _until_ended(events, 'nan')[-1].task
