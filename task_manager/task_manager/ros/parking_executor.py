@@ -141,11 +141,20 @@ class ParkingExecutor(SingleThreadedExecutor):
             self._wake()  # the rest runs after the next wait, which must not block
 
     def create_task_after_turn(self, callback: _Handler) -> Task[Any]:
-        """A task that runs once nothing else is ready, just before the executor waits again."""
+        """A task that runs once nothing else is ready, just before the executor waits again;
+        queued outside a turn that has found work (before its wait, between spins, from another
+        thread), it runs like any task: there is no turn's end to wait for."""
         task = _ParkingTask(self, callback, (), {})
-        self._after_turn.append(task)
-        self._wake()
+        if self._in_waited_turn():
+            self._after_turn.append(task)
+        else:
+            self._resume(task)
         return task
+
+    def _in_waited_turn(self) -> bool:
+        """In the executor's thread, in a turn whose wait has found work: what is queued now
+        runs at the turn's end."""
+        return self._waited and threading.get_ident() == self._thread
 
     def wake(self) -> None:
         """rclpy's wake-up (a node made or destroyed an entity, e.g. a timer), spared as in
@@ -155,7 +164,7 @@ class ParkingExecutor(SingleThreadedExecutor):
     def _wake(self) -> None:
         """Make the next wait return at once, unless the end of this turn will run what was just
         queued (then a wake-up would only cost a turn with nothing ready)."""
-        if self._guard and not (self._waited and threading.get_ident() == self._thread):
+        if self._guard and not self._in_waited_turn():
             self._guard.trigger()
 
     def _next_ready(self) -> tuple[Task[Any], None, None] | None:

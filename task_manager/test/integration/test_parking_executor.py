@@ -308,3 +308,24 @@ def test_work_done_within_its_turn_leaves_no_wake_up_behind(
     assert waits.count == 1  # the one that times out
     executor.shutdown()
     node.destroy_node()
+
+
+def test_what_is_spawned_after_the_turn_between_spins_runs_at_the_next_one(
+    ros_context: None,
+) -> None:
+    """No turn has found work to wait for: it must not wait for the next outside event."""
+    parking_executor.install()
+    executor = ParkingExecutor()
+    node = rclpy.create_node(f'parking_between_spins_{os.getpid()}')
+    executor.add_node(node)
+    done: Future[None] = Future()
+
+    async def finish() -> None:
+        done.set_result(None)
+
+    spawn_after_turn(node, finish())
+    started = time.monotonic()
+    executor.spin_until_future_complete(done, timeout_sec=5.0)
+    assert done.done() and time.monotonic() - started < 1.0
+    executor.shutdown()
+    node.destroy_node()
