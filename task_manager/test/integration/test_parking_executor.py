@@ -5,7 +5,7 @@ again, without starving ready entities."""
 import os
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Coroutine, Iterator
 from typing import Any
 
 import pytest
@@ -282,19 +282,35 @@ def test_what_is_spawned_after_the_turn_runs_once_the_waiting_requests_are_answe
     assert flushes and flushes[-1] == BURST and len(flushes) <= BURST // 5, flushes
 
 
-def test_work_done_within_its_turn_leaves_no_wake_up_behind(
-    ros_context: None, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    """rclpy's handler wakes the executor twice, a new task and a new timer once each: every
-    wake-up left behind costs a wait set with nothing ready after the turn that did the work."""
+@pytest.fixture
+def spun_node(ros_context: None) -> Iterator[tuple[ParkingExecutor, rclpy.node.Node]]:
+    """A node on a ParkingExecutor, both destroyed after the test."""
     parking_executor.install()
     executor = ParkingExecutor()
-    node = rclpy.create_node(f'parking_no_wake_{os.getpid()}')
+    node = rclpy.create_node(f'parking_{os.getpid()}')
     executor.add_node(node)
+    yield executor, node
+    executor.shutdown()
+    node.destroy_node()
+
+
+def done_when_run() -> tuple[Future[None], Callable[[], Coroutine[None, None, None]]]:
+    """A future, and a coroutine function that completes it."""
     done: Future[None] = Future()
 
     async def finish() -> None:
         done.set_result(None)
+
+    return done, finish
+
+
+def test_work_done_within_its_turn_leaves_no_wake_up_behind(
+    spun_node: tuple[ParkingExecutor, rclpy.node.Node], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """rclpy's handler wakes the executor twice, a new task and a new timer once each: every
+    wake-up left behind costs a wait set with nothing ready after the turn that did the work."""
+    executor, node = spun_node
+    done, finish = done_when_run()
 
     def work() -> None:
         node.destroy_timer(node.create_timer(60.0, lambda: None))
@@ -306,26 +322,15 @@ def test_work_done_within_its_turn_leaves_no_wake_up_behind(
     waits = WaitSetCount(monkeypatch)
     executor.spin_once(timeout_sec=0.05)
     assert waits.count == 1  # the one that times out
-    executor.shutdown()
-    node.destroy_node()
 
 
 def test_what_is_spawned_after_the_turn_between_spins_runs_at_the_next_one(
-    ros_context: None,
+    spun_node: tuple[ParkingExecutor, rclpy.node.Node],
 ) -> None:
     """No turn has found work to wait for: it must not wait for the next outside event."""
-    parking_executor.install()
-    executor = ParkingExecutor()
-    node = rclpy.create_node(f'parking_between_spins_{os.getpid()}')
-    executor.add_node(node)
-    done: Future[None] = Future()
-
-    async def finish() -> None:
-        done.set_result(None)
-
+    executor, node = spun_node
+    done, finish = done_when_run()
     spawn_after_turn(node, finish())
     started = time.monotonic()
     executor.spin_until_future_complete(done, timeout_sec=5.0)
     assert done.done() and time.monotonic() - started < 1.0
-    executor.shutdown()
-    node.destroy_node()
