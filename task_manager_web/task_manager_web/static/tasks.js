@@ -12,10 +12,14 @@ const QUEUE_REREAD_MS = 150;
 
 let queueReread = null;    // the pending timer of rereadQueue, or null
 let priorityTaskId = '';   // the task whose priority the dialog changes
+// One set per read of the active list in flight: the ids of the tasks an event changed since
+// the read began. The answer may predate those events; for those tasks the events win.
+const changedDuringReads = new Set();
 
 // Keeps an event's task; an ended one is shown a moment, then dropped.
 export function applyTaskEvent(event) {
   const task = event.task;
+  for (const changed of changedDuringReads) changed.add(task.task_id);
   if (event.event === 'ENDED') {
     state.tasks.set(task.task_id, { ...task, endedAt: Date.now() });
     setTimeout(() => { dropEnded(task.task_id); }, ENDED_VISIBLE_MS);
@@ -30,14 +34,28 @@ export function applyTaskEvent(event) {
   renderActive();
 }
 
-// The active list read again (after a (re)connection); tasks ended moments ago stay shown.
+// GET /api/active, and the ids of the tasks an event changed while it was read.
+async function readActive() {
+  const changed = new Set();
+  changedDuringReads.add(changed);
+  try {
+    return { active: await api('/api/active'), changed };
+  } finally {
+    changedDuringReads.delete(changed);
+  }
+}
+
+// The active list read again (after a (re)connection): the page's tasks become the answer's,
+// except a task ended moments ago (still shown) or one an event changed during the read (as
+// the event left it, or gone). Returns the active tasks now shown.
 export async function loadActive() {
-  const active = await api('/api/active');
+  const { active, changed } = await readActive();
   const fresh = new Map(active.map((task) => [task.task_id, task]));
-  for (const [id, task] of state.tasks) if (task.endedAt) fresh.set(id, task);
+  for (const [id, task] of state.tasks) if (task.endedAt || changed.has(id)) fresh.set(id, task);
+  for (const id of changed) if (!state.tasks.has(id)) fresh.delete(id);
   state.tasks = fresh;
   renderActive();
-  return active;
+  return [...fresh.values()].filter((task) => !task.endedAt);
 }
 
 function rereadQueueSoon() {
@@ -46,13 +64,14 @@ function rereadQueueSoon() {
 }
 
 // Takes the queue positions and priorities of the tasks still queued from a fresh active list;
-// anything else an event may have changed since the list was read is left as the events say.
+// anything else, and any task an event changed during the read, is left as the events say.
 async function rereadQueue() {
   queueReread = null;
   try {
-    for (const fresh of await api('/api/active')) {
+    const { active, changed } = await readActive();
+    for (const fresh of active) {
       const shown = state.tasks.get(fresh.task_id);
-      if (shown?.status === 'QUEUED' && fresh.status === 'QUEUED') {
+      if (shown?.status === 'QUEUED' && fresh.status === 'QUEUED' && !changed.has(fresh.task_id)) {
         state.tasks.set(fresh.task_id, { ...shown, queue_position: fresh.queue_position, priority: fresh.priority });
       }
     }
