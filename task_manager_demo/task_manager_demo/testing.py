@@ -36,7 +36,8 @@ class DemoProcess:
 
     def __init__(self, name: str, command: list[str], cwd: Path | None = None) -> None:
         self.events: Events = queue.SimpleQueue()
-        self.child = Child(name, command, self.events, cwd=cwd)
+        # a crash (SIGSEGV, SIGABRT) leaves the Python stack of each thread in the output
+        self.child = Child(name, command, self.events, cwd=cwd, env={'PYTHONFAULTHANDLER': '1'})
 
     @property
     def pid(self) -> int:
@@ -132,4 +133,5 @@ def demo_robot(
             yield client
     finally:
         assert task_manager.stop() == 0, '\n'.join(task_manager.log_lines)
-        assert robot.stop() == 0, robot.output
+        code = robot.stop()
+        assert code == 0, f'the robot exited with {code}:\n{robot.output}'
