@@ -2,8 +2,9 @@
 
 The client is thread-based (its executor spins in a thread of its own): its blocking calls
 run in worker threads, and what it reports on its executor thread (task events, the node
-coming and going) is handed to the event loop with `call_soon_threadsafe`. Each event is
-turned into JSON once, then offered to every open event stream.
+coming and going) is handed to the event loop with `call_soon_threadsafe`, one wake-up for
+what came meanwhile. Each event is turned into JSON once, then offered to every open event
+stream; with no stream open, it is not turned into anything.
 
 The blocking calls have three pools of threads, so that no kind of request waits behind
 another: reads, starts, and control (stop, cancel, pause, resume, schedule changes). A flood
@@ -14,6 +15,7 @@ Reads are bounded per client before they get here (read_bound.py).
 import asyncio
 import contextlib
 import json
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from functools import partial
@@ -72,6 +74,10 @@ class NodeLink:
         self._starts = ThreadPoolExecutor(START_THREADS, 'web_start')
         self._control = ThreadPoolExecutor(CONTROL_THREADS, 'web_control')
         self._streams: set[EventStream] = set()
+        # (kind, JSON text) from the client's threads, not yet offered to the streams
+        self._waiting: list[tuple[str, str]] = []
+        self._wake_due = False
+        self._waiting_lock = threading.Lock()
         self._unsubscribe = [
             client.on_task_event(self._on_event),
             client.on_connection_change(self._on_connection_change),
@@ -156,18 +162,30 @@ class NodeLink:
     # ---- from the client's executor thread --------------------------------------------------
 
     def _on_event(self, event: TaskEvent) -> None:
-        self._hand_over('task', compact_json(event_json(event)))
+        # no stream open, no one to tell: a stream opened later starts with what it reads
+        if self._streams:
+            self._hand_over('task', compact_json(event_json(event)))
 
     def _on_connection_change(self, connected: bool) -> None:
         self._hand_over('connection', compact_json({'connected': connected}))
 
     def _hand_over(self, kind: str, text: str) -> None:
-        with contextlib.suppress(RuntimeError):  # the loop has closed: the gateway is stopping
-            self._loop.call_soon_threadsafe(self._broadcast, kind, text)
+        """Queue for the streams; the event loop is woken only if it is not already due to
+        take what waits (a burst of events costs one wake-up and one switch of threads, not
+        one per event)."""
+        with self._waiting_lock:
+            self._waiting.append((kind, text))
+            wake, self._wake_due = not self._wake_due, True
+        if wake:
+            with contextlib.suppress(RuntimeError):  # the loop has closed: the gateway stops
+                self._loop.call_soon_threadsafe(self._broadcast_waiting)
 
-    def _broadcast(self, kind: str, text: str) -> None:
-        for stream in self._streams:
-            stream.offer(kind, text)
+    def _broadcast_waiting(self) -> None:
+        with self._waiting_lock:
+            waiting, self._waiting, self._wake_due = self._waiting, [], False
+        for kind, text in waiting:
+            for stream in self._streams:
+                stream.offer(kind, text)
 
 
 def _set_done(future: asyncio.Future[None]) -> None:
