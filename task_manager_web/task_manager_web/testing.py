@@ -5,12 +5,16 @@ import re
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import httpx
 
 from task_manager.testing.gateway import TIMEOUT_SEC, wait_until
 from task_manager.testing.process import NodeProcess
 from task_manager_web.tokens import Role, read_token_file
+
+if TYPE_CHECKING:  # the dashboard's tests only: the bench runs gateways without a browser
+    from playwright.sync_api import APIResponse, Page, Route
 
 GATEWAY_EXECUTABLE = str(Path(sys.executable).with_name('task-manager-web'))
 DASHBOARD_LINE = r'dashboard: (?P<url>http://[^/\s]+)/'
@@ -43,3 +47,23 @@ def gateway_client(gateway: GatewayProcess) -> Iterator[httpx.Client]:
     ) as client:
         wait_until(lambda: client.get('/api/health').json()['connected'], 'gateway connected')
         yield client
+
+
+class HeldRead:
+    """The dashboard's first read of a URL, held unanswered until the test answers it."""
+
+    def __init__(self, page: 'Page', route: 'Route') -> None:
+        self.page = page
+        self.route = route
+
+    def fetch(self) -> 'APIResponse':
+        """What the gateway answers now."""
+        return self.route.fetch()
+
+    def answer(self, answer: 'APIResponse') -> None:
+        """Answers the read with `answer`; returns once the page's script has had it (its body
+        read, then a turn of the page's event loop)."""
+        with self.page.expect_response(self.route.request.url) as response:
+            self.route.fulfill(response=answer)
+        response.value.finished()
+        self.page.evaluate('() => new Promise((resolve) => setTimeout(resolve, 0))')

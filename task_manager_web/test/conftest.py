@@ -12,11 +12,11 @@ from pathlib import Path
 
 import httpx
 import pytest
-from playwright.sync_api import Browser, Page, expect, sync_playwright
+from playwright.sync_api import Browser, Page, Route, expect, sync_playwright
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, SharedBaseRobot
 from task_manager.testing.harness import RosHarness
-from task_manager_web.testing import GatewayProcess, gateway_client
+from task_manager_web.testing import GatewayProcess, HeldRead, gateway_client
 
 
 @pytest.fixture
@@ -116,3 +116,29 @@ def api(gateway: GatewayProcess) -> Iterator[httpx.Client]:
     headers = {'Authorization': f'Bearer {gateway.token}'}
     with httpx.Client(base_url=gateway.url, headers=headers, timeout=TIMEOUT_SEC) as client:
         yield client
+
+
+@pytest.fixture
+def open_holding_first_read(
+    blank_page: Page, robot: Robot, gateway: GatewayProcess
+) -> Callable[[str], HeldRead]:
+    """Opens the dashboard as `page` does, its first read of `url` (a glob) held unanswered.
+    Later reads go through (the route stays: unrouted, a held request would be let go)."""
+
+    def open_page(url: str) -> HeldRead:
+        held: list[Route] = []
+
+        def hold_first(route: Route) -> None:
+            if held:
+                route.continue_()
+            else:
+                held.append(route)
+
+        blank_page.route(url, hold_first)
+        with blank_page.expect_request(url):
+            blank_page.goto(f'{gateway.url}/?token={gateway.token}')
+        blank_page.evaluate('0')  # a round trip: the route, sent before its answer, is taken
+        (read,) = held
+        return HeldRead(blank_page, read)
+
+    return open_page

@@ -11,14 +11,14 @@ from pathlib import Path
 import httpx
 import pytest
 import yaml
-from playwright.sync_api import APIResponse, Page, Route, expect
+from playwright.sync_api import APIResponse, Page, expect
 from test_msgs.action import Fibonacci
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, ScriptedRobot
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.process import action_task, write_params_file
 from task_manager.testing.servers import ScriptedActionServer
-from task_manager_web.testing import GatewayProcess
+from task_manager_web.testing import GatewayProcess, HeldRead
 
 pytestmark = pytest.mark.ros
 
@@ -93,35 +93,21 @@ def test_a_mission_shows_as_a_row_of_steps_that_advance(
 
 
 @pytest.fixture
-def held_read(blank_page: Page, robot: Robot, gateway: GatewayProcess) -> Route:
-    """The dashboard opened as `page` opens it, its first read of the active tasks (made at
-    the connection) held unanswered: the test answers it, with what it fetched when it chose.
-    Later reads go through (the route stays: unrouted, a held request would be let go)."""
-    held: list[Route] = []
-
-    def hold_first(route: Route) -> None:
-        if held:
-            route.continue_()
-        else:
-            held.append(route)
-
-    blank_page.route('**/api/active', hold_first)
-    with blank_page.expect_request('**/api/active'):
-        blank_page.goto(f'{gateway.url}/?token={gateway.token}')
-    blank_page.evaluate('0')  # a round trip: the route, sent before its answer, is taken
-    (read,) = held
-    return read
+def held_read(open_holding_first_read: Callable[[str], HeldRead]) -> HeldRead:
+    """The dashboard opened, its first read of the active tasks (made at the connection)
+    held unanswered."""
+    return open_holding_first_read('**/api/active')
 
 
-def answer_read(page: Page, read: Route, answer: APIResponse) -> None:
-    """Answers the held read; returns once the page has taken the answer (it reads the history
-    next)."""
-    with page.expect_request('**/api/history*'):
-        read.fulfill(response=answer)
+def answer_read(read: HeldRead, answer: APIResponse) -> None:
+    """Answers the held read of the active tasks; returns once the page has taken the answer
+    (it reads the history next)."""
+    with read.page.expect_request('**/api/history*'):
+        read.route.fulfill(response=answer)
 
 
 def test_a_task_started_while_the_active_list_is_read_stays_shown_after_the_older_answer(
-    blank_page: Page, held_read: Route, api: httpx.Client, robot: Robot
+    blank_page: Page, held_read: HeldRead, api: httpx.Client, robot: Robot
 ) -> None:
     page = blank_page
     older = held_read.fetch()  # no task yet
@@ -131,7 +117,7 @@ def test_a_task_started_while_the_active_list_is_read_stays_shown_after_the_olde
     row = page.locator('#active tbody tr[data-task-id="new"]')
     expect(row).to_contain_text('IN_PROGRESS')
 
-    answer_read(page, held_read, older)
+    answer_read(held_read, older)
 
     expect(row).to_contain_text('IN_PROGRESS')
     robot.fib.wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
@@ -139,7 +125,7 @@ def test_a_task_started_while_the_active_list_is_read_stays_shown_after_the_olde
 
 
 def test_a_mission_step_that_started_while_the_active_list_is_read_stays_running(
-    blank_page: Page, held_read: Route, api: httpx.Client, robot: Robot
+    blank_page: Page, held_read: HeldRead, api: httpx.Client, robot: Robot
 ) -> None:
     page = blank_page
     subtasks = [{'task_name': 'fib', 'task_data': {'order': n}} for n in (1, 2)]
@@ -150,7 +136,7 @@ def test_a_mission_step_that_started_while_the_active_list_is_read_stays_running
     robot.fib.wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
     expect(steps.nth(1)).to_have_attribute('data-state', 'running')
 
-    answer_read(page, held_read, older)
+    answer_read(held_read, older)
 
     expect(steps.nth(0)).to_have_attribute('data-state', 'done')
     expect(steps.nth(1)).to_have_attribute('data-state', 'running')

@@ -2,7 +2,7 @@
 and node: pause and resume, the schedules panel, confirmations waiting in the banner, and the
 controls each role is offered."""
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import httpx
@@ -10,7 +10,7 @@ import pytest
 from playwright.sync_api import Locator, Page, expect
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, wait_until
-from task_manager_web.testing import GatewayProcess
+from task_manager_web.testing import GatewayProcess, HeldRead
 
 pytestmark = pytest.mark.ros
 
@@ -146,6 +146,22 @@ def test_the_schedules_panel_follows_a_run_from_its_events(
     # the panel is read again on the run's events, not on a timer (a minute)
     expect(row.locator('.last-run .badge')).to_have_text('DONE')
     expect(row.locator('.next-run')).to_have_text('none to come')
+
+
+def test_an_older_read_of_the_schedules_answered_last_does_not_hide_a_newer_schedule(
+    blank_page: Page, open_holding_first_read: Callable[[str], HeldRead], api: httpx.Client
+) -> None:
+    page = blank_page
+    first_read = open_holding_first_read('**/api/schedules')
+    older = first_read.fetch()  # no schedule yet
+    nightly = {**FIB, 'schedule_id': 'nightly', 'cron': '0 2 * * *'}
+    assert api.post('/api/schedules', json=nightly).json()['scheduled']  # from another door
+    row = page.locator('#schedules tbody tr[data-schedule-id="nightly"]')
+    expect(row).to_have_count(1)  # read again on the change's event
+
+    first_read.answer(older)
+
+    expect(row).to_have_count(1)
 
 
 def test_a_waiting_step_is_confirmed_from_the_banner_and_its_mission_goes_on(

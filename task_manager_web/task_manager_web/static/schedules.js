@@ -13,10 +13,17 @@ const SCHEDULE_TASKS = ['system/schedule', 'system/unschedule', 'system/enable_s
 let schedules = [];
 let reread = null;       // the pending timer of loadSchedules, or null
 let removing = '';       // the schedule the dialog removes
+let readsBegun = 0;      // reads of the schedules begun, numbered from 1
+let readShown = 0;       // the number of the read whose answer is shown
 
+// A read's answer is shown unless a later read's already is: answers can come out of order.
 export async function loadSchedules() {
   reread = null;
-  schedules = await api('/api/schedules');
+  const read = ++readsBegun;
+  const answer = await api('/api/schedules');
+  if (read < readShown) return;
+  readShown = read;
+  schedules = answer;
   renderSchedules();
 }
 
