@@ -39,6 +39,18 @@ class CountingFuture(Future[int]):
         return super()._pending()
 
 
+@pytest.fixture
+def spun_node(ros_context: None) -> Iterator[tuple[ParkingExecutor, rclpy.node.Node]]:
+    """A node on a ParkingExecutor, both destroyed after the test."""
+    parking_executor.install()
+    executor = ParkingExecutor()
+    node = rclpy.create_node(f'parking_{os.getpid()}')
+    executor.add_node(node)
+    yield executor, node
+    executor.shutdown()
+    node.destroy_node()
+
+
 def test_a_waiting_coroutine_is_stepped_only_when_its_future_completes(ros_context: None) -> None:
     parking_executor.install()
     executor = ParkingExecutor()
@@ -77,11 +89,10 @@ def test_a_coroutine_awaiting_a_future_already_done_goes_on_at_once(ros_context:
     executor.shutdown()
 
 
-def test_an_async_service_callback_waiting_on_a_future_is_parked_too(ros_context: None) -> None:
-    parking_executor.install()
-    executor = ParkingExecutor()
-    node = rclpy.create_node(f'parking_{os.getpid()}')
-    executor.add_node(node)
+def test_an_async_service_callback_waiting_on_a_future_is_parked_too(
+    spun_node: tuple[ParkingExecutor, rclpy.node.Node],
+) -> None:
+    executor, node = spun_node
     future = CountingFuture()
     entered = threading.Event()
 
@@ -109,17 +120,12 @@ def test_an_async_service_callback_waiting_on_a_future_is_parked_too(ros_context
     executor.spin_until_future_complete(reply, timeout_sec=5.0)
     response = reply.result()
     assert reply.done() and response is not None and response.success
-    executor.shutdown()
-    node.destroy_node()
 
 
 def test_coroutines_woken_by_each_other_run_before_the_executor_waits_again(
-    ros_context: None,
+    spun_node: tuple[ParkingExecutor, rclpy.node.Node],
 ) -> None:
-    parking_executor.install()
-    executor = ParkingExecutor()
-    node = rclpy.create_node(f'parking_chain_{os.getpid()}')
-    executor.add_node(node)
+    executor, node = spun_node
     order: list[str] = []
     guard = node.create_guard_condition(lambda: order.append('ready entity'))
     links: list[Future[None]] = [Future() for _ in range(CHAIN_LENGTH + 1)]
@@ -140,17 +146,12 @@ def test_coroutines_woken_by_each_other_run_before_the_executor_waits_again(
     executor.spin_once(timeout_sec=1.0)
     # rclpy's executor waits on its wait set (and calls the ready entity) between two links
     assert order == [*(f'link {i}' for i in range(CHAIN_LENGTH)), 'ready entity']
-    executor.shutdown()
-    node.destroy_node()
 
 
 def test_tasks_that_keep_waking_each_other_do_not_starve_a_ready_entity(
-    ros_context: None,
+    spun_node: tuple[ParkingExecutor, rclpy.node.Node],
 ) -> None:
-    parking_executor.install()
-    executor = ParkingExecutor()
-    node = rclpy.create_node(f'parking_fair_{os.getpid()}')
-    executor.add_node(node)
+    executor, node = spun_node
     called = threading.Event()
     guard = node.create_guard_condition(called.set)
     steps = [0]
@@ -166,18 +167,13 @@ def test_tasks_that_keep_waking_each_other_do_not_starve_a_ready_entity(
         if called.is_set():
             break
     assert called.is_set() and steps[0] <= parking_executor.RUN_AHEAD_LIMIT + 1
-    executor.shutdown()
-    node.destroy_node()
 
 
 def test_a_coroutine_in_resolved_goes_on_when_its_future_completes_with_no_wake_up_task(
-    ros_context: None,
+    spun_node: tuple[ParkingExecutor, rclpy.node.Node],
 ) -> None:
-    parking_executor.install()
-    executor = ParkingExecutor()
+    executor, node = spun_node
     assert executor.resumes_waiters  # resolved() queues no wake-up task on it
-    node = rclpy.create_node(f'parking_resolved_{os.getpid()}')
-    executor.add_node(node)
     future: Future[int] = Future()
     task = executor.create_task(resolved, node, future)
     executor.spin_once(timeout_sec=0.0)  # up to its await, where it parks
@@ -185,8 +181,6 @@ def test_a_coroutine_in_resolved_goes_on_when_its_future_completes_with_no_wake_
     started = time.monotonic()
     executor.spin_until_future_complete(task, timeout_sec=5.0)
     assert task.result() == 5 and time.monotonic() - started < 1.0
-    executor.shutdown()
-    node.destroy_node()
 
 
 class WaitSetCount:
@@ -280,18 +274,6 @@ def test_what_is_spawned_after_the_turn_runs_once_the_waiting_requests_are_answe
     turns_to_answer_a_burst(ParkingExecutor(), 'after_turn', WaitSetCount(monkeypatch), on_request)
     # as a task, it would run after each request (the run-ahead runs tasks first)
     assert flushes and flushes[-1] == BURST and len(flushes) <= BURST // 5, flushes
-
-
-@pytest.fixture
-def spun_node(ros_context: None) -> Iterator[tuple[ParkingExecutor, rclpy.node.Node]]:
-    """A node on a ParkingExecutor, both destroyed after the test."""
-    parking_executor.install()
-    executor = ParkingExecutor()
-    node = rclpy.create_node(f'parking_{os.getpid()}')
-    executor.add_node(node)
-    yield executor, node
-    executor.shutdown()
-    node.destroy_node()
 
 
 def done_when_run() -> tuple[Future[None], Callable[[], Coroutine[None, None, None]]]:
