@@ -124,6 +124,20 @@ def test_a_refused_task_is_received_and_ended_without_starting(
     assert _seconds(mine[-1].task.started) == 0
 
 
+def test_a_system_task_s_feedback_at_its_start_comes_after_its_started_event(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    _, tm = _launch(ros, launch_task_manager, topic_prefix)
+    events = tm.record_events()
+
+    tm.run('system/wait', {'duration': 0.2}, task_id='w1')  # its feedback made as it starts
+    mine = _until_ended(events, 'w1')
+
+    assert [m.event for m in mine] == ['RECEIVED', 'STARTED', 'FEEDBACK', 'ENDED']
+    assert mine[2].task.task_status == 'IN_PROGRESS'
+    assert json.loads(mine[2].task.feedback)['remaining_time'] > 0
+
+
 def test_fast_feedback_is_rate_limited_and_the_latest_comes_before_the_end(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:

@@ -4,7 +4,8 @@ Every task gets RECEIVED, then STARTED (unless it ends before starting), FEEDBAC
 (PAUSED and RESUMED for each pause), and ENDED, in that order, each with the task's whole
 state. Feedback goes out at most
 `feedback_rate_hz` times a second per task (see core/feedback_rate.py); a feedback held
-back when the task ends goes out just before its ENDED event.
+back when the task ends goes out just before its ENDED event. Feedback recorded before the
+task is IN_PROGRESS (a system task's first, made as it starts) goes out just after STARTED.
 """
 
 import time
@@ -19,6 +20,7 @@ from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager.core.admission.decisions import DecisionKind, decisions_to_json
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.names import TASK_EVENTS_TOPIC
+from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord, pauses_to_json
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_timer
@@ -64,6 +66,7 @@ def task_state_msg(record: TaskRecord) -> TaskState:
 
 
 _ENDING_DECISIONS = (DecisionKind.REFUSED, DecisionKind.PREEMPTED, DecisionKind.TIMEOUT)
+_NOT_STARTED = (TaskStatus.RECEIVED, TaskStatus.QUEUED)
 
 
 def end_reason(record: TaskRecord) -> str:
@@ -85,6 +88,8 @@ class TaskEventStream:
         self._gates: dict[str, FeedbackGate] = {}
         # key: task id, value: the one-shot timer that sends its held feedback
         self._timers: dict[str, Timer] = {}
+        # ids of the tasks with feedback recorded before they started: sent after STARTED
+        self._feedback_before_start: set[str] = set()
 
     def open(self) -> None:
         """Create the publisher (when the node starts serving)."""
@@ -102,6 +107,9 @@ class TaskEventStream:
     def started(self, record: TaskRecord, reason: str = '') -> None:
         if self._publisher is not None:
             self._publish(TaskEvent.STARTED, record, reason)
+            if record.task_id in self._feedback_before_start:
+                self._feedback_before_start.discard(record.task_id)
+                self.feedback(record)
 
     def queued(self, record: TaskRecord, reason: str) -> None:
         if self._publisher is not None:
@@ -124,6 +132,9 @@ class TaskEventStream:
     def feedback(self, record: TaskRecord) -> None:
         if record.is_final:  # a late update after the end is not an event
             return
+        if record.status in _NOT_STARTED:
+            self._feedback_before_start.add(record.task_id)
+            return
         gate = self._gates.get(record.task_id)
         if gate is None:
             gate = self._gates[record.task_id] = FeedbackGate(self._min_interval_sec)
@@ -141,6 +152,7 @@ class TaskEventStream:
             return
         self._release(record)
         self._gates.pop(record.task_id, None)
+        self._feedback_before_start.discard(record.task_id)
         self._publish(TaskEvent.ENDED, record, end_reason(record))
 
     def _release(self, record: TaskRecord) -> None:
