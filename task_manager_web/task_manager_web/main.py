@@ -20,7 +20,13 @@ from task_manager.discovery import use_quick_discovery
 from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
 from task_manager_web.front_door import LOCAL_HOSTS
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, server_config
-from task_manager_web.tokens import Token, TokenFileError, generated_token, read_token_file
+from task_manager_web.tokens import (
+    Token,
+    TokenFileError,
+    exposure_warning,
+    generated_token,
+    read_token_file,
+)
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080
@@ -92,9 +98,12 @@ def _tokens(token_file: Path | None) -> tuple[Token, ...]:
     if token_file is None:
         return (generated_token(),)
     try:
-        return read_token_file(token_file)
+        tokens = read_token_file(token_file)
     except TokenFileError as error:
         raise SystemExit(f'task-manager-web: --token-file {error}') from None
+    if warning := exposure_warning(token_file):
+        logging.getLogger('task_manager_web').warning(f'--token-file {warning}')
+    return tokens
 
 
 def _dashboard_line(url: str, tokens: tuple[Token, ...], token_file: Path | None) -> str:
