@@ -46,6 +46,7 @@ DEFAULTS: dict[str, Any] = {
     'reconnect_max_sec': 2,
 }
 LOG_FORMAT = 'task-manager-mqtt: [%(levelname)s] %(message)s'
+LOG = logging.getLogger('task_manager_mqtt')
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
@@ -99,7 +100,7 @@ def settings_from(options: dict[str, Any]) -> BridgeSettings:
         tls = replace(tls or Tls(), ca_file=str(values['ca_file']))
     broker = Broker.from_url(str(values['broker_url']), tls)
     if values.get('password_file'):
-        broker = _with_password(broker, Path(values['password_file']))
+        broker = broker.with_password_file(Path(values['password_file']), LOG)
     state_file = values.get('state_file')
     return BridgeSettings(
         robot_id=str(values['robot_id']),
@@ -111,14 +112,6 @@ def settings_from(options: dict[str, Any]) -> BridgeSettings:
         keepalive_sec=int(values['keepalive_sec']),
         reconnect_max_sec=int(values['reconnect_max_sec']),
     )
-
-
-def _with_password(broker: Broker, path: Path) -> Broker:
-    try:
-        password = path.read_text().strip()
-    except OSError as error:
-        raise SettingsError(f'cannot read the password file: {error}') from None
-    return Broker(broker.host, broker.port, broker.username, password, broker.tls)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -138,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
         stop.wait()
         bridge.stop()
     if bridge.failed.is_set():
-        logging.getLogger('task_manager_mqtt').error(bridge.failure)
+        LOG.error(bridge.failure)
         return EXIT_USAGE
     return 0
 

@@ -4,13 +4,16 @@ A broker URL is `mqtt://[user[:password]@]host[:port]` (1883 by default), or `mq
 for TLS (8883 by default).
 """
 
+import logging
 import os
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 from urllib.parse import unquote, urlsplit
 
 import yaml
+
+from task_manager.secret_file import exposure_warning
 
 DEFAULT_PREFIX = 'task_manager/v1'
 DEFAULT_PORTS = {'mqtt': 1883, 'mqtts': 8883}
@@ -68,6 +71,17 @@ class Broker:
             password=unquote(parts.password or ''),
             tls=tls,
         )
+
+    def with_password_file(self, path: Path, log: logging.Logger) -> 'Broker':
+        """This broker with the password the file at `path` holds (its text, trimmed); a
+        warning on `log` when users other than its owner may read the file."""
+        try:
+            password = path.read_text().strip()
+        except OSError as error:
+            raise SettingsError(f'cannot read the password file: {error}') from None
+        if warning := exposure_warning(path):
+            log.warning(f'--password-file {warning}')
+        return replace(self, password=password)
 
     @property
     def url(self) -> str:

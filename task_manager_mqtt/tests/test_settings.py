@@ -1,5 +1,6 @@
 """The bridge's settings: broker URLs, the YAML file, and what is refused (no ROS)."""
 
+import logging
 from pathlib import Path
 
 import pytest
@@ -58,3 +59,25 @@ def test_unusable_settings_exit_2_with_one_line(capsys: pytest.CaptureFixture[st
     assert main(['--robot-id', 'r', '--broker-url', 'tcp://host']) == 2
     error = capsys.readouterr().err
     assert error.count('\n') == 1 and 'broker URL' in error
+
+
+def test_a_password_file_gives_its_trimmed_text_and_a_warning_when_others_may_read_it(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    password = tmp_path / 'password'
+    password.write_text('secret\n')
+    log = logging.getLogger('test_settings')
+    broker = Broker.from_url('mqtt://robot1@broker.local')
+
+    password.chmod(0o600)
+    with caplog.at_level(logging.WARNING, 'test_settings'):
+        kept = broker.with_password_file(password, log)
+    assert (kept.username, kept.password, caplog.records) == ('robot1', 'secret', [])
+
+    password.chmod(0o644)
+    with caplog.at_level(logging.WARNING, 'test_settings'):
+        broker.with_password_file(password, log)
+    (record,) = caplog.records
+    assert record.getMessage().startswith(f'--password-file {password} may be read by other')
+    with pytest.raises(SettingsError, match='cannot read the password file'):
+        broker.with_password_file(tmp_path / 'missing', log)

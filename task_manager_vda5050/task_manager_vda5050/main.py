@@ -31,6 +31,7 @@ EXIT_USAGE = 2
 CLIENT_TIMEOUT_SEC = 5.0
 TASK_MANAGER_WAIT_SEC = 30.0
 LOG_FORMAT = 'task-manager-vda5050: [%(levelname)s] %(message)s'
+LOG = logging.getLogger('task_manager_vda5050')
 
 
 def _arguments(argv: list[str] | None) -> argparse.Namespace:
@@ -60,11 +61,7 @@ def _broker(options: argparse.Namespace) -> Broker:
     broker = Broker.from_url(options.broker_url)
     if options.password_file is None:
         return broker
-    try:
-        password = options.password_file.read_text().strip()
-    except OSError as error:
-        raise SettingsError(f'cannot read the password file: {error}') from None
-    return Broker(broker.host, broker.port, broker.username, password, broker.tls)
+    return broker.with_password_file(options.password_file, LOG)
 
 
 def main(argv: list[str] | None = None) -> int:

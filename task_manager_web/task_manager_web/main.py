@@ -17,16 +17,11 @@ import uvicorn
 
 from task_manager.client import TaskManagerClient
 from task_manager.discovery import use_quick_discovery
+from task_manager.secret_file import exposure_warning
 from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
 from task_manager_web.front_door import LOCAL_HOSTS
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, server_config
-from task_manager_web.tokens import (
-    Token,
-    TokenFileError,
-    exposure_warning,
-    generated_token,
-    read_token_file,
-)
+from task_manager_web.tokens import Token, TokenFileError, generated_token, read_token_file
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080

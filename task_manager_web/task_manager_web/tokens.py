@@ -80,18 +80,6 @@ def read_token_file(path: Path) -> tuple[Token, ...]:
     return parse_tokens(text, str(path))
 
 
-def exposure_warning(path: Path) -> str | None:
-    """What to say when users other than its owner may read the token file at `path` (as ssh
-    says of a private key); None when they may not."""
-    mode = path.stat().st_mode & 0o777
-    if not mode & 0o077:
-        return None
-    return (
-        f'{path} may be read by other users (mode {mode:03o}): whoever reads it can use its '
-        f'tokens; chmod 600 {path}'
-    )
-
-
 def parse_tokens(text: str, where: str) -> tuple[Token, ...]:
     """The tokens of a token file's `text`; `where` names the file in messages."""
     lines = [(number, words) for number, words in _words(text.splitlines()) if words]

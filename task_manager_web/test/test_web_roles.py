@@ -13,6 +13,7 @@ import pytest
 from starlette.routing import Mount, Route
 
 from task_manager.client import TaskManagerClient
+from task_manager.secret_file import exposure_warning
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
 from task_manager_web.access import Access, check_start_priority
 from task_manager_web.app import Settings, create_app
@@ -23,7 +24,6 @@ from task_manager_web.tokens import (
     Role,
     Token,
     TokenFileError,
-    exposure_warning,
     generated_token,
     parse_tokens,
 )
@@ -324,29 +324,6 @@ def test_the_gateway_does_not_start_with_a_bad_token_file(tmp_path: Path) -> Non
     assert ended.returncode == 2
     assert f'--token-file {token_file}, line 2: a name is' in ended.stderr
     assert TOKENS[OPERATOR] not in ended.stderr + ended.stdout
-
-
-@pytest.mark.parametrize('mode', [0o644, 0o640, 0o604])
-def test_a_token_file_others_may_read_gets_a_warning_that_says_how_to_mend_it(
-    tmp_path: Path, mode: int
-) -> None:
-    token_file = tmp_path / 'tokens'
-    token_file.write_text(TOKEN_FILE)
-    token_file.chmod(mode)
-
-    warning = exposure_warning(token_file)
-
-    assert warning is not None
-    assert f'(mode {mode:03o})' in warning and warning.endswith(f'chmod 600 {token_file}')
-
-
-@pytest.mark.parametrize('mode', [0o600, 0o400])
-def test_a_token_file_only_its_owner_may_read_gets_no_warning(tmp_path: Path, mode: int) -> None:
-    token_file = tmp_path / 'tokens'
-    token_file.write_text(TOKEN_FILE)
-    token_file.chmod(mode)
-
-    assert exposure_warning(token_file) is None
 
 
 def test_the_gateway_logs_the_warning_of_a_token_file_others_may_read(tmp_path: Path) -> None:
