@@ -99,7 +99,7 @@ def seconds_option(flag: str, what: str) -> Any:
     )
 
 
-def request_options(
+def start_option_keywords(
     priority: int | None,
     on_conflict: str | None,
     timeout: float | None,

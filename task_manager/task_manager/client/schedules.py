@@ -24,7 +24,7 @@ from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
 from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
 from task_manager.core.schedules.schedule import OverlapPolicy
 from task_manager.core.status import TaskStatus
-from task_manager.rclpy_tools.task_options import request_options
+from task_manager.rclpy_tools.task_options import options_of_message
 
 RUN_SOURCE_PREFIX = 'schedule:'
 """The source of a schedule's runs: this and the schedule id."""
@@ -122,7 +122,7 @@ class ScheduleInfo:
             schedule_id=message.schedule_id,
             task_name=message.task_name,
             task_data=json_object(message.task_data),
-            options=request_options(message.options).to_dict(),
+            options=options_of_message(message.options).to_dict(),
             created_by=message.created_by,
             description=message.description,
             at=datetime_of(message.at),

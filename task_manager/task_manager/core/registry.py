@@ -37,10 +37,6 @@ class TaskRegistry:
     def remove(self, task_id: str) -> None:
         self.active_tasks_by_id.pop(task_id, None)
 
-    def started(self) -> list[TaskRecord]:
-        """Tasks that have started and not ended (IN_PROGRESS or PAUSED)."""
-        return [t for t in self.active_tasks_by_id.values() if t.status.is_started]
-
     def listed(self) -> list[TaskRecord]:
         """Tasks shown in active_tasks: queued, running or paused."""
         return [t for t in self.active_tasks_by_id.values() if t.status.is_listed]

@@ -5,7 +5,7 @@ from task_manager_msgs.msg import TaskOptions
 from task_manager.core.admission.options import OnConflict, RequestOptions, parse_on_conflict
 
 
-def request_options(message: TaskOptions) -> RequestOptions:
+def options_of_message(message: TaskOptions) -> RequestOptions:
     """The options of a message; zero and empty fields take the declaration's values."""
     on_conflict: OnConflict | None = None
     error = ''

@@ -34,7 +34,7 @@ from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wait_until_ready
-from task_manager.rclpy_tools.task_options import request_options
+from task_manager.rclpy_tools.task_options import options_of_message
 from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
@@ -330,7 +330,7 @@ class TaskManagerNode(Node):
     async def _start_task(self, goal_handle: Any) -> StartTask.Result:
         """ExecuteTask with options (priority, on_conflict, timeouts): the same result."""
         goal = goal_handle.request
-        options = request_options(goal.options)
+        options = options_of_message(goal.options)
         request = TaskRequest(
             goal.task_id, goal.task_name, goal.source, goal.task_data, options=options
         )

@@ -176,16 +176,6 @@ def test_cancelled_by_stop_returns_only_cancel_on_stop_tasks() -> None:
     assert registry_of(keep_b).cancelled_by_stop() == []
 
 
-def test_in_progress_returns_only_started_tasks() -> None:
-    received = make_record('r', make_spec('r'))
-    running_1 = make_record('p1', make_spec('p1'), TaskStatus.IN_PROGRESS)
-    running_2 = make_record('p2', make_spec('p2'), TaskStatus.IN_PROGRESS)
-    registry = registry_of(running_1, received, running_2)
-    assert registry.started() == [running_1, running_2]
-    received.mark_started(now=3.0)
-    assert registry.started() == [running_1, received, running_2]
-
-
 # ---- property: conflict resolution keeps the system consistent -------------------------------
 
 specs = st.builds(
@@ -269,9 +259,6 @@ class ConflictResolution(RuleBasedStateMachine):
     def registry_matches_the_model(self) -> None:
         assert ids(self.registry) == self.model_ids
         assert len(self.registry) == len(self.model_ids)
-        assert ids(self.registry.started()) == [
-            r.task_id for r in self.registry if r.status is TaskStatus.IN_PROGRESS
-        ]
         assert ids(self.registry.cancelled_by_stop()) == [
             r.task_id for r in self.registry if r.spec.cancel_on_stop
         ]

@@ -21,9 +21,9 @@ from task_manager.cli.common import (
     output,
     priority_option,
     progress,
-    request_options,
     seconds_option,
     source_option,
+    start_option_keywords,
 )
 
 FEEDBACK_WIDTH = 48
@@ -130,7 +130,7 @@ def mission(
     The options are those of the mission as one unit (it queues as one).
     """
     subtasks = load_subtasks(path)
-    options = request_options(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
+    options = start_option_keywords(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
     with connected(ctx, events=not no_wait) as client:
         handle, _ = client.start_mission(subtasks, task_id=task_id, source=source, **options)
         if no_wait:

@@ -17,9 +17,9 @@ from task_manager.cli.common import (
     priority_option,
     progress,
     report_each,
-    request_options,
     seconds_option,
     source_option,
+    start_option_keywords,
     time_text,
 )
 from task_manager.cli.durations import parse_span
@@ -118,7 +118,7 @@ def run_options(
 ) -> dict[str, Any]:
     """The options of each run, as schedule_task's keywords (its `timeout_sec` is the wait
     for system/schedule, so a run's own timeout is `task_timeout_sec`)."""
-    options = request_options(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
+    options = start_option_keywords(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
     options['task_timeout_sec'] = options.pop('timeout_sec')
     return options
 

@@ -21,9 +21,9 @@ from task_manager.cli.common import (
     parse_json_object,
     priority_option,
     progress,
-    request_options,
     seconds_option,
     source_option,
+    start_option_keywords,
 )
 
 LIVE_REFRESH_PER_SEC = 10
@@ -49,7 +49,7 @@ def start(
     While it runs, a terminal's stderr shows its status, elapsed time and latest feedback.
     """
     data = parse_json_object(task_data, 'task data')
-    options = request_options(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
+    options = start_option_keywords(priority, on_conflict, timeout, queue_timeout, feedback_timeout)
     with connected(ctx, events=not no_wait) as client:
         handle = client.start_task(task_name, data, task_id=task_id, source=source, **options)
         if no_wait:

@@ -21,7 +21,7 @@ from task_manager.core.schedules.schedule import (
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.rclpy_tools.task_options import request_options, task_options_msg
+from task_manager.rclpy_tools.task_options import options_of_message, task_options_msg
 from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.recording.task_events import stamp
 from task_manager.ros.running.dispatcher import TaskDispatcher
@@ -91,7 +91,7 @@ class ScheduleTaskRunner:
             for name in request.get_fields_and_field_types()
         }
         request.options.has_priority |= _gives_priority(task_data)
-        fields['options'] = request_options(request.options)
+        fields['options'] = options_of_message(request.options)
         try:
             spec = parse_schedule_request(fields, '', time.time(), new_schedule_id)
         except ScheduleError as error:
