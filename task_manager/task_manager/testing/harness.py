@@ -79,26 +79,37 @@ class TopicRecorder:
             return list(self.messages)
 
 
+class CallbackError(AssertionError):
+    """A callback on the harness's executor (a test double's) raised; raised at close."""
+
+
 class RosHarness:
     """Owns one node and a single-threaded executor spinning it in a background thread.
 
     Single-threaded on purpose: a shared multi-threaded executor delays deliveries
     under load (see ROS2_FROM_PYPI.md), which would make tests slow and flaky.
+
+    A callback that raises does not stop the spinning (the test's other waits would only time
+    out, far from the cause): its exception is kept, and `close` raises it.
     """
 
     def __init__(self, node_name: str) -> None:
         self.node = rclpy.create_node(node_name)
         self.executor = SingleThreadedExecutor()
         self.executor.add_node(self.node)
+        self.callback_errors: list[Exception] = []
+        self._closing = False
         self._thread = threading.Thread(target=self._spin, name=f'{node_name}-spin', daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
-        try:
-            self.executor.spin()
-        except Exception:  # the context may be shutting down under us
-            if rclpy.ok():
-                raise
+        while not self._closing and rclpy.ok():
+            try:
+                self.executor.spin()
+            except Exception as error:
+                if self._closing or not rclpy.ok():  # shutting down under us
+                    return
+                self.callback_errors.append(error)
 
     def on_executor(self, function: Callable[[], T], timeout_sec: float = 10.0) -> T:
         """Run `function` on the executor thread and return its result.
@@ -117,7 +128,15 @@ class RosHarness:
         return TopicRecorder(self.node, msg_type, topic, qos)
 
     def close(self) -> None:
+        """Stop spinning and destroy the node; raises CallbackError if a callback raised."""
+        self._closing = True
         self.executor.shutdown()
         self._thread.join(timeout=5.0)
         destroy_waitables(self.node)
         self.node.destroy_node()
+        if self.callback_errors:
+            first = self.callback_errors[0]
+            raise CallbackError(
+                f'{len(self.callback_errors)} callback(s) on the test node raised, the first: '
+                f'{first!r}'
+            ) from first
