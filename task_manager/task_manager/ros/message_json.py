@@ -361,7 +361,7 @@ def _parse_float(token: str) -> float:
     return value
 
 
-def _parse(text: str) -> Any:
+def parse_json_text(text: str) -> Any:
     """Parse JSON text, turning every failure into TaskDataError."""
     if not isinstance(text, str | bytes | bytearray):
         raise _expected('', 'JSON text (str)', text)
@@ -381,7 +381,7 @@ def _parse(text: str) -> Any:
 
 def message_from_json(msg_class: type[T], text: str) -> T:
     """Build a ``msg_class`` instance from JSON text holding an object of its fields."""
-    return message_from_dict(msg_class, _parse(text))
+    return message_from_dict(msg_class, parse_json_text(text))
 
 
 def message_from_dict(msg_class: type[T], data: dict[str, Any]) -> T:

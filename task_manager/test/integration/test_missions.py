@@ -83,6 +83,22 @@ def test_mission_runs_its_subtasks_in_order_as_independent_tasks(
     assert {'m1', 'n1', 'n2', rows[1][0]} <= seen_active
 
 
+def test_a_subtask_s_task_data_may_be_a_json_object_as_a_mission_file_writes_it(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm, nav, photo = _launch(ros, launch_task_manager, topic_prefix)
+    subtasks = [
+        {'task_name': 'navigate', 'task_data': {'order': 1}},
+        {'task_name': 'take_photo', 'task_data': json.dumps({'order': 2})},  # text, as before
+    ]
+
+    result = tm.run('system/mission', {'subtasks': subtasks}, task_id='m-objects')
+
+    assert (result.task_status, result.error_code) == ('DONE', '')
+    assert [g.request.order for g in nav.wait_for_goals(1, TIMEOUT_SEC)] == [1]
+    assert [g.request.order for g in photo.wait_for_goals(1, TIMEOUT_SEC)] == [2]
+
+
 def test_failing_subtask_ends_the_mission_and_later_ones_never_start(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:

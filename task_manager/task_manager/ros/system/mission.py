@@ -7,6 +7,7 @@ from rclpy.task import Future
 from task_manager_msgs.action import Mission
 from task_manager_msgs.msg import SubtaskResult
 
+from task_manager.core.json_text import compact_json
 from task_manager.core.mission import MissionProgress, SubtaskRefusal, SubtaskRow
 from task_manager.core.names import MISSION, MISSION_SOURCE
 from task_manager.core.status import CancelReason, ErrorCode
@@ -14,7 +15,12 @@ from task_manager.core.system_tasks import MISSION_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import PauseMode
 from task_manager.rclpy_tools.futures import resolved, wait_for
-from task_manager.ros.message_json import TaskDataError, message_from_json, message_to_dict
+from task_manager.ros.message_json import (
+    TaskDataError,
+    message_from_dict,
+    message_to_dict,
+    parse_json_text,
+)
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
@@ -132,7 +138,7 @@ class MissionRunner:
     def _plan(self, task_data: str) -> tuple[MissionProgress, dict[str, str]]:
         """The mission's rows, each checked, and the unskippable problems (key: the field at
         fault, value: why)."""
-        goal = message_from_json(Mission.Goal, task_data)
+        goal = message_from_dict(Mission.Goal, _subtask_data_as_text(parse_json_text(task_data)))
         for index, subtask in enumerate(goal.subtasks):
             if not subtask.task_name.strip():
                 raise TaskDataError(f'subtasks[{index}].task_name', 'every subtask needs a name')
@@ -209,3 +215,13 @@ def mission_results(progress: MissionProgress) -> dict[str, Any]:
         for r in progress.rows
     ]
     return message_to_dict(Mission.Result(mission_results=rows))
+
+
+def _subtask_data_as_text(data: Any) -> Any:
+    """A mission's document with each subtask's task_data given as a JSON object (as a mission
+    file writes it) turned into the JSON text Mission's goal holds; the rest as it came."""
+    subtasks = data.get('subtasks') if isinstance(data, dict) else None
+    for subtask in subtasks if isinstance(subtasks, list) else ():
+        if isinstance(subtask, dict) and isinstance(subtask.get('task_data'), dict):
+            subtask['task_data'] = compact_json(subtask['task_data'])
+    return data
