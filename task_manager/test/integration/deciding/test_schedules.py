@@ -2,7 +2,7 @@
 runs are ordinary tasks, overlap policies, restarts and the misfire rule, refusals.
 
 When each kind of schedule fires (cron and time zones included) is tested against a clock
-the tests control in test/unit/test_schedule*.py.
+the tests control in test/unit/schedules/.
 """
 
 import json

@@ -23,7 +23,7 @@ from typing import Any
 import pytest
 import typer
 
-REPO = Path(__file__).resolve().parents[3]
+REPO = Path(__file__).resolve().parents[4]
 DOCS = [REPO / 'README.md', *sorted((REPO / 'docs').glob('*.md'))]
 FENCE = re.compile(r'^```(\w*)\n(.*?)^```', re.MULTILINE | re.DOTALL)
 # Files of the repository a command names (a mission, a parameters file, a script).
