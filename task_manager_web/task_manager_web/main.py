@@ -155,10 +155,13 @@ def main(argv: list[str] | None = None) -> None:
     server = uvicorn.Server(config)
     host, port = listener.getsockname()[:2]
     shown_host = f'[{host}]' if ':' in host else host
-    print(f'Task Manager web gateway on http://{shown_host}:{port}/ (API docs: /docs)', flush=True)
     dashboard = _dashboard_line(f'http://{shown_host}:{port}/', tokens, arguments.token_file)
-    print(dashboard, flush=True)
-    with contextlib.suppress(KeyboardInterrupt):
+    # Ctrl-C is a clean stop from the first line printed on, also before uvicorn has taken the
+    # signals over: then it interrupts a print (KeyboardInterrupt) or asyncio.run's start-up,
+    # which cancels the server's task (CancelledError)
+    with contextlib.suppress(KeyboardInterrupt, asyncio.CancelledError):
+        print(f'Task Manager web gateway on http://{shown_host}:{port}/ (API docs: /docs)')
+        print(dashboard, flush=True)
         asyncio.run(server.serve(sockets=[listener]))
 
 
