@@ -18,6 +18,7 @@ from task_manager.testing.harness import WaitTimeoutError
 STOP_TIMEOUT_SEC = 10.0
 TASKCTL = str(Path(sys.executable).with_name('taskctl'))
 TASKCTL_TIMEOUT_SEC = 30.0
+TASKCTL_REACH_SEC = 15.0
 
 # launch(tasks: {key: entry}, **node_parameters) -> a probe connected to the running node
 LaunchTaskManager = Callable[..., Any]
@@ -141,9 +142,14 @@ class NodeProcess:
 
 
 def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
-    """Run taskctl of this environment to its end (bounded); `env` adds to the environment."""
+    """Run taskctl of this environment to its end (bounded); `env` adds to the environment.
+
+    It may take TASKCTL_REACH_SEC to reach the Task Manager (a `--timeout` in `args` wins):
+    on a loaded 2-core machine a new process can take longer than taskctl's default 5 s to
+    discover the node, which is not what the tests test.
+    """
     return subprocess.run(
-        [TASKCTL, *args],
+        [TASKCTL, '--timeout', str(TASKCTL_REACH_SEC), *args],
         capture_output=True,
         text=True,
         timeout=TASKCTL_TIMEOUT_SEC,

@@ -46,6 +46,7 @@ def test_taskctl_active_shows_the_prompt_and_taskctl_confirm_answers_it(
     again = taskctl('confirm', 'tray')
 
     assert table.returncode == 0, table.stderr
+    assert as_json.returncode == 0, as_json.stderr
     assert 'waiting for an answer' in table.stdout
     assert 'Load the tray, then confirm' in table.stdout
     assert [json.loads(line)['prompt'] for line in as_json.stdout.splitlines()] == [
