@@ -20,7 +20,6 @@ from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager.core.admission.decisions import DecisionKind, decisions_to_json
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord, pauses_to_json
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_timer
@@ -66,7 +65,6 @@ def task_state_msg(record: TaskRecord) -> TaskState:
 
 
 _ENDING_DECISIONS = (DecisionKind.REFUSED, DecisionKind.PREEMPTED, DecisionKind.TIMEOUT)
-_NOT_STARTED = (TaskStatus.RECEIVED, TaskStatus.QUEUED)
 
 
 def end_reason(record: TaskRecord) -> str:
@@ -132,7 +130,7 @@ class TaskEventStream:
     def feedback(self, record: TaskRecord) -> None:
         if record.is_final:  # a late update after the end is not an event
             return
-        if record.status in _NOT_STARTED:
+        if not record.status.is_started:  # RECEIVED or QUEUED: sent after its STARTED
             self._feedback_before_start.add(record.task_id)
             return
         gate = self._gates.get(record.task_id)
