@@ -1,0 +1,118 @@
+"""Every bound on what a request may carry and on what the Task Manager keeps, in one place.
+
+Each door (the node's ROS interfaces, the web gateway, the MQTT bridge, the VDA 5050 adapter,
+schedules read back from disk) checks against these same values and refuses what breaks one
+with `invalid_request`, naming the field and the bound; `docs/security.md` lists them. Plain
+Python, no rclpy: the gateways and the protocol import it too.
+"""
+
+import math
+from dataclasses import dataclass
+
+__all__ = [
+    'DECISIONS_PER_TASK_MAX',
+    'DELAY_SECONDS',
+    'ECHO_MAX_CHARACTERS',
+    'EPOCH_SECONDS',
+    'HISTORY_RESULT_MAX_BYTES',
+    'HISTORY_TASK_DATA_MAX_BYTES',
+    'IDS_MAX',
+    'JSON_MAX_DEPTH',
+    'PERIOD_SECONDS',
+    'PRIORITY',
+    'SCHEDULES_MAX',
+    'SECONDS',
+    'TASK_DATA_MAX_BYTES',
+    'TEXT_MAX_CHARACTERS',
+    'NumberBound',
+    'cut_text',
+    'duplicate_problem',
+]
+
+
+@dataclass(frozen=True)
+class NumberBound:
+    """A closed range [low, high] a number must lie in; NaN and infinities are never in it."""
+
+    low: float
+    high: float
+    unit: str = ''
+    """'s' for seconds: said after the numbers in a refusal."""
+
+    def problem(self, field: str, value: object) -> str:
+        """Why `value` may not be `field`; empty when it may."""
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            return f'{field} must be a number, got {type(value).__name__}'
+        if isinstance(value, float) and not math.isfinite(value):
+            return f'{field} must be a finite number, got {value!r}'
+        if not self.low <= value <= self.high:
+            unit = f' {self.unit}' if self.unit else ''
+            return (
+                f'{field} must be from {_number(self.low)} to {_number(self.high)}{unit}, '
+                f'got {value!r}'
+            )
+        return ''
+
+    def check(self, field: str, value: object) -> None:
+        """Raise ValueError with problem() when `value` is out of bounds."""
+        if problem := self.problem(field, value):
+            raise ValueError(problem)
+
+
+def _number(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else str(value)
+
+
+# ---- seconds ------------------------------------------------------------------------------------
+SECONDS = NumberBound(0.0, 7 * 24 * 3600.0, 's')
+"""Any timeout, wait, grace, backoff or confirmation: at most a week. A ROS timer holds its
+period in signed 64-bit nanoseconds (292 years); a week keeps every sum of them far from it."""
+PERIOD_SECONDS = NumberBound(1.0, 366 * 24 * 3600.0, 's')
+"""A schedule's period: at least a second, at most a year."""
+DELAY_SECONDS = NumberBound(0.0, 366 * 24 * 3600.0, 's')
+"""A schedule's delay before its one run: at most a year."""
+EPOCH_SECONDS = NumberBound(0.0, 253_402_300_799.0, 's')
+"""An instant as seconds since 1970 (a schedule's at, start, end): up to 9999-12-31 23:59:59 UTC,
+the last instant a datetime can hold."""
+
+# ---- numbers ------------------------------------------------------------------------------------
+PRIORITY = NumberBound(-(2**31), 2**31 - 1)
+"""A task's priority: the int32 of TaskOptions."""
+
+# ---- sizes and counts ---------------------------------------------------------------------------
+TEXT_MAX_CHARACTERS = 256
+"""A task id, task name, source or schedule name."""
+TASK_DATA_MAX_BYTES = 1_048_576
+"""A request's task_data (JSON text, UTF-8): the gateways' largest body, at every door."""
+HISTORY_TASK_DATA_MAX_BYTES = 16_384
+"""What the history keeps of a request's task_data; a larger one is kept as a note of its size."""
+HISTORY_RESULT_MAX_BYTES = 65_536
+"""What the history keeps of a task's result; a larger one is kept as a note of its size."""
+JSON_MAX_DEPTH = 32
+"""How deep objects and arrays may nest in any JSON document a door reads."""
+IDS_MAX = 1000
+"""The most task ids in one request (cancel, pause, resume, reprioritize), and subtasks in one
+mission; an id may appear once."""
+DECISIONS_PER_TASK_MAX = 100
+"""The decisions a task keeps: its first ones and its newest, with a count of those left out."""
+SCHEDULES_MAX = 1000
+"""The schedules one Task Manager keeps."""
+ECHO_MAX_CHARACTERS = 200
+"""The most of a caller's own text (an unknown name, a bad value) an error message repeats."""
+
+
+def duplicate_problem(field: str, ids: list[str]) -> str:
+    """Why a list of ids may not be `field` (an id given twice); empty when it may."""
+    seen: set[str] = set()
+    for task_id in ids:
+        if task_id in seen:
+            return f'{field} names {cut_text(task_id)!r} more than once; each id at most once'
+        seen.add(task_id)
+    return ''
+
+
+def cut_text(text: str, limit: int = ECHO_MAX_CHARACTERS) -> str:
+    """`text`, or its first `limit` characters and a note of how many were left out."""
+    if len(text) <= limit:
+        return text
+    return f'{text[:limit]}… ({len(text) - limit} more characters)'
