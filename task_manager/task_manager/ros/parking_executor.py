@@ -19,7 +19,9 @@ the end of that turn, within the same limit, until it has none: rclpy takes one 
 entity per wait, so a burst of 500 goals cost 500 wait sets on ExecuteTask's send_goal alone.
 
 What gathers the changes of a turn (a history commit, a list published whole) is queued with
-`spawn_after_turn`: it runs once nothing else is ready, just before the executor waits again.
+`spawn_after_turn`: it runs once nothing else is ready, just before the executor waits again;
+a turn that reaches RUN_AHEAD_LIMIT first hands it to the next turn as tasks in progress, which
+run before that turn waits (never after an unrelated event).
 
 Wake-ups are spared where they only cost a turn with nothing ready: rclpy's handler of a ready
 entity wakes the executor twice (for another thread's wait set), and putting a task back or
@@ -138,7 +140,16 @@ class ParkingExecutor(SingleThreadedExecutor):
         self._waited = False
         self._taken.clear()
         if limit_reached and (self._ready or self._after_turn):
+            self._carry_over_after_turn()
             self._wake()  # the rest runs after the next wait, which must not block
+
+    def _carry_over_after_turn(self) -> None:
+        """What was to run at this turn's end goes on the task list, after the ready tasks:
+        rclpy's next turn runs its tasks in progress before it waits, whereas a wait woken with
+        nothing ready (only the guard) is waited again, until an unrelated event."""
+        with self._tasks_lock:
+            while self._after_turn:
+                self._tasks.append((self._after_turn.popleft(), None, None))
 
     def create_task_after_turn(self, callback: _Handler) -> Task[Any]:
         """A task that runs once nothing else is ready, just before the executor waits again;

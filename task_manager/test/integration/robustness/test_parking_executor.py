@@ -316,3 +316,22 @@ def test_what_is_spawned_after_the_turn_between_spins_runs_at_the_next_one(
     started = time.monotonic()
     executor.spin_until_future_complete(done, timeout_sec=5.0)
     assert done.done() and time.monotonic() - started < 1.0
+
+
+def test_what_is_spawned_after_a_turn_that_reached_its_run_ahead_limit_runs_at_once(
+    spun_node: tuple[ParkingExecutor, rclpy.node.Node],
+) -> None:
+    """A turn whose run-ahead ends at the limit with only after-turn work left (the history
+    flush that answers ExecuteTask): that work must not wait for the next outside event."""
+    executor, node = spun_node
+    done, finish = done_when_run()
+
+    def work() -> None:
+        for _ in range(parking_executor.RUN_AHEAD_LIMIT):
+            executor.create_task(lambda: None)
+        spawn_after_turn(node, finish())
+
+    node.create_guard_condition(work).trigger()
+    started = time.monotonic()
+    executor.spin_until_future_complete(done, timeout_sec=5.0)
+    assert done.done() and time.monotonic() - started < 1.0, time.monotonic() - started
