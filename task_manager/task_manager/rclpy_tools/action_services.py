@@ -105,6 +105,10 @@ class ActionServicesClient:
         """Stop waiting for the response to a SendGoal request (it was answered otherwise)."""
         self._send_goal.remove_pending_request(future)
 
+    def forget_result_request(self, future: Future[Any]) -> None:
+        """Stop waiting for the response to a GetResult request (asked again, or answered)."""
+        self._get_result.remove_pending_request(future)
+
     def forget(self, goal_id: bytes) -> None:
         """The goal has ended: drop its feedback callback."""
         self._feedback_callbacks.pop(goal_id, None)

@@ -31,8 +31,21 @@ def server_outcome(goal_status: int) -> ServerOutcome:
     return _OUTCOMES.get(goal_status, ServerOutcome.ABORTED)
 
 
+# The longest wait between two requests for a goal's result, in ticks of the server watch.
+RESULT_ASK_INTERVAL_MAX_TICKS = 8
+
+
 class ActionExecution:
-    """A goal accepted by a task's action server."""
+    """A goal accepted by a task's action server.
+
+    Its result is asked for at once, and again while none comes: a busy server's result
+    service keeps only its last few unread requests (10 by default, rclpy's and rclcpp's) and
+    drops older ones unanswered, which would leave the task waiting for ever. The watch's tick
+    asks again once the last request has waited 1, then 2, 4, up to
+    RESULT_ASK_INTERVAL_MAX_TICKS ticks: a long goal costs its server one request per 8 ticks.
+    A server that no longer knows the goal (STATUS_UNKNOWN: it restarted, or let the result
+    expire) ends the task ERROR.
+    """
 
     def __init__(
         self, node: Node, client: ActionServicesClient, goal_id: bytes, spec: TaskSpec
@@ -42,12 +55,42 @@ class ActionExecution:
         self._goal_id = goal_id
         self._spec = spec
         self.outcome: Future = Future()
-        client.get_result(goal_id).add_done_callback(self._on_result)
-        self.outcome.add_done_callback(lambda _: client.forget(goal_id))
+        self._ticks_since_ask = 0
+        self._ticks_between_asks = 1
+        self._result_request = self._ask_for_result()
+        self.outcome.add_done_callback(lambda _: self._forget())
+
+    def _ask_for_result(self) -> Future:
+        request = self._client.get_result(self._goal_id)
+        request.add_done_callback(self._on_result)
+        return request
+
+    def on_watch_tick(self) -> None:
+        """Ask for the result again if the last request has waited its interval unanswered."""
+        if self.outcome.done():
+            return
+        self._ticks_since_ask += 1
+        if self._ticks_since_ask < self._ticks_between_asks:
+            return
+        self._ticks_since_ask = 0
+        self._ticks_between_asks = min(2 * self._ticks_between_asks, RESULT_ASK_INTERVAL_MAX_TICKS)
+        self._client.forget_result_request(self._result_request)
+        self._result_request = self._ask_for_result()
+
+    def _forget(self) -> None:
+        self._client.forget(self._goal_id)
+        if not self._result_request.done():
+            self._client.forget_result_request(self._result_request)
 
     def _on_result(self, future: Future) -> None:
         response = future.result()
         if self.outcome.done() or response is None:
+            return
+        if response.status == GoalStatus.STATUS_UNKNOWN:
+            self.fail(
+                f'action server {self._spec.topic} no longer knows the goal '
+                '(it restarted, or its result expired before it was asked for)'
+            )
             return
         status = status_for_action_outcome(server_outcome(response.status), self._spec)
         self.outcome.set_result(TaskEnd(status, message_to_dict(response.result)))

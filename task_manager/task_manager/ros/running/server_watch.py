@@ -29,6 +29,10 @@ class FailableExecution(Protocol):
 
     def fail(self, reason: str) -> None: ...
 
+    def on_watch_tick(self) -> None:
+        """Called at each check of its server while it runs (an action asks for its result
+        again if none came)."""
+
 
 @dataclass(frozen=True)
 class WatchSettings:
@@ -78,6 +82,8 @@ class ServerWatch:
     def _check(self) -> None:
         if self._probe_in_flight is None or self._probe_in_flight.done():
             self._send_probe()
+        for execution in list(self._in_flight):
+            execution.on_watch_tick()
         silent_sec = (self._now_ns() - self._last_alive_ns) / 1e9
         if silent_sec > self._settings.loss_timeout_sec and self._in_flight:
             self._node.get_logger().error(

@@ -51,6 +51,9 @@ class ServiceExecution:
         if not self.outcome.done():
             self.outcome.set_result(TaskEnd(TaskStatus.ERROR, {'error': reason}))
 
+    def on_watch_tick(self) -> None:
+        """Nothing to ask again: a call cannot be repeated (its service may act twice)."""
+
     def _clean_up(self) -> None:
         self._deadline.cancel()
         destroy_timer(self._node, self._deadline)

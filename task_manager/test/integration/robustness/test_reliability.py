@@ -5,22 +5,27 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator
 
 import psutil
 import pytest
+import rclpy
 from action_msgs.msg import GoalStatus
+from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
 
 from task_manager.testing.harness import RosHarness, WaitTimeoutError, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task, service_task
-from task_manager.testing.servers import ScriptedActionServer, ScriptedService
+from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal, ScriptedService
 from task_manager.testing.stuck_servers import READY_LINE, SHORT_LEASE_PROFILE
 
 TIMEOUT_SEC = 15.0
 WATCH = {'server_check_period': 0.2, 'server_loss_timeout': 1.0}
+# more goals than an action server's result service keeps unread requests (10 by default)
+GOALS_IN_FLIGHT = 30
 
 
 @pytest.fixture
@@ -132,3 +137,76 @@ def test_sigint_cancels_running_tasks_publishes_results_and_exits_0(
     assert threads < 40
     with pytest.raises(WaitTimeoutError):
         process.wait_for_log(r'Traceback', 0.1)
+
+
+@pytest.fixture
+def busy_server_node(ros_context: None) -> Iterator[rclpy.node.Node]:
+    """A node spun by an executor of its own, which a test can keep busy."""
+    node = rclpy.create_node(f'busy_server_{os.getpid()}')
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    yield node
+    executor.shutdown()
+    thread.join(TIMEOUT_SEC)
+    node.destroy_node()
+
+
+def test_every_result_comes_back_when_a_busy_server_drops_the_requests_for_them(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    busy_server_node: rclpy.node.Node,
+) -> None:
+    """A server on rclpy's default QoS keeps only the last 10 unread GetResult requests: those
+    sent while it is busy are dropped, and the goals' results must be asked for again."""
+    tm = launch_task_manager(
+        {'drive': action_task('drive', f'{topic_prefix}/drive', reentrant=True)},
+        server_check_period=0.2,
+        server_loss_timeout=30.0,
+    )
+    release = threading.Event()
+
+    def keep_busy_after_the_last(goal: ScriptedGoal) -> None:
+        if len(server.goals.items) == GOALS_IN_FLIGHT:
+            release.wait(TIMEOUT_SEC)  # the server's executor does nothing else meanwhile
+
+    server = ScriptedActionServer(
+        busy_server_node, Fibonacci, f'{topic_prefix}/drive', on_goal=keep_busy_after_the_last
+    )
+    ids = [f'drive-{index}' for index in range(GOALS_IN_FLIGHT)]
+    handles = [tm.send('drive', {'order': 1}, task_id=task_id) for task_id in ids]
+    # every goal accepted, so the Task Manager has asked for every result
+    tm.wait_active(
+        lambda tasks: sum(status == 'IN_PROGRESS' for _, status in tasks) == GOALS_IN_FLIGHT
+    )
+    threading.Timer(0.5, release.set).start()  # the server stays busy half a second more
+    for goal in server.wait_for_goals(GOALS_IN_FLIGHT, TIMEOUT_SEC):
+        goal.succeed()
+
+    statuses = [tm.result_of(handle).result.task_status for handle in handles]
+
+    assert statuses == ['DONE'] * GOALS_IN_FLIGHT
+    tm.wait_active(lambda tasks: tasks == [], 'no active task left')
+    assert [len(tm.results_for(task_id)) for task_id in ids] == [1] * GOALS_IN_FLIGHT
+
+
+def test_a_goal_its_restarted_server_no_longer_knows_ends_error(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm = launch_task_manager(
+        {'drive': action_task('drive', f'{topic_prefix}/drive')},
+        server_check_period=0.2,
+        server_loss_timeout=30.0,
+    )
+    first = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/drive')
+    drive = tm.send('drive', {'order': 1}, task_id='forgotten')
+    first.wait_for_goals(1, TIMEOUT_SEC)
+    ros.on_executor(first.destroy)
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/drive')  # knows no goal
+
+    result = tm.result_of(drive).result
+
+    assert result.task_status == 'ERROR'
+    assert 'no longer knows the goal' in json.loads(result.task_result)['error']
