@@ -14,12 +14,15 @@ __all__ = [
     'DELAY_SECONDS',
     'ECHO_MAX_CHARACTERS',
     'EPOCH_SECONDS',
+    'HISTORY_BYTES_DEFAULT',
+    'HISTORY_PAGE_MAX_BYTES',
     'HISTORY_RESULT_MAX_BYTES',
     'HISTORY_TASK_DATA_MAX_BYTES',
     'IDS_MAX',
     'JSON_MAX_DEPTH',
     'PERIOD_SECONDS',
     'PRIORITY',
+    'REASON_MAX_CHARACTERS',
     'SCHEDULES_MAX',
     'SECONDS',
     'TASK_DATA_MAX_BYTES',
@@ -95,6 +98,15 @@ IDS_MAX = 1000
 mission; an id may appear once."""
 DECISIONS_PER_TASK_MAX = 100
 """The decisions a task keeps: its first ones and its newest, with a count of those left out."""
+REASON_MAX_CHARACTERS = 1000
+"""A decision's reason as a task keeps it, and a task's error message in a document that must
+be made smaller to fit its channel: longer ones are cut, with a note of how much was left out."""
+HISTORY_BYTES_DEFAULT = 1_073_741_824
+"""The bytes the history keeps of ended tasks unless `history_max_bytes` says otherwise: the
+oldest beyond it are deleted, as beyond `history_max_results`."""
+HISTORY_PAGE_MAX_BYTES = 8_388_608
+"""The largest history page the web gateway answers (its JSON or CSV); more tasks than fit in
+it are refused with `reply_too_large`, as MQTT refuses a reply over its message size."""
 SCHEDULES_MAX = 1000
 """The schedules one Task Manager keeps."""
 ECHO_MAX_CHARACTERS = 200
