@@ -27,6 +27,18 @@ __all__ = [
     'SECONDS',
     'TASK_DATA_MAX_BYTES',
     'TEXT_MAX_CHARACTERS',
+    'VDA5050_ACTIONS_MAX',
+    'VDA5050_ID_MAX_CHARACTERS',
+    'VDA5050_INSTANT_ACTIONS_KEPT',
+    'VDA5050_LIST_MAX',
+    'VDA5050_NUMBER',
+    'VDA5050_RESULT_DESCRIPTION_MAX_CHARACTERS',
+    'VDA5050_STATE_ACTIONS_MAX',
+    'VDA5050_STATE_ERRORS_MAX',
+    'VDA5050_TEXT_MAX_CHARACTERS',
+    'VDA5050_UINT32',
+    'VDA5050_UPDATES_WAITING_MAX',
+    'VDA5050_WAITING_MAX_BYTES',
     'NumberBound',
     'cut_text',
     'duplicate_problem',
@@ -111,6 +123,42 @@ SCHEDULES_MAX = 1000
 """The schedules one Task Manager keeps."""
 ECHO_MAX_CHARACTERS = 200
 """The most of a caller's own text (an unknown name, a bad value) an error message repeats."""
+
+
+# ---- the VDA 5050 adapter ---------------------------------------------------------------------
+VDA5050_ID_MAX_CHARACTERS = 100
+"""An id (orderId, nodeId, edgeId, actionId, mapId, zoneSetId, startNodeId, endNodeId), a type
+or a key (actionType, blockingType, direction, an actionParameter's key) of a VDA 5050 message:
+the factsheet's idLen and enumLen. Ids make task ids, `<orderId>/<nodeId>/<sequenceId>` the
+longest (100 + 1 + 100 + 1 + 10 characters): within TEXT_MAX_CHARACTERS."""
+VDA5050_TEXT_MAX_CHARACTERS = 1000
+"""Any other string of a VDA 5050 message (a description, a parameter's value)."""
+VDA5050_LIST_MAX = 1000
+"""The nodes and the edges of an order, the points of a trajectory, and the items of any
+other list of a VDA 5050 message but those of VDA5050_ACTIONS_MAX."""
+VDA5050_ACTIONS_MAX = 100
+"""The actions of a node, of an edge or of an instantActions message; the parameters of an
+action."""
+VDA5050_UINT32 = NumberBound(0, 2**32 - 1)
+"""headerId, orderUpdateId and sequenceId: the standard's uint32."""
+VDA5050_NUMBER = NumberBound(-(2**53), 2**53)
+"""Any other number of a VDA 5050 message (float64 in the standard): at most 2^53 (9e15) either
+way, what a float64 holds exactly, far beyond any distance, speed or angle."""
+VDA5050_UPDATES_WAITING_MAX = 10
+"""Order updates waiting for the running base of their order to end; one more is refused."""
+VDA5050_WAITING_MAX_BYTES = 16_777_216
+"""The inbound VDA 5050 messages received and not yet handled, in bytes; more are dropped (and
+counted in state) until the adapter has caught up."""
+VDA5050_STATE_ERRORS_MAX = 20
+"""The errors a VDA 5050 state shows, the newest, one of them saying how many older ones were
+left out."""
+VDA5050_STATE_ACTIONS_MAX = 1000
+"""The actionStates a VDA 5050 vehicle keeps: beyond it the oldest ended ones are forgotten, and
+state shows the first ones not ended with a note of how many were left out."""
+VDA5050_INSTANT_ACTIONS_KEPT = 50
+"""Instant actions kept in a VDA 5050 state's actionStates: the oldest ended ones beyond go."""
+VDA5050_RESULT_DESCRIPTION_MAX_CHARACTERS = 500
+"""An action's resultDescription in a VDA 5050 state (its task's result or error), cut beyond."""
 
 
 def duplicate_problem(field: str, ids: list[str]) -> str:
