@@ -225,6 +225,8 @@ def test_a_cancel_of_a_paused_task(
     )
     handle = probe.send('navigate', {'order': 4}, task_id='drive-1')
     server.wait_for_goals(1, TIMEOUT_SEC)
+    # the server's goal callback runs before the node has its accept: only then is it running
+    probe.wait_in_progress('drive-1')
     assert probe.run('system/pause', {'task_ids': ['drive-1']}).task_status == 'DONE'
     probe.wait_active(lambda tasks: ('drive-1', 'PAUSED') in tasks, 'drive-1 PAUSED')
 
