@@ -63,9 +63,11 @@ def task_json(state: TaskState) -> dict[str, Any]:
 
 
 def decisions_json(decisions: list[Decision]) -> list[dict[str, Any]]:
-    """Decision documents, oldest first."""
+    """Decision documents, oldest first (`omitted` only where some were left out)."""
     return [
-        {'at': iso(each.at), 'decision': each.decision, 'reason': each.reason} for each in decisions
+        {'at': iso(each.at), 'decision': each.decision, 'reason': each.reason}
+        | ({'omitted': each.omitted} if each.omitted else {})
+        for each in decisions
     ]
 
 

@@ -130,8 +130,11 @@ class Decision:
     at: datetime
     decision: str
     """queued, started, refused, preempted, timeout, retry or reprioritized (a newer Task
-    Manager may add others)."""
+    Manager may add others); `omitted` where decisions were left out (a task keeps at most
+    DECISIONS_PER_TASK_MAX: its first and its newest)."""
     reason: str
+    omitted: int = 0
+    """Of an `omitted` entry: how many decisions were left out in its place."""
 
 
 def parse_decisions(text: str) -> list[Decision]:
@@ -144,10 +147,20 @@ def parse_decisions(text: str) -> list[Decision]:
     if not isinstance(items, list):
         return []
     return [
-        Decision(datetime_of_epoch(item['at']), str(item['decision']), str(item.get('reason', '')))
+        Decision(
+            datetime_of_epoch(item['at']),
+            str(item['decision']),
+            str(item.get('reason', '')),
+            _count(item.get('omitted')),
+        )
         for item in items
         if isinstance(item, dict) and _is_epoch(item.get('at')) and item.get('decision')
     ]
+
+
+def _count(value: Any) -> int:
+    """A count that is not a non-negative whole number reads as 0."""
+    return value if isinstance(value, int) and not isinstance(value, bool) and value > 0 else 0
 
 
 @dataclass(frozen=True)

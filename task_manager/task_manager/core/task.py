@@ -10,7 +10,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from task_manager.core.admission.decisions import DecisionKind, DecisionNote
+from task_manager.core.admission.decisions import DecisionKind, DecisionNote, keep_note, new_note
 from task_manager.core.admission.options import RequestOptions
 from task_manager.core.errors import InvalidTransition
 from task_manager.core.status import CancelReason, ErrorCode, ServerOutcome, TaskStatus
@@ -111,7 +111,8 @@ class TaskRecord:
     attempt: int = 1
     """Which attempt runs (a declaration's retry starts it again under the same id)."""
     decisions: list[DecisionNote] = field(default_factory=list)
-    """Every decision taken about it, oldest first (queued, refused, pre-empted, ...)."""
+    """The decisions taken about it, oldest first (queued, refused, pre-empted, ...): at most
+    DECISIONS_PER_TASK_MAX, the first and the newest, with a count of those left out between."""
     feedback_listeners: list[Callable[['TaskRecord'], None]] = field(
         default_factory=list, repr=False
     )
@@ -151,9 +152,9 @@ class TaskRecord:
         self.started_at = time.time() if now is None else now
 
     def note(self, decision: DecisionKind, reason: str, now: float | None = None) -> DecisionNote:
-        """Keep a decision taken about this task, with its reason."""
-        entry = DecisionNote(time.time() if now is None else now, decision, reason)
-        self.decisions.append(entry)
+        """Keep a decision taken about this task, with its reason (see keep_note)."""
+        entry = new_note(time.time() if now is None else now, decision, reason)
+        keep_note(self.decisions, entry)
         return entry
 
     def mark_paused(self, by: str, now: float | None = None) -> None:

@@ -20,6 +20,7 @@ from pydantic import (
     model_validator,
 )
 
+from task_manager.core.bounds import DECISIONS_PER_TASK_MAX
 from task_manager.core.confirmation import TEXT_MAX_LENGTH
 from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, IDS_MAX
 from task_manager.core.request_text import MAX_LENGTH, is_refused_character
@@ -242,9 +243,12 @@ class Decision(BaseModel):
     at: datetime
     decision: str = Field(
         examples=['queued', 'started', 'refused', 'preempted', 'timeout', 'retry',
-                  'reprioritized'],
+                  'reprioritized', 'omitted'],
+        description='`omitted`: no decision, but where decisions were left out (a task keeps '
+        f'at most {DECISIONS_PER_TASK_MAX}: its first and its newest).',
     )  # fmt: skip
     reason: str = Field(examples=['queued behind drive-1 (priority 5), which holds base'])
+    omitted: int = Field(0, ge=0, description='Of an `omitted` entry: how many were left out.')
 
 
 class Task(BaseModel):
