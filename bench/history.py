@@ -142,6 +142,7 @@ def query_benchmark(ctx: BenchContext) -> None:
                 history_path=str(path),
                 history_max_results=0,
                 history_max_age_days=0,
+                history_max_bytes=0,
             )
             samples[big] += service_query_ms(ctx, QUERY_SAMPLES)
     finally:

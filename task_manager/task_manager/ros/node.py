@@ -15,7 +15,8 @@ from task_manager_msgs.srv import (
     QueryTaskHistory,
 )
 
-from task_manager.core.history.store import HistoryQuery, HistoryRow
+from task_manager.core.history.rows import HistoryRow
+from task_manager.core.history.store import HistoryQuery
 from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
     CONFIRM_TASK_SERVICE,
@@ -191,12 +192,14 @@ class TaskManagerNode(Node):
         self.get_logger().info(f'task history: {where}')
 
     def _prune_history(self) -> None:
-        """One batch of retention (history_max_results, history_max_age_days)."""
+        """One batch of retention (history_max_results, history_max_age_days,
+        history_max_bytes)."""
         try:
             self.history.prune(
                 self.settings.history_max_results,
                 self.settings.history_max_age_days,
                 batch=PRUNE_BATCH,
+                max_bytes=self.settings.history_max_bytes,
             )
         except sqlite3.Error as error:
             self.get_logger().warning(f'cannot prune the task history: {error}')

@@ -7,6 +7,7 @@ from rclpy.node import Node
 
 from task_manager.core.admission.arbiter import DEFAULT_MAX_QUEUED
 from task_manager.core.admission.priority import parse_source_priorities
+from task_manager.core.bounds import HISTORY_BYTES_DEFAULT
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.history import location as history_location
 from task_manager.core.history.store import HistoryInUseError
@@ -35,6 +36,7 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'history_path': ((str,), None),
     'history_max_results': ((int,), 1_000_000),
     'history_max_age_days': ((int, float), 90.0),
+    'history_max_bytes': ((int,), HISTORY_BYTES_DEFAULT),
     'max_queued': ((int,), DEFAULT_MAX_QUEUED),
 }
 SOURCE_PRIORITIES = 'source_priorities'
@@ -65,6 +67,8 @@ class NodeSettings:
     """The SQLite file of the task history; '' keeps it in memory only."""
     history_max_results: int
     history_max_age_days: float
+    history_max_bytes: int
+    """The bytes of ended tasks the history keeps (their rows' size); 0: no limit."""
     max_queued: int
     """The most tasks waiting in the queue."""
     source_priorities: dict[str, int]
@@ -106,7 +110,7 @@ def read_settings(node: Node) -> NodeSettings:
     }
     if values['results_history_size'] < 0:
         raise ConfigurationError("parameter 'results_history_size' must be >= 0")
-    for name in ('history_max_results', 'history_max_age_days'):
+    for name in ('history_max_results', 'history_max_age_days', 'history_max_bytes'):
         if values[name] < 0:
             raise ConfigurationError(f'parameter {name!r} must be >= 0 (0: no limit)')
     if values['max_queued'] < 0:
@@ -127,6 +131,7 @@ def read_settings(node: Node) -> NodeSettings:
         ),
         history_max_results=values['history_max_results'],
         history_max_age_days=float(values['history_max_age_days']),
+        history_max_bytes=values['history_max_bytes'],
         max_queued=values['max_queued'],
         source_priorities=read_source_priorities(node),
         timeouts=RunnerTimeouts(

@@ -1,9 +1,14 @@
 """The durable task history: every request, its stamps, data, result and end, in SQLite.
 
 One row per request (a task id may be used again once its task has ended, so rows have their
-own `entry` number). Changes are buffered and written by `flush`, one transaction for all the
-changes of one executor turn, so a burst of 500 results is one commit, not 500. Each ended
-task gets a `sequence` number that only grows, so a consumer can ask for "everything after N".
+own `entry` number). A row keeps at most HISTORY_TASK_DATA_MAX_BYTES of the request's
+task_data and HISTORY_RESULT_MAX_BYTES of its result: a larger one is kept as
+`{"omitted_bytes": N}`. Each row knows its `size` in bytes, so that retention can bound the
+bytes of the ended tasks as well as their number and age.
+
+Changes are buffered and written by `flush`, one transaction for all the changes of one
+executor turn, so a burst of 500 results is one commit, not 500. Each ended task gets a
+`sequence` number that only grows, so a consumer can ask for "everything after N".
 
 The file uses WAL journaling: readers never block the writer. Nothing here knows ROS.
 """
@@ -14,16 +19,23 @@ import fcntl
 import os
 import sqlite3
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
-from task_manager.core.admission.decisions import decisions_to_json
+from task_manager.core.history.rows import (
+    COLUMNS,
+    ROW_OVERHEAD_BYTES,
+    TEXT_COLUMNS,
+    HistoryRow,
+    row_of,
+    row_size,
+)
 from task_manager.core.json_text import compact_json
 from task_manager.core.schedules.store import SCHEDULES_SCHEMA, ScheduleStore
-from task_manager.core.task import TaskRecord, pauses_to_json
+from task_manager.core.task import TaskRecord
 
-SCHEMA_VERSION = 3
+SCHEMA_VERSION = 4
 MEMORY = ':memory:'
 
 _SCHEMA_V1 = """
@@ -63,8 +75,16 @@ ALTER TABLE tasks ADD COLUMN attempt INTEGER NOT NULL DEFAULT 1;
 ALTER TABLE tasks ADD COLUMN decisions TEXT NOT NULL DEFAULT '[]';
 """
 
+# Version 4: each row's size in bytes (issue 37), of the rows before measured here.
+_SCHEMA_V4 = f"""
+ALTER TABLE tasks ADD COLUMN size INTEGER NOT NULL DEFAULT 0;
+UPDATE tasks SET size = {ROW_OVERHEAD_BYTES} + {
+    ' + '.join(f'coalesce(length(CAST({c} AS BLOB)), 0)' for c in TEXT_COLUMNS)
+}
+"""
+
 # Each step upgrades the schema from the version before it; index 0 creates version 1.
-_MIGRATIONS = (_SCHEMA_V1, _SCHEMA_V2, _SCHEMA_V3)
+_MIGRATIONS = (_SCHEMA_V1, _SCHEMA_V2, _SCHEMA_V3, _SCHEMA_V4)
 
 
 class HistoryError(Exception):
@@ -99,33 +119,6 @@ def lock_history(path: str) -> IO[str]:
     return lock
 
 
-@dataclass(frozen=True)
-class HistoryRow:
-    """One request as stored."""
-
-    entry: int
-    task_id: str
-    task_name: str
-    source: str
-    mission_id: str
-    task_data: str
-    status: str
-    error_code: str
-    result: str | None
-    received: float
-    started: float | None
-    ended: float | None
-    sequence: int | None
-    paused_sec: float = 0.0
-    pauses: str = '[]'
-    """JSON list of {"paused", "paused_by", "resumed", "resumed_by"}."""
-    priority: int = 0
-    attempt: int = 1
-    decisions: str = '[]'
-    """JSON list of {"at", "decision", "reason"} (core/admission/decisions.py)."""
-
-
-COLUMNS = tuple(f.name for f in fields(HistoryRow))
 _UPSERT = (
     f'INSERT INTO tasks ({", ".join(COLUMNS)}) VALUES ({", ".join("?" for _ in COLUMNS)}) '
     'ON CONFLICT (entry) DO UPDATE SET '
@@ -167,29 +160,6 @@ class HistoryQuery:
         return ' AND '.join(clauses), values
 
 
-def _row(record: TaskRecord, entry: int, sequence: int | None) -> tuple[object, ...]:
-    return (
-        entry,
-        record.task_id,
-        record.task_name,
-        record.source,
-        record.parent_id,
-        record.task_data,
-        str(record.status),
-        str(record.error_code),
-        compact_json(record.result) if record.is_final else None,
-        record.received_at,
-        record.started_at,
-        record.ended_at,
-        sequence,
-        record.paused_sec(),
-        pauses_to_json(record.pauses),
-        record.priority,
-        record.attempt,
-        decisions_to_json(record.decisions),
-    )
-
-
 class TaskHistory:
     """The history store of one Task Manager."""
 
@@ -215,6 +185,12 @@ class TaskHistory:
             raise
         self._next_entry = self._max('entry') + 1
         self._next_sequence = self._max('sequence') + 1
+        self._ended_bytes = int(
+            self._db.execute(
+                'SELECT coalesce(sum(size), 0) FROM tasks WHERE sequence IS NOT NULL'
+            ).fetchone()[0]
+        )
+        """The `size` of every ended row, those buffered included."""
         # key: record (by identity), value: its entry number, while it is not ended
         self._entries: dict[int, int] = {}
         # key: entry, value: the row to write at the next flush (later changes replace it)
@@ -267,8 +243,15 @@ class TaskHistory:
             del self._entries[id(record)]
             sequence = self._next_sequence
             self._next_sequence += 1
-        self._pending[entry] = _row(record, entry, sequence)
+        row = self._pending[entry] = row_of(record, entry, sequence)
+        if sequence is not None:
+            self._ended_bytes += row[-1]  # type: ignore[operator]  # its size
         return sequence
+
+    @property
+    def ended_bytes(self) -> int:
+        """The bytes of the ended tasks kept (their rows' `size`)."""
+        return self._ended_bytes
 
     @property
     def pending(self) -> int:
@@ -298,16 +281,19 @@ class TaskHistory:
             for row in self.unfinished():
                 sequence = self._next_sequence
                 self._next_sequence += 1
+                ended = dataclasses.replace(
+                    row, status='ERROR', result=result, ended=ended_at, sequence=sequence
+                )
+                ended = dataclasses.replace(
+                    ended, size=row_size(*(getattr(ended, c) for c in TEXT_COLUMNS))
+                )
                 self._db.execute(
-                    'UPDATE tasks SET status = ?, result = ?, ended = ?, sequence = ? '
+                    'UPDATE tasks SET status = ?, result = ?, ended = ?, sequence = ?, size = ? '
                     'WHERE entry = ?',
-                    ('ERROR', result, ended_at, sequence, row.entry),
+                    ('ERROR', result, ended_at, sequence, ended.size, row.entry),
                 )
-                closed.append(
-                    dataclasses.replace(
-                        row, status='ERROR', result=result, ended=ended_at, sequence=sequence
-                    )
-                )
+                self._ended_bytes += ended.size
+                closed.append(ended)
         return closed
 
     def query(self, query: HistoryQuery) -> list[HistoryRow]:
@@ -325,14 +311,37 @@ class TaskHistory:
         return [HistoryRow(*row) for row in self._db.execute(sql, [*values, limit])]
 
     def prune(
-        self, max_results: int, max_age_days: float, now: float | None = None, batch: int = 0
+        self,
+        max_results: int,
+        max_age_days: float,
+        now: float | None = None,
+        batch: int = 0,
+        max_bytes: int = 0,
     ) -> int:
-        """Delete the oldest ended tasks beyond the newest `max_results` or older than the age
-        (0: no such limit), at most `batch` of them (0: all); returns how many were deleted.
+        """Delete the oldest ended tasks beyond the newest `max_results`, older than the age,
+        or beyond `max_bytes` of ended rows (0: no such limit), at most `batch` of them (0:
+        all); returns how many were deleted.
 
         Small batches keep each transaction short, so pruning never holds up dispatch.
         """
         conditions, values = [], []
+        if max_bytes > 0 and self._ended_bytes > max_bytes:
+            # the oldest rows whose sizes add up to the excess (rows still buffered are the
+            # newest: they count in the excess, and are never deleted by it)
+            excess, oldest = self._ended_bytes - max_bytes, None
+            rows = self._db.execute(
+                'SELECT sequence, size FROM tasks WHERE sequence IS NOT NULL ORDER BY sequence '
+                'LIMIT ?',
+                (batch or -1,),
+            )
+            for sequence, size in rows:
+                oldest, excess = sequence, excess - size
+                if excess <= 0:
+                    break
+            rows.close()
+            if oldest is not None:
+                conditions.append('sequence <= ?')
+                values.append(oldest)
         if max_results > 0:
             row = self._db.execute(
                 'SELECT sequence FROM tasks WHERE sequence IS NOT NULL '
@@ -352,10 +361,12 @@ class TaskHistory:
             'ORDER BY sequence LIMIT ?'
         )
         with self.transaction():
-            cursor = self._db.execute(
-                f'DELETE FROM tasks WHERE entry IN ({selected})', [*values, batch or -1]
-            )
-        return cursor.rowcount
+            sizes = self._db.execute(
+                f'DELETE FROM tasks WHERE entry IN ({selected}) RETURNING size',
+                [*values, batch or -1],
+            ).fetchall()
+        self._ended_bytes -= sum(size for (size,) in sizes)
+        return len(sizes)
 
     def close(self) -> None:
         self._db.close()

@@ -10,11 +10,11 @@ from task_manager_msgs.msg import TaskDoneResult, TaskState
 from task_manager_msgs.srv import QueryTaskHistory
 
 from task_manager.core.errors import ConfigurationError
+from task_manager.core.history.rows import HistoryRow
 from task_manager.core.history.store import (
     HistoryError,
     HistoryInUseError,
     HistoryQuery,
-    HistoryRow,
     TaskHistory,
 )
 from task_manager.core.names import HISTORY_QUERY_LIMIT_DEFAULT as DEFAULT_QUERY_LIMIT

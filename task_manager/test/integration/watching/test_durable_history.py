@@ -180,6 +180,33 @@ def test_the_history_is_queried_by_filters_and_kept_within_its_limits(
     assert after == [t.task_id for t in all_rows[2:] if t.task_id.startswith('q')]
 
 
+def test_the_history_keeps_a_large_task_data_as_its_size_and_within_its_bytes(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, tmp_path: Path
+) -> None:
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=_decide)
+    history = tmp_path / 'history.sqlite'
+    first = _launch(launch_task_manager, topic_prefix, history)
+    # runs (the field Fibonacci has not is left aside), stored with the request's task_data
+    large = first.run('fib', {'order': 1, 'pad': 'x' * 900_000}, task_id='large')
+    for n in range(5):
+        first.run('fib', {'order': n}, task_id=f'b{n}')
+    first.process.stop()  # type: ignore[attr-defined]
+    stored = sqlite3.connect(history).execute(
+        'SELECT task_id, task_data, size FROM tasks ORDER BY sequence'
+    )
+    rows = {task_id: (task_data, size) for task_id, task_data, size in stored}
+    newest_three = sum(rows[f'b{n}'][1] for n in (2, 3, 4))
+
+    # a restart with a byte budget of the three newest rows prunes the others at once
+    _launch(launch_task_manager, topic_prefix, history, history_max_bytes=newest_three)
+    kept = sqlite3.connect(history).execute('SELECT task_id FROM tasks ORDER BY sequence')
+
+    assert large.task_status == 'DONE'
+    assert json.loads(rows['large'][0]) == {'omitted_bytes': 900_023}
+    assert rows['large'][1] < 2000
+    assert [task_id for (task_id,) in kept] == ['b2', 'b3', 'b4']
+
+
 def test_a_full_disk_stops_nothing_and_is_logged_once(
     ros: RosHarness, tmp_path: Path, topic_prefix: str
 ) -> None:

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import pytest
 
+from task_manager.core.bounds import HISTORY_RESULT_MAX_BYTES, HISTORY_TASK_DATA_MAX_BYTES
+from task_manager.core.history.rows import ROW_OVERHEAD_BYTES
 from task_manager.core.history.store import (
     SCHEMA_VERSION,
     HistoryError,
@@ -223,6 +225,7 @@ def test_a_first_version_file_is_opened_and_upgraded(tmp_path: Path) -> None:
     assert version == SCHEMA_VERSION
     old = history.query(HistoryQuery(task_name='fib', limit=2))[-1]
     assert (old.task_id, old.paused_sec, old.pauses) == ('old', 0.0, '[]')
+    assert old.size == ROW_OVERHEAD_BYTES + 21  # version 4 measures the rows before it
     assert history.schedule_store().load() == ([], [])  # version 2 adds the schedules
 
 
@@ -251,3 +254,83 @@ def test_a_second_store_on_the_same_file_is_refused_until_the_first_closes(tmp_p
         TaskHistory(path)
     first.close()
     TaskHistory(path).close()
+
+
+def test_a_large_task_data_and_result_are_kept_as_a_note_of_their_size() -> None:
+    history = TaskHistory('')
+    big_data = json.dumps({'blob': 'é' * HISTORY_TASK_DATA_MAX_BYTES})
+    record = TaskRecord('big', FIB, 'CLI', task_data=big_data, received_at=1.0)
+    record.mark_started(now=2.0)
+    record.mark_ended(TaskStatus.DONE, {'blob': 'x' * HISTORY_RESULT_MAX_BYTES}, now=3.0)
+    history.write(record)
+    history.write(ended('small', order=[1, 2]))
+    history.flush()
+
+    big, small = history.query(HistoryQuery(oldest_first=True))
+
+    assert json.loads(big.task_data) == {'omitted_bytes': len(big_data.encode())}
+    assert json.loads(big.result or '') == {'omitted_bytes': HISTORY_RESULT_MAX_BYTES + 11}
+    assert big.size < 1000
+    assert (small.task_data, json.loads(small.result or '')) == ('{"order": 1}', {'order': [1, 2]})
+
+
+def test_sixty_starts_of_900_kb_add_less_than_a_megabyte(tmp_path: Path) -> None:
+    path = tmp_path / 'h.sqlite'
+    history = TaskHistory(str(path))
+    data = json.dumps({'blob': 'x' * 900_000})
+    for index in range(60):
+        history.write(TaskRecord(f's{index}', FIB, 'CLI', task_data=data, received_at=1.0))
+    history.flush()
+    history.close()
+
+    size = sum(os.path.getsize(f) for f in tmp_path.iterdir() if f.name.startswith('h.sqlite'))
+    assert size < 1_000_000  # 57 MB before
+
+
+def test_retention_bounds_the_bytes_of_the_ended_tasks(tmp_path: Path) -> None:
+    history = TaskHistory(str(tmp_path / 'h.sqlite'))
+    for index in range(10):
+        history.write(ended(f'r{index}', at=100.0 + index, blob='x' * 1000))
+    running = TaskRecord('running', FIB, 'CLI', task_data='x' * 5000, received_at=0.0)
+    history.write(running)
+    history.flush()
+    row_bytes = history.ended_bytes // 10
+
+    deleted = history.prune(max_results=0, max_age_days=0, max_bytes=row_bytes * 4 + 10)
+
+    assert deleted == 6
+    assert [r.task_id for r in history.query(HistoryQuery())] == ['r9', 'r8', 'r7', 'r6']
+    assert history.ended_bytes == row_bytes * 4
+    assert [r.task_id for r in history.unfinished()] == ['running']
+    history.close()
+    reopened = TaskHistory(str(tmp_path / 'h.sqlite'))
+    assert reopened.ended_bytes == row_bytes * 4  # the rows' sizes, read back
+
+
+def test_retention_by_bytes_goes_in_batches_and_counts_every_deletion() -> None:
+    history = TaskHistory('')
+    for index in range(10):
+        history.write(ended(f'b{index}', blob='x' * 500))
+    history.flush()
+    row_bytes = history.ended_bytes // 10
+
+    deleted = [history.prune(0, 0, batch=3, max_bytes=row_bytes * 3) for _ in range(4)]
+    by_count = history.prune(max_results=2, max_age_days=0)
+
+    assert (deleted, by_count) == ([3, 3, 1, 0], 1)
+    assert history.ended_bytes == row_bytes * 2
+
+
+def test_tasks_closed_at_start_count_in_the_bytes(tmp_path: Path) -> None:
+    path = str(tmp_path / 'h.sqlite')
+    history = TaskHistory(path)
+    history.write(TaskRecord('crashed', FIB, 'CLI', task_data='{}', received_at=1.0))
+    history.flush()
+    history.close()
+
+    reopened = TaskHistory(path)
+    assert reopened.ended_bytes == 0
+    closed = reopened.close_unfinished('the node stopped')
+
+    assert reopened.ended_bytes == closed[0].size > ROW_OVERHEAD_BYTES
+    assert reopened.query(HistoryQuery())[0].size == closed[0].size
