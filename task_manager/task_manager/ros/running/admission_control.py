@@ -187,10 +187,8 @@ class AdmissionControl:
         """How an attempt's end ends the task: None when another attempt follows."""
         self._deadlines.clear((run.task_id, _RUN))
         self._deadlines.clear((run.task_id, _FEEDBACK))
-        if run.timeout_reason:
-            end = TaskEnd(
-                TaskStatus.ERROR, {**end.result, 'error': run.timeout_reason}, ErrorCode.TIMEOUT
-            )
+        if run.timeout_reason:  # the server's result, whole: the reason is a decision
+            end = TaskEnd(TaskStatus.ERROR, end.result, ErrorCode.TIMEOUT)
         if self._retry(run, end):
             return None
         return end

@@ -33,7 +33,7 @@ from task_manager.ros.message_json import TaskDataError
 from task_manager.ros.recording import task_log
 from task_manager.ros.recording.active_tasks import ActiveTasksPublication
 from task_manager.ros.recording.history_writer import HistoryWriter
-from task_manager.ros.recording.task_events import TaskEventStream, end_reason
+from task_manager.ros.recording.task_events import TaskEventStream
 from task_manager.ros.running.admission_control import AdmissionControl
 from task_manager.ros.running.execution import Execution, TaskRunner
 from task_manager.ros.running.pause_control import PauseControl
@@ -374,10 +374,8 @@ class TaskDispatcher:
         """End the task; the future completes once its end is stored and announced."""
         record, end = run.record, result_of(run.finished)
         was_active = record.status.is_listed
-        result = end.result
-        if end.status is TaskStatus.CANCELED and (reason := end_reason(record)):
-            result = {'reason': reason, **result}
-        record.mark_ended(end.status, result, end.error_code)
+        # the server's result as it sent it: why the task ended is in its decisions and events
+        record.mark_ended(end.status, end.result, end.error_code)
         self.registry.remove(record.task_id)
         self.admission.released(run)
         del self.runs_by_id[record.task_id]

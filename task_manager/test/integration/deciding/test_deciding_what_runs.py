@@ -61,9 +61,11 @@ def test_tasks_on_different_resources_run_side_by_side_and_one_on_the_same_preem
 
     ended = tm.result_of(drive).result
     assert ended.task_status == 'CANCELED'
-    reason = json.loads(ended.task_result)['reason']
-    assert reason == 'cancelled: pre-empted by dock-1 (priority 0) for base'
-    assert wait_event(events, 'drive-1', 'ENDED').reason == reason
+    # the server's result as it sent it, nothing added: why is in the event and decisions
+    assert json.loads(ended.task_result) == {'sequence': []}
+    ended_event = wait_event(events, 'drive-1', 'ENDED')
+    assert ended_event.reason == 'cancelled: pre-empted by dock-1 (priority 0) for base'
+    assert json.loads(ended_event.task.decisions)[-1]['reason'] == ended_event.reason
     tm.wait_in_progress('dock-1')
     assert not servers['photo'].wait_for_goals(1, TIMEOUT_SEC)[0].cancel_requested.is_set()
     servers['photo'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
@@ -139,13 +141,16 @@ def test_a_timeout_cancels_the_task_on_its_server_and_ends_it_error_timeout(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     tm, servers = robot(ros, launch_task_manager, topic_prefix)
+    events = events_of(ros)
     began = time.monotonic()
 
     ended = tm.run_started('drive', {'order': 1}, task_id='drive-1', timeout_sec=1.0)
 
     took_sec = time.monotonic() - began
     assert (ended.task_status, ended.error_code) == ('ERROR', 'timeout')
-    assert json.loads(ended.task_result)['error'] == 'timed out: ran 1 s (timeout_sec)'
+    assert json.loads(ended.task_result) == {'sequence': []}  # the server's, nothing added
+    ended_event = wait_event(events, 'drive-1', 'ENDED')
+    assert ended_event.reason == 'timed out: ran 1 s (timeout_sec)'
     assert servers['drive'].wait_for_goals(1, TIMEOUT_SEC)[0].cancel_requested.is_set()
     assert took_sec < 3.0
 
@@ -171,11 +176,13 @@ def test_an_action_without_feedback_for_too_long_is_stalled(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     tm, servers = robot(ros, launch_task_manager, topic_prefix)
+    events = events_of(ros)
 
     ended = tm.run_started('photo', {'order': 1}, task_id='photo-1', feedback_timeout_sec=0.5)
 
     assert (ended.task_status, ended.error_code) == ('ERROR', 'timeout')
-    assert 'stalled' in json.loads(ended.task_result)['error']
+    assert json.loads(ended.task_result) == {'sequence': []}
+    assert 'stalled' in wait_event(events, 'photo-1', 'ENDED').reason
     assert servers['photo'].wait_for_goals(1, TIMEOUT_SEC)[0].cancel_requested.is_set()
 
 
