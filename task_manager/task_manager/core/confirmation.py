@@ -6,11 +6,11 @@ with `on_timeout: continue`, DONE. Its result says who answered and from which d
 answer's source), the answer's comment and the outcome.
 """
 
-import math
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import Any
 
+from task_manager.core.bounds import SECONDS
 from task_manager.core.names import CONFIRM
 from task_manager.core.request_text import is_refused_character, text_problem
 from task_manager.core.status import ErrorCode, TaskStatus
@@ -92,8 +92,11 @@ def goal_problem(prompt: str, timeout_sec: float, on_timeout: str) -> tuple[str,
         return 'prompt', 'is required: the question the operator answers'
     if problem := free_text_problem('prompt', prompt):
         return 'prompt', problem
-    if not math.isfinite(timeout_sec) or timeout_sec <= 0:
-        return 'timeout_sec', f'must be a number of seconds > 0, got {timeout_sec}'
+    if timeout_sec <= 0 or SECONDS.problem('timeout_sec', timeout_sec):
+        return (
+            'timeout_sec',
+            f'must be a number of seconds > 0 and <= {SECONDS.high:g}, got {timeout_sec}',
+        )
     if on_timeout not in tuple(OnTimeout):
         allowed = ', '.join(repr(value.value) for value in OnTimeout)
         return 'on_timeout', f'must be one of {allowed}, got {on_timeout!r}'

@@ -1,6 +1,5 @@
 """Task declarations: what a task is, read from the node's parameters."""
 
-import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -9,6 +8,7 @@ from typing import Any
 
 from task_manager.core.admission.options import OnConflict
 from task_manager.core.admission.retry import NO_RETRY, RetryPolicy
+from task_manager.core.bounds import SECONDS
 from task_manager.core.errors import ConfigurationError
 
 DEFAULT_CANCEL_TIMEOUT_SEC = 5.0
@@ -156,8 +156,8 @@ def parse_task_spec(key: str, entry: Mapping[str, Any]) -> TaskSpec:
         interface = parse_interface_name(entry['msg_interface'])
     except ConfigurationError as error:
         raise ConfigurationError(f'{label}: {error}') from error
-    if not options['cancel_timeout'] >= 0:  # also rejects NaN
-        raise ConfigurationError(f'{label}: {key}.cancel_timeout must be >= 0')
+    if problem := SECONDS.problem(f'{key}.cancel_timeout', options['cancel_timeout']):
+        raise ConfigurationError(f'{label}: {problem}')
     pause = _pause_mode(label, key, options['pause'], interface)
     if pause is PauseMode.RESTART and options['cancel_reported_as_success']:
         raise ConfigurationError(
@@ -230,11 +230,8 @@ def _timeouts(
 ) -> dict[str, float]:
     """The entry's timeouts as floats (0: none); a feedback timeout only for an action."""
     for name in TIMEOUT_KEYS:
-        if not 0 <= options[name] < math.inf:
-            raise ConfigurationError(
-                f'{label}: {key}.{name} must be a finite number of seconds >= 0 (0: none), '
-                f'got {options[name]!r}'
-            )
+        if problem := SECONDS.problem(f'{key}.{name}', options[name]):
+            raise ConfigurationError(f'{label}: {problem} (0: none)')
     if options['feedback_timeout_sec'] and interface.kind is not TaskKind.ACTION:
         raise ConfigurationError(
             f'{label}: feedback_timeout_sec is only for action tasks (a service sends no '

@@ -4,6 +4,8 @@ from dataclasses import asdict, dataclass
 from enum import StrEnum
 from typing import Any
 
+from task_manager.core.bounds import PRIORITY, SECONDS
+
 
 class OnConflict(StrEnum):
     """What a task does when a resource it needs is held by another task."""
@@ -45,10 +47,12 @@ class RequestOptions:
         """Why these options are unusable; empty when they are fine."""
         if self.error:
             return self.error
+        if self.priority is not None and (problem := PRIORITY.problem('priority', self.priority)):
+            return problem
         for name in ('timeout_sec', 'queue_timeout_sec', 'feedback_timeout_sec'):
             value = getattr(self, name)
-            if value is not None and not 0 <= value < float('inf'):
-                return f'{name} must be a finite number of seconds >= 0, got {value!r}'
+            if value is not None and (problem := SECONDS.problem(name, value)):
+                return problem
         return ''
 
     def to_dict(self) -> dict[str, Any]:

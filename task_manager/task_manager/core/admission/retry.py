@@ -3,6 +3,7 @@
 import math
 from dataclasses import dataclass
 
+from task_manager.core.bounds import SECONDS
 from task_manager.core.status import ErrorCode
 
 SERVER_ERROR = 'aborted'
@@ -45,9 +46,8 @@ class RetryPolicy:
         if self.max_attempts < 1:
             return f'max_attempts must be >= 1 (1: no retry), got {self.max_attempts!r}'
         for name in ('initial_delay_sec', 'max_delay_sec'):
-            value = getattr(self, name)
-            if not 0 <= value < math.inf:
-                return f'{name} must be a finite number of seconds >= 0, got {value!r}'
+            if problem := SECONDS.problem(name, getattr(self, name)):
+                return problem
         if not 1 <= self.multiplier < math.inf:
             return f'multiplier must be a finite number >= 1, got {self.multiplier!r}'
         for code in self.on_error_codes:

@@ -5,10 +5,11 @@ from typing import Any
 from rclpy.node import Node
 from task_manager_msgs.action import Wait
 
+from task_manager.core.bounds import SECONDS
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import WAIT_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.message_json import message_from_json
+from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.system.timed_execution import TimedExecution
 
 UNTIL_CANCELLED = -1.0
@@ -48,7 +49,10 @@ class WaitRunner:
         self._node = node
 
     def parse(self, task_data: str, task_id: str) -> Any:
-        return message_from_json(Wait.Goal, task_data)
+        goal = message_from_json(Wait.Goal, task_data)
+        if goal.duration > 0 and (problem := SECONDS.problem('duration', goal.duration)):
+            raise TaskDataError('duration', f'{problem} (<= 0: until cancelled)')
+        return goal
 
     async def start(self, message: Any, record: TaskRecord) -> WaitExecution:
         return WaitExecution(self._node, float(message.duration), record)

@@ -85,7 +85,9 @@ def test_a_request_keeps_its_admission_options_and_a_stored_spec_without_them_lo
 
 
 def test_a_request_with_unusable_options_is_refused_naming_them() -> None:
-    with pytest.raises(ScheduleError, match='options: timeout_sec must be a finite number'):
+    with pytest.raises(
+        ScheduleError, match='options: timeout_sec must be from 0 to 604800 s, got -1.0'
+    ):
         request(period_sec=60, options=RequestOptions(timeout_sec=-1.0))
 
 

@@ -165,10 +165,11 @@ def test_cancel_timeout_rejects_non_numbers(value: Any) -> None:
     assert repr(value) in message
 
 
-@pytest.mark.parametrize('value', [-1, -0.001, -math.inf])
-def test_cancel_timeout_rejects_negative_values(value: float) -> None:
+@pytest.mark.parametrize('value', [-1, -0.001, -math.inf, 604_801, 1e300])
+def test_cancel_timeout_rejects_values_outside_zero_to_a_week(value: float) -> None:
     with pytest.raises(
-        ConfigurationError, match=r"^task 'fib': fib_key\.cancel_timeout must be >= 0"
+        ConfigurationError,
+        match=r"^task 'fib': fib_key\.cancel_timeout must be (from 0 to 604800 s|a finite number)",
     ):
         parse(cancel_timeout=value)
 
@@ -372,7 +373,7 @@ def test_unknown_keys_names_a_misspelt_map_with_its_keys() -> None:
 # ---- properties ------------------------------------------------------------------------------
 
 identifiers = st.from_regex(r'[A-Za-z][A-Za-z0-9_]{0,15}', fullmatch=True)
-cancel_timeouts = st.integers(0, 10**6) | st.floats(0, 1e6, allow_nan=False)
+cancel_timeouts = st.integers(0, 604_800) | st.floats(0, 604_800, allow_nan=False)
 options = st.fixed_dictionaries(
     {},
     optional={
