@@ -2,9 +2,10 @@
 
 import signal
 import threading
+import traceback
 
 import rclpy
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException, ShutdownException, SingleThreadedExecutor
 from rclpy.logging import get_logger
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
@@ -46,6 +47,23 @@ def _drain(executor: SingleThreadedExecutor) -> None:
             handler()
         except Exception:  # nothing is ready (TimeoutException), or the context is going
             return
+
+
+def _serve_until(executor: SingleThreadedExecutor, stopped: Future) -> None:
+    """Spin until `stopped`. An exception a callback lets out (a bug of ours) is logged in one
+    line, where it was raised, and the node goes on serving: exiting would leave every running
+    goal untracked and every client without its result."""
+    while not stopped.done():
+        try:
+            executor.spin_until_future_complete(stopped)
+        except (ExternalShutdownException, ShutdownException):
+            raise
+        except Exception as error:
+            where = traceback.extract_tb(error.__traceback__)[-1]
+            get_logger(NODE_NAME).error(
+                f'a callback failed and was dropped, the Task Manager goes on: {error!r} '
+                f'at {where.filename}:{where.lineno} ({where.name})'
+            )
 
 
 def _refuse_configuration(error: Exception) -> int:
@@ -90,7 +108,7 @@ def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
         threading.Thread(
             target=_receive_signals, args=(node, stopped, shutdown_signals), daemon=True
         ).start()
-        executor.spin_until_future_complete(stopped)
+        _serve_until(executor, stopped)
         _drain(executor)
     finally:
         executor.shutdown()

@@ -164,9 +164,29 @@ class ActionTaskRunner:
             raise TaskRequestError(
                 ErrorCode.TASK_START_FAILED, f'action server {topic} rejected the goal'
             )
-        execution = ActionExecution(self._node, self._client, goal_id, self.spec)
-        self._watch.track(execution)
+        try:
+            execution = ActionExecution(self._node, self._client, goal_id, self.spec)
+            self._watch.track(execution)
+        except Exception as error:  # a bug of ours must not leave the goal running untracked
+            raise TaskRequestError(
+                ErrorCode.TASK_START_FAILED,
+                f'the Task Manager failed to track the goal {topic} accepted ({error!r}); '
+                + await self._withdraw(goal_id),
+            ) from error
         return execution
+
+    async def _withdraw(self, goal_id: bytes) -> str:
+        """Cancel an accepted goal that cannot be tracked and wait (within cancel_timeout) for
+        its end; what became of it, for the task's result."""
+        timeout_sec = self.spec.cancel_timeout_sec
+        self._client.forget(goal_id)
+        self._client.cancel(goal_id)
+        if await wait_for(self._node, self._client.get_result(goal_id), timeout_sec):
+            return 'it was cancelled on its server'
+        return (
+            f'its cancel was not confirmed within cancel_timeout {timeout_sec:g} s: '
+            'the goal may still run'
+        )
 
     def _probe(self) -> bool | Future:
         """A cancel request for a goal id that does not exist: a live server answers at

@@ -248,7 +248,7 @@ class AdmissionControl:
             if final is not None:
                 run.settle(final)
             return
-        self._dispatcher.began(run, execution)
+        self._dispatcher.track(run, execution, lambda: self._dispatcher.began(run, execution))
 
     # ---- the one timer ---------------------------------------------------------------------
 
@@ -264,8 +264,12 @@ class AdmissionControl:
         if at is None:
             self._timer.cancel()
             return
-        delay_ns = max(int((at - time.monotonic()) * 1e9), 1)
-        self._timer.timer_period_ns = delay_ns
+        # at most an hour: a later deadline is armed again when the timer finds nothing due, and
+        # no delay can overflow rcl's signed 64-bit nanoseconds or leave the timer always due
+        delay_sec = at - time.monotonic()
+        if not delay_sec < _IDLE_PERIOD_SEC:  # NaN too
+            delay_sec = _IDLE_PERIOD_SEC
+        self._timer.timer_period_ns = max(int(delay_sec * 1e9), 1)
         self._timer.reset()
 
     def _on_timer(self) -> None:

@@ -221,9 +221,36 @@ class TaskDispatcher:
                 raise
             await resolved(self.node, run.finished)  # a retry follows
             return result_of(run.finished)
-        self.began(run, execution)
+        self.track(run, execution, lambda: self.began(run, execution))
         await resolved(self.node, run.finished)
         return result_of(run.finished)
+
+    def track(self, run: TaskRun, execution: Execution, steps: Callable[[], None]) -> None:
+        """Carry out `steps`, which track a task now running on its server (mark it started,
+        attach its execution, arm its timeouts). Should one fail, the goal must not run on
+        untracked: it is cancelled, and the task ends ERROR once its server says it has ended,
+        or once its cancel_timeout has passed (then its result says the goal may still run)."""
+        try:
+            steps()
+        except Exception as error:  # the callback boundary: a bug of ours must not free a robot
+            self.log.error(
+                f'task {run.task_id} ({run.record.task_name}) could not be tracked once started: '
+                f'{error!r}; cancelling it on its server'
+            )
+            run.execution = None  # its end is the withdrawal's, not the server's result
+            self.spawn(self._withdraw(run, execution, error))
+
+    async def _withdraw(self, run: TaskRun, execution: Execution, error: Exception) -> None:
+        timeout_sec = run.record.spec.cancel_timeout_sec
+        if await execution.cancel(timeout_sec):
+            what = 'it was cancelled on its server'
+        else:
+            what = (
+                f'its cancel was not confirmed within cancel_timeout {timeout_sec:g} s: '
+                'the goal may still run'
+            )
+        reason = f'the Task Manager failed to track the task once started ({error!r}); {what}'
+        run.settle(TaskEnd(TaskStatus.ERROR, {'error': reason}, ErrorCode.TASK_START_FAILED))
 
     def began(self, run: TaskRun, execution: Execution) -> None:
         """An attempt runs on its server: the task is IN_PROGRESS (once) and its timeouts armed."""

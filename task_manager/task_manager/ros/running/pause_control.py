@@ -114,8 +114,12 @@ class PauseControl:
         if run.finished.done():  # ended (by force, at shutdown) while its goal was sent again
             self._dispatcher.spawn(execution.cancel(run.record.spec.cancel_timeout_sec))
             return f'{_label(run)} ended while it resumed'
-        self._changed(run, TaskStatus.IN_PROGRESS, source)
-        self._dispatcher.attach(run, execution)
+
+        def resumed() -> None:
+            self._changed(run, TaskStatus.IN_PROGRESS, source)
+            self._dispatcher.attach(run, execution)
+
+        self._dispatcher.track(run, execution, resumed)
         return ''
 
     def _changed(self, run: TaskRun, status: TaskStatus, source: str) -> None:
