@@ -3,36 +3,74 @@ what arrives (inbound messages from paho's thread, task events from the client's
 thread, the broker's return), and publishes the state on every change and at least every
 `state_period_sec`.
 
-Every inbound message is checked against the official schema first (schemas.py); one that
-fails is never acted on and is reported in state.errors (validationError, naming the field).
+Every inbound message is checked at the door first (inbound.py: its size, depth, bounds,
+the official schema, a header naming this vehicle); one that fails is never acted on and is
+reported in state.errors (validationError, naming the field). What waits to be handled is
+bounded too (Backlog); state is shortened to fit the broker's limit before it is sent.
 """
 
 import logging
 import queue
 import threading
 import time
+import traceback
 from dataclasses import dataclass
 from typing import Any
 
 from task_manager.client import TaskEvent, TaskManagerClient
+from task_manager.core.bounds import REASON_MAX_CHARACTERS, VDA5050_WAITING_MAX_BYTES, cut_text
 from task_manager_vda5050.factsheet import factsheet
+from task_manager_vda5050.fitting import shortened
+from task_manager_vda5050.inbound import read_inbound
 from task_manager_vda5050.instant_actions import InstantActions
 from task_manager_vda5050.link import Link
 from task_manager_vda5050.mapping import Mapping
 from task_manager_vda5050.order_plan import VALIDATION_ERROR, OrderRejectedError, Planner, Rejection
 from task_manager_vda5050.orders import Orders
-from task_manager_vda5050.schemas import read_inbound
 from task_manager_vda5050.vehicle_state import VehicleState
 
 LOG = logging.getLogger('task_manager_vda5050')
 STATE_PERIOD_SEC = 30.0
-PAYLOAD_EXCERPT = 200
+MESSAGES_DROPPED = 'messagesDropped'
+"""The errorType of the error saying how many inbound messages were dropped unread."""
 
 
 @dataclass(frozen=True)
 class Inbound:
     topic: str
     payload: bytes
+
+    def __str__(self) -> str:
+        text = self.payload.decode(errors='replace')
+        return f'{self.topic} message of {len(self.payload)} bytes: {cut_text(text)}'
+
+
+class Backlog:
+    """The bytes of the inbound messages received and not yet handled (paho's thread adds,
+    the worker takes away): a message that would take them over `max_bytes` is dropped, and
+    counted."""
+
+    def __init__(self, max_bytes: int = VDA5050_WAITING_MAX_BYTES) -> None:
+        self.max_bytes = max_bytes
+        self._lock = threading.Lock()
+        self._bytes = 0
+        self._dropped = 0
+
+    def admit(self, size: int) -> bool:
+        """Whether a message of `size` bytes may wait (else it is counted as dropped)."""
+        with self._lock:
+            if self._bytes + size > self.max_bytes:
+                self._dropped += 1
+                return False
+            self._bytes += size
+            return True
+
+    def handled(self, size: int) -> int:
+        """A message of `size` bytes taken off; how many were dropped since the last call."""
+        with self._lock:
+            self._bytes -= size
+            dropped, self._dropped = self._dropped, 0
+            return dropped
 
 
 class Connected:
@@ -67,8 +105,11 @@ class Adapter:
         self.planner = Planner(mapping, self._blocking_tasks.__contains__)
         self.orders = Orders(client, self.planner, self.state, mapping.position)
         self.instant = InstantActions(client, mapping, self.state, self.orders, self.publish)
+        self.backlog = Backlog()
         self._last_state: dict[str, Any] | None = None
         self._last_position: Any = None
+        self._shortening = False
+        """Whether the last state sent was shortened (said once in the log, until one fits)."""
         self._thread = threading.Thread(target=self._work, name='vda5050', daemon=True)
 
     @staticmethod
@@ -95,7 +136,8 @@ class Adapter:
         self._thread.join(timeout_sec)
 
     def on_message(self, topic: str, payload: bytes) -> None:
-        self.items.put(Inbound(topic, payload))
+        if self.backlog.admit(len(payload)):
+            self.items.put(Inbound(topic, payload))
 
     def on_connected(self) -> None:
         self.items.put(Connected())
@@ -113,8 +155,13 @@ class Adapter:
                 return
             try:
                 self._handle(item)
-            except Exception:  # the callback boundary: log it, the vehicle goes on
-                LOG.exception('while handling %r', item)
+            except Exception as error:  # the callback boundary: log it, the vehicle goes on
+                LOG.error(
+                    'while handling %s: %s\n%s',
+                    cut_text(str(item)),
+                    cut_text(f'{type(error).__name__}: {error}'),
+                    ''.join(traceback.format_tb(error.__traceback__)).rstrip(),
+                )
             if item is None or self._state_changed():
                 self.publish('state')
                 next_state = time.monotonic() + self.state_period_sec
@@ -130,17 +177,23 @@ class Adapter:
             self.publish('state')
 
     def _inbound(self, item: Inbound) -> None:
-        document, invalid = read_inbound(item.topic, item.payload)
+        if dropped := self.backlog.handled(len(item.payload)):
+            words = (
+                f'{dropped} inbound messages dropped unread: more than '
+                f'{self.backlog.max_bytes} bytes of them waited to be handled'
+            )
+            LOG.warning('%s', words)
+            self.state.add_error(Rejection(MESSAGES_DROPPED, words))
+        document, invalid = read_inbound(item.topic, item.payload, self.link.vehicle)
         if invalid is not None:
             where = f' at {invalid.field}' if invalid.field else ''
             words = f'{item.topic} not acted on: invalid{where}: {invalid.message}'
-            LOG.warning('%s', words[: PAYLOAD_EXCERPT * 2])
+            words = cut_text(words, REASON_MAX_CHARACTERS)
+            LOG.warning('%s', words)
             refs = [('topic', item.topic)]
             if invalid.field:
                 refs.append(('field', invalid.field))
-            self.state.add_error(
-                Rejection(VALIDATION_ERROR, words[: PAYLOAD_EXCERPT * 2], tuple(refs))
-            )
+            self.state.add_error(Rejection(VALIDATION_ERROR, words, tuple(refs)))
             return
         assert document is not None
         if item.topic == 'order':
@@ -166,7 +219,16 @@ class Adapter:
             return
         document = self.state.document()
         self._last_state = document
-        self.link.publish('state', document)
+        fields, left_out = shortened(document, self.link.room())
+        if left_out and not self._shortening:
+            LOG.warning(
+                'state shortened to fit the %d bytes the broker takes; left out: %s '
+                '(said once, until a state fits again)',
+                self.link.largest_payload,
+                left_out,
+            )
+        self._shortening = bool(left_out)
+        self.link.publish('state', fields)
         if 'agvPosition' in document and document['agvPosition'] != self._last_position:
             self._last_position = document['agvPosition']
             self.link.publish('visualization', {'agvPosition': document['agvPosition']})

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from task_manager_mqtt.broker import MosquittoBroker
+from task_manager_mqtt.settings import DEFAULT_MAX_PAYLOAD_BYTES
 
 from task_manager_vda5050.topics import DEFAULT_INTERFACE, INBOUND, OUTBOUND, Vehicle
 
@@ -25,10 +26,19 @@ class VdaBroker(MosquittoBroker):
         masters: Sequence[str] = (MASTER_USER,),
         interface_name: str = DEFAULT_INTERFACE,
         port: int = 0,
+        max_payload_bytes: int = DEFAULT_MAX_PAYLOAD_BYTES,
     ) -> None:
+        """`max_payload_bytes`: the largest message it passes on (a client sending a larger
+        one is disconnected)."""
         self.manufacturer = manufacturer
         self.interface_name = interface_name
-        super().__init__(folder, robots=serial_numbers, port=port, clouds=masters)
+        super().__init__(
+            folder,
+            robots=serial_numbers,
+            port=port,
+            clouds=masters,
+            max_payload_bytes=max_payload_bytes,
+        )
 
     def vehicle(self, serial_number: str) -> Vehicle:
         return Vehicle(self.manufacturer, serial_number, self.interface_name)

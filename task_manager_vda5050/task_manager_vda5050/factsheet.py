@@ -12,6 +12,14 @@ be valid against both 2.0.0 and 2.1.0.
 from collections.abc import Callable
 from typing import Any
 
+from task_manager.core.bounds import (
+    TASK_DATA_MAX_BYTES,
+    VDA5050_ACTIONS_MAX,
+    VDA5050_ID_MAX_CHARACTERS,
+    VDA5050_LIST_MAX,
+    VDA5050_STATE_ACTIONS_MAX,
+    VDA5050_STATE_ERRORS_MAX,
+)
 from task_manager_vda5050.mapping import ActionMapping, Mapping
 
 BUILT_IN = {
@@ -43,8 +51,26 @@ DEFAULT_VEHICLE: dict[str, dict[str, Any]] = {
     'loadSpecification': {},
 }
 PROTOCOL_LIMITS = {
-    'maxStringLens': {},
-    'maxArrayLens': {},
+    # the bounds of core/bounds.py the vehicle's door (inbound.py) and its state keep
+    'maxStringLens': {
+        'msgLen': TASK_DATA_MAX_BYTES,
+        'idLen': VDA5050_ID_MAX_CHARACTERS,
+        'enumLen': VDA5050_ID_MAX_CHARACTERS,
+    },
+    'maxArrayLens': {
+        'order.nodes': VDA5050_LIST_MAX,
+        'order.edges': VDA5050_LIST_MAX,
+        'node.actions': VDA5050_ACTIONS_MAX,
+        'edge.actions': VDA5050_ACTIONS_MAX,
+        'actions.actionsParameters': VDA5050_ACTIONS_MAX,
+        'instantActions': VDA5050_ACTIONS_MAX,
+        'trajectory.knotVector': VDA5050_LIST_MAX,
+        'trajectory.controlPoints': VDA5050_LIST_MAX,
+        'state.nodeStates': VDA5050_LIST_MAX,
+        'state.edgeStates': VDA5050_LIST_MAX,
+        'state.actionStates': VDA5050_STATE_ACTIONS_MAX,
+        'state.errors': VDA5050_STATE_ERRORS_MAX,
+    },
     'timing': {'minOrderInterval': 0.0, 'minStateInterval': 0.0, 'defaultStateInterval': 30.0},
 }
 VALUE_TYPES = (

@@ -6,9 +6,10 @@ from collections.abc import Callable
 from typing import Any
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient
+from task_manager.core.bounds import cut_text
 from task_manager.core.errors import TaskManagerError
 from task_manager_vda5050.mapping import Mapping, MissingValueError
-from task_manager_vda5050.order_plan import Rejection
+from task_manager_vda5050.order_plan import VALIDATION_ERROR, Rejection
 from task_manager_vda5050.orders import SOURCE, Orders, description
 from task_manager_vda5050.vehicle_state import ACTION_STATUS, VehicleState
 
@@ -48,9 +49,13 @@ class InstantActions:
 
     def _run(self, action: dict[str, Any]) -> None:
         action_type, action_id = action['actionType'], action['actionId']
+        if action_id in self.state.action_states:
+            why = f'actionId {cut_text(action_id)!r} is in use already: each action needs its own'
+            self._refuse(action, why, VALIDATION_ERROR)
+            return
         built_in = self._built_in.get(action_type)
         if built_in is None and self.mapping.action(action_type, 'INSTANT') is None:
-            self._refuse(action, f'instant action type {action_type!r} is not supported')
+            self._refuse(action, f'instant action type {cut_text(action_type)!r} is not supported')
             return
         self.state.add_instant(action)
         if built_in is None:
@@ -65,7 +70,7 @@ class InstantActions:
     def _refuse(
         self, action: dict[str, Any], why: str, error_type: str = INSTANT_ACTION_ERROR
     ) -> None:
-        LOG.warning('instant action %s: %s', action['actionId'], why)
+        LOG.warning('instant action %s: %s', cut_text(action['actionId']), why)
         self.state.add_error(
             Rejection(
                 error_type,

@@ -1,6 +1,11 @@
 """The vehicle's MQTT connection: its last will, ONLINE and OFFLINE, what it subscribes to,
 and every publication with its header, QoS and retain flag (paho-mqtt, made as the MQTT
-bridge makes its client)."""
+bridge makes its client).
+
+No message larger than the broker takes is ever sent: the broker would disconnect the vehicle
+for it, at each attempt. The adapter shortens state to fit (fitting.py); any other message
+too large is not sent, and said so in the log.
+"""
 
 import json
 import logging
@@ -10,9 +15,10 @@ from typing import Any
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
-from task_manager_mqtt.connection import connect, new_client
+from task_manager_mqtt.connection import connect, largest_payload, new_client
 from task_manager_mqtt.settings import Broker
 
+from task_manager.core.bounds import TASK_DATA_MAX_BYTES
 from task_manager_vda5050.topics import DELIVERY, INBOUND, Headers, Vehicle
 
 LOG = logging.getLogger('task_manager_vda5050')
@@ -41,6 +47,10 @@ class Link:
         self._keepalive_sec = keepalive_sec
         self.refused = threading.Event()
         """Set when the broker refuses the credentials (no retrying helps)."""
+        self.largest_payload = TASK_DATA_MAX_BYTES
+        """The largest message to send: less when the broker's CONNACK says it takes less."""
+        self._too_large: set[str] = set()
+        """The topics whose last message was too large to send (said once in the log)."""
         client_id = broker.username or f'{vehicle.manufacturer}_{vehicle.serial_number}'
         self.mqtt = new_client(client_id, broker, reconnect_max_sec, MAX_IN_FLIGHT)
         self.mqtt.will_set(
@@ -61,13 +71,30 @@ class Link:
     def connected(self) -> bool:
         return self.mqtt.is_connected()
 
-    def publish(self, topic: str, fields: dict[str, Any]) -> dict[str, Any]:
+    def room(self) -> int:
+        """The most bytes the fields of a message may take (as JSON) for it to be sent."""
+        return self.largest_payload - self.headers.largest_size()
+
+    def publish(self, topic: str, fields: dict[str, Any]) -> dict[str, Any] | None:
         """Send `fields` with a header on `topic` (headerId counted even when offline, as the
-        standard says); the message sent."""
+        standard says); the message sent, or None when it is larger than the broker takes."""
         qos, retain = DELIVERY[topic]
         with self._lock:
             message = self._with_header(topic, fields)
-            self.mqtt.publish(self.vehicle.topic(topic), json.dumps(message), qos, retain)
+            payload = json.dumps(message)
+            if len(payload) > self.largest_payload:
+                if topic not in self._too_large:
+                    LOG.error(
+                        'a %s message of %d bytes not sent: the broker takes at most %d '
+                        '(said once, until one fits)',
+                        topic,
+                        len(payload),
+                        self.largest_payload,
+                    )
+                self._too_large.add(topic)
+                return None
+            self._too_large.discard(topic)
+            self.mqtt.publish(self.vehicle.topic(topic), payload, qos, retain)
         return message
 
     def stop(self, timeout_sec: float = 5.0) -> None:
@@ -79,7 +106,10 @@ class Link:
                 qos=1,
                 retain=True,
             )
-            info.wait_for_publish(timeout_sec)
+            try:
+                info.wait_for_publish(timeout_sec)
+            except RuntimeError as error:  # the connection was lost meanwhile: the will says it
+                LOG.warning('OFFLINE not sent: %s', error)
         self.mqtt.disconnect()
         self.mqtt.loop_stop()
 
@@ -87,13 +117,14 @@ class Link:
         return {**self.headers.header(topic), **fields}
 
     def _connected(
-        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, ___: Any
+        self, client: mqtt.Client, _: Any, __: Any, reason: ReasonCode, properties: Any
     ) -> None:
         if reason.is_failure:
             LOG.error('the broker refused the connection: %s', reason)
             if reason.getName() in ('Bad user name or password', 'Not authorized'):
                 self.refused.set()
             return
+        self.largest_payload = largest_payload(properties, TASK_DATA_MAX_BYTES)
         client.subscribe([(self.vehicle.topic(name), DELIVERY[name][0]) for name in INBOUND])
 
     def _subscribed(self, _: mqtt.Client, __: Any, ___: int, reasons: Any, ____: Any) -> None:

@@ -7,10 +7,11 @@ of blocking type NONE are tasks started beside the mission (a node's once it is 
 edge's once the drive over it starts). Horizon nodes and edges start nothing.
 """
 
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from typing import Any
 
+from task_manager.core.bounds import IDS_MAX
 from task_manager_vda5050.mapping import Mapping, MissingValueError
 
 ORDER_ERROR = 'orderError'
@@ -175,10 +176,20 @@ class Planner:
             )
             raise AssertionError from None
 
-    def plan(self, order: dict[str, Any], mission_id: str, stitched: bool) -> Segment:
+    def plan(
+        self,
+        order: dict[str, Any],
+        mission_id: str,
+        stitched: bool,
+        action_ids_in_use: Collection[str] = (),
+        task_ids_in_use: Collection[str] = (),
+    ) -> Segment:
         """The segment of an order's released base; `stitched`: its first node is the last
-        one reached already (an update), so neither driven to nor its actions run again."""
+        one reached already (an update), so neither driven to nor its actions run again.
+        The ids in use (by the order's earlier segments, by instant actions) may not be
+        used again."""
         base, base_edges = check_graph(order)
+        check_action_ids(order, stitched, action_ids_in_use)
         self.check_actions(order)
         segment = Segment(order['orderId'], order['orderUpdateId'], mission_id, [])
         segment.last_base = (base[-1]['nodeId'], base[-1]['sequenceId'])
@@ -187,6 +198,7 @@ class Planner:
                 continue
             edge = base_edges[index - 1] if index > 0 else None
             self._add_node(order, segment, node, edge)
+        check_task_ids(order, segment, task_ids_in_use)
         return segment
 
     def _add_node(
@@ -270,6 +282,64 @@ class Planner:
             node_id=item[key],
             sequence_id=item['sequenceId'],
         )
+
+
+def check_action_ids(order: dict[str, Any], stitched: bool, in_use: Collection[str] = ()) -> None:
+    """validationError for an actionId given twice in `order`, or one `in_use` (the first
+    node of an update, `stitched`, repeats the actions of the node it starts at: not new)."""
+    first = min(order['nodes'], key=lambda n: n['sequenceId'], default=None)
+    seen: set[str] = set()
+    for item in (*order['nodes'], *order['edges']):
+        if stitched and item is first:
+            continue
+        for action in item['actions']:
+            action_id = action['actionId']
+            if action_id in seen or action_id in in_use:
+                where = 'in this order' if action_id in seen else 'already'
+                _reject(
+                    VALIDATION_ERROR,
+                    order,
+                    f'actionId {action_id!r} is used {where}: each action needs an id of its own',
+                    ('actionId', action_id),
+                )
+            seen.add(action_id)
+
+
+def check_task_ids(order: dict[str, Any], segment: Segment, in_use: Collection[str] = ()) -> None:
+    """validationError when two tasks of the segment, or one and a task `in_use`, would have
+    the same id (an action `<orderId>/<actionId>`, a drive `<orderId>/<nodeId>/<sequenceId>`:
+    actionId 'b/2' is the drive to node b of sequenceId 2), or the segment has more tasks
+    than a mission may (IDS_MAX)."""
+    tasks = [*segment.steps, *segment.beside]
+    if len(tasks) > IDS_MAX:
+        _reject(
+            VALIDATION_ERROR,
+            order,
+            f'the released base makes {len(tasks)} tasks (drives and actions); '
+            f'at most {IDS_MAX} in one order or update',
+        )
+    taken = {*in_use, segment.mission_id}
+    drives = [t for t in tasks if not t.action_id]
+    for drive in drives:
+        if drive.task_id in taken:
+            _reject(
+                VALIDATION_ERROR,
+                order,
+                f'the drive to node {drive.node_id} would be the task {drive.task_id!r}, '
+                'which the order has already',
+                ('nodeId', drive.node_id),
+            )
+    taken |= {drive.task_id for drive in drives}
+    for action in (t for t in tasks if t.action_id):
+        if action.task_id in taken:
+            _reject(
+                VALIDATION_ERROR,
+                order,
+                f'actionId {action.action_id!r} would make the task {action.task_id!r}, '
+                'which the order has already (an actionId "<nodeId>/<sequenceId>" is the '
+                "drive's to that node)",
+                ('actionId', action.action_id),
+            )
 
 
 def check_update(

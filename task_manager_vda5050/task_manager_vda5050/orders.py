@@ -13,6 +13,11 @@ import logging
 from typing import Any
 
 from task_manager.client import Subtask, TaskEvent, TaskEventKind, TaskManagerClient
+from task_manager.core.bounds import (
+    VDA5050_RESULT_DESCRIPTION_MAX_CHARACTERS,
+    VDA5050_UPDATES_WAITING_MAX,
+    cut_text,
+)
 from task_manager.core.errors import TaskManagerError
 from task_manager.core.status import TaskStatus
 from task_manager_vda5050.mapping import PositionSource
@@ -30,7 +35,6 @@ from task_manager_vda5050.vehicle_state import ACTION_STATUS, Position, VehicleS
 
 LOG = logging.getLogger('task_manager_vda5050')
 SOURCE = 'VDA5050'
-DESCRIPTION_LENGTH = 500
 ORDER_ACTION_ERROR = 'orderActionError'
 
 
@@ -41,7 +45,7 @@ def description(task: Any) -> str:
     else:
         error = (task.result or {}).get('error') if isinstance(task.result, dict) else ''
         text = f'{task.status}: {error or task.error_code}'
-    return text[:DESCRIPTION_LENGTH]
+    return cut_text(text, VDA5050_RESULT_DESCRIPTION_MAX_CHARACTERS)
 
 
 class Orders:
@@ -65,6 +69,8 @@ class Orders:
         """The ids of the planned tasks that have ended."""
         self.last_base: tuple[str, int] = ('', 0)
         self._started_beside: set[str] = set()
+        self._mission_ids: set[str] = set()
+        """The missions of the current order (its base and each update)."""
         if position is not None and position.initial is not None:
             pose = position.initial
             state.position = Position(pose['x'], pose['y'], pose['theta'], position.map_id)
@@ -94,6 +100,15 @@ class Orders:
                     'order %s update %s again: ignored', order['orderId'], order['orderUpdateId']
                 )
                 return
+            if len(self.pending) >= VDA5050_UPDATES_WAITING_MAX:
+                raise OrderRejectedError(
+                    Rejection(
+                        ORDER_UPDATE_ERROR,
+                        f'{len(self.pending)} updates of order {order["orderId"]} wait for its '
+                        f'running base to end; at most {VDA5050_UPDATES_WAITING_MAX} may wait',
+                        references(order),
+                    )
+                )
             stitched = True
         elif self.active:
             raise OrderRejectedError(
@@ -106,10 +121,18 @@ class Orders:
         mission_id = (
             f'{order["orderId"]}/update/{order["orderUpdateId"]}' if stitched else order['orderId']
         )
-        segment = self.planner.plan(order, mission_id, stitched)
+        segment = self.planner.plan(
+            order,
+            mission_id,
+            stitched,
+            self.state.action_ids_in_use(same_order=stitched),
+            {*self.tasks, *self._mission_ids} if stitched else (),
+        )
         if not stitched:  # the order before has no work left: forget it
             self.running = None  # its mission's end is not awaited
             self.tasks, self._ended, self._started_beside = {}, set(), set()
+            self._mission_ids = set()
+        self._mission_ids.add(mission_id)
         self.state.take_order(order, stitched)
         self.last_base = segment.last_base
         for task in (*segment.steps, *segment.beside):
@@ -225,14 +248,18 @@ class Orders:
         LOG.warning('order %s: %s', segment.order_id, why)
         for task in (*segment.steps, *segment.beside):
             if task.action_id and task.task_id not in self.beside_active:
-                self.state.set_action(task.action_id, 'FAILED', why[:DESCRIPTION_LENGTH])
+                self.state.set_action(
+                    task.action_id,
+                    'FAILED',
+                    cut_text(why, VDA5050_RESULT_DESCRIPTION_MAX_CHARACTERS),
+                )
         self.state.node_states, self.state.edge_states = [], []
         self.state.driving = False
         if error:
             self.state.add_error(
                 Rejection(
                     ORDER_ACTION_ERROR,
-                    why[:DESCRIPTION_LENGTH],
+                    cut_text(why, VDA5050_RESULT_DESCRIPTION_MAX_CHARACTERS),
                     (
                         ('topic', 'order'),
                         ('orderId', segment.order_id),

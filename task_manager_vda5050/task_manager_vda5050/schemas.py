@@ -1,4 +1,4 @@
-"""The official VDA 5050 JSON schemas, and what an inbound message must be to be acted on.
+"""The official VDA 5050 JSON schemas, and the problems of a message against them.
 
 The schema files are the ones PyPI's `vda5050-sdk` (0.2.0) bundles: the 2.1.0 tag of the
 standard's repository, byte for byte. Only the files are taken from it (behind this module,
@@ -7,6 +7,7 @@ so that another source can replace it); the SDK's models and clients are not use
 The 2.0.0 instantActions schema names the list `instantActions` and each action's type
 `actionName` (errors of that tag, fixed in 2.1.0); master controls in the field send either,
 so an inbound instantActions message is read in both spellings and validated as 2.1.0's.
+What else an inbound message must be is inbound.py's.
 """
 
 import importlib.util
@@ -17,6 +18,8 @@ from pathlib import Path
 from typing import Any
 
 import jsonschema
+
+from task_manager.core.bounds import cut_text
 
 # key: the topic, value: its schema's file name in the SDK's folder
 SCHEMA_FILES = {
@@ -61,21 +64,13 @@ def _validator(topic: str) -> Any:
 
 
 def problems(topic: str, document: Any) -> list[Invalid]:
-    """Every problem of `document` against `topic`'s 2.1.0 schema, the deepest first."""
+    """Every problem of `document` against `topic`'s 2.1.0 schema, the deepest first (its
+    message repeats at most a cut of the value at fault)."""
     errors = sorted(_validator(topic).iter_errors(document), key=lambda e: -len(e.path))
-    return [Invalid('/'.join(str(p) for p in error.path), error.message) for error in errors]
-
-
-def read_inbound(topic: str, payload: bytes) -> tuple[dict[str, Any] | None, Invalid | None]:
-    """The message of an inbound payload when it may be acted on, else why not."""
-    try:
-        document = json.loads(payload)
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        return None, Invalid('', f'not JSON: {error}')
-    if topic == 'instantActions':
-        document = instant_actions_of_2_0(document)
-    found = problems(topic, document)
-    return (None, found[0]) if found else (document, None)
+    return [
+        Invalid(cut_text('/'.join(str(p) for p in error.path)), cut_text(error.message))
+        for error in errors
+    ]
 
 
 def instant_actions_of_2_0(document: Any) -> Any:

@@ -20,6 +20,7 @@ from task_manager.testing.harness import WaitTimeoutError
 from task_manager.testing.process import NodeProcess
 from task_manager_vda5050.broker import VdaBroker
 from task_manager_vda5050.mapping import DEMO_MAPPING
+from task_manager_vda5050.topics import timestamp
 
 ADAPTER_EXECUTABLE = str(Path(sys.executable).with_name('task-manager-vda5050'))
 PACKAGE = Path(__file__).resolve().parents[1]
@@ -225,6 +226,14 @@ def instant(action_type: str) -> dict[str, Any]:
             'blockingType': 'HARD'}  # fmt: skip
 
 
+def with_header(document: dict[str, Any], header_id: int = 1, **header: Any) -> str:
+    """`document` as the JSON text of a message to the vehicle (`header` replaces fields of
+    its header)."""
+    fields = {'headerId': header_id, 'timestamp': timestamp(), 'version': '2.0.0',
+              'manufacturer': MANUFACTURER, 'serialNumber': SERIAL, **header}  # fmt: skip
+    return json.dumps({**fields, **document})
+
+
 def processed(master: Master, order_id: str, timeout_sec: float = 30.0) -> dict[str, Any]:
     return master.wait_for(
         lambda e: e['event'] == 'orderProcessed' and e['orderId'] == order_id,
@@ -264,3 +273,17 @@ def ended(client: TaskManagerClient, *task_ids: str) -> list[TaskState]:
 
     result: list[TaskState] = wait_until(states, f'{task_ids} ended', TIMEOUT_SEC)
     return result
+
+
+def errors_of(master: Master, error_type: str, count: int = 1) -> list[dict[str, Any]]:
+    """The errors of `error_type` of the first state that has `count` of them."""
+
+    def found(state: dict[str, Any]) -> list[dict[str, Any]]:
+        return [e for e in state['errors'] if e['errorType'] == error_type]
+
+    return found(latest_state(master, lambda s: len(found(s)) == count, error_type))
+
+
+def refs(error: dict[str, Any]) -> dict[str, str]:
+    """An error's references, key: referenceKey, value: referenceValue."""
+    return {r['referenceKey']: r['referenceValue'] for r in error.get('errorReferences', [])}

@@ -1,5 +1,6 @@
 """The vehicle's topics and the header of every message it sends."""
 
+import json
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from typing import Any
@@ -60,6 +61,13 @@ class Headers:
     def header(self, topic: str) -> dict[str, Any]:
         header_id = self._next.get(topic, 0)
         self._next[topic] = header_id + 1
+        return self._fields(header_id)
+
+    def largest_size(self) -> int:
+        """The most bytes a header takes in a message's JSON (a headerId of 20 digits)."""
+        return len(json.dumps(self._fields(2**64)))
+
+    def _fields(self, header_id: int) -> dict[str, Any]:
         return {
             'headerId': header_id,
             'timestamp': timestamp(),

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from task_manager_mqtt.settings import DEFAULT_MAX_PAYLOAD_BYTES
 from vda5050.model.base import VDA5050Model
 from vda5050.model.connection import Connection
 from vda5050.model.factsheet import Factsheet
@@ -38,8 +39,13 @@ def demo_robot(ros_context: None) -> Iterator[TaskManagerClient]:
 
 
 @pytest.fixture
-def broker(tmp_path: Path) -> Iterator[BrokerProcess]:
-    broker = BrokerProcess(tmp_path / 'broker', MANUFACTURER, [SERIAL], [MASTER_USER, TESTER])
+def broker(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[BrokerProcess]:
+    """A mosquitto for the vehicle, the master and the tester; its largest message is the
+    bridges' 1 MiB, or the test's parameter (`indirect`)."""
+    limit = getattr(request, 'param', DEFAULT_MAX_PAYLOAD_BYTES)
+    broker = BrokerProcess(
+        tmp_path / 'broker', MANUFACTURER, [SERIAL], [MASTER_USER, TESTER], max_payload_bytes=limit
+    )
     broker.start()
     yield broker
     broker.stop()

@@ -81,3 +81,50 @@ def test_an_update_must_be_newer_and_start_at_the_last_base_node() -> None:
         check_update(update, 'o', 3, ('b', 2))
     with pytest.raises(OrderRejectedError, match='last base node a'):
         check_update(update, 'o', 1, ('a', 0))
+
+
+def test_an_action_id_twice_or_in_use_is_a_validation_error_naming_it() -> None:
+    first, second = photo(), photo()
+    twice = order('o', node('a', 0, 0.0, 0.0, first), node('b', 2, 1.0, 0.0, {**second,
+                  'actionId': first['actionId']}))  # fmt: skip
+    used = order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0, second))
+
+    assert rejection(twice)[0] == 'validationError'
+    assert rejection(twice)[1]['actionId'] == first['actionId']
+    with pytest.raises(OrderRejectedError, match='is used already') as raised:
+        PLANNER.plan(used, 'o', False, action_ids_in_use={second['actionId']})
+    assert dict(raised.value.rejection.references)['actionId'] == second['actionId']
+
+
+def test_an_update_may_repeat_the_actions_of_the_node_it_starts_at() -> None:
+    action = photo()
+    update = {**order('o', node('b', 2, 1.0, 0.0, action), node('c', 4, 2.0, 0.0)),
+              'orderUpdateId': 1}  # fmt: skip
+
+    segment = PLANNER.plan(update, 'o/update/1', True, action_ids_in_use={action['actionId']})
+
+    assert [t.task_id for t in segment.steps] == ['o/c/4']
+
+
+def test_an_action_id_that_makes_a_drives_task_id_is_a_validation_error() -> None:
+    clash = {**photo(), 'actionId': 'b/2'}
+    edge_clash = order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0))
+    edge_clash['edges'][0]['actions'] = [clash]
+
+    assert rejection(order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0, clash))) == (
+        'validationError',
+        {'topic': 'order', 'headerId': '', 'orderId': 'o', 'orderUpdateId': '0', 'actionId': 'b/2'},
+    )
+    assert rejection(edge_clash)[1]['actionId'] == 'b/2'  # the edge's action comes first
+    with pytest.raises(OrderRejectedError, match='the drive to node b'):
+        PLANNER.plan(order('o', node('b', 2, 1.0, 0.0)), 'o', False, task_ids_in_use={'o/b/2'})
+
+
+def test_a_base_of_more_tasks_than_a_mission_takes_is_a_validation_error() -> None:
+    nodes = [node(f'n{i}', 2 * i, float(i), 0.0, photo(), photo()) for i in range(334)]
+
+    error_type, _ = rejection(order('o', *nodes))
+
+    assert error_type == 'validationError'
+    with pytest.raises(OrderRejectedError, match='makes 1002 tasks'):
+        PLANNER.plan(order('o', *nodes), 'o', False)

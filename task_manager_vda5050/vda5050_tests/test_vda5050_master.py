@@ -138,7 +138,7 @@ def test_a_malformed_order_is_reported_and_the_vehicle_still_takes_orders(master
     order_error, text_error = [e for e in state['errors'] if e['errorType'] == 'validationError']
     references = {r['referenceKey']: r['referenceValue'] for r in order_error['errorReferences']}
     assert references == {'topic': 'order', 'field': 'nodes/0/sequenceId'}
-    assert 'not JSON' in text_error['errorDescription']
+    assert 'not valid JSON' in text_error['errorDescription']
     assert state['orderId'] == ''
     master.command('order', order=order('order-good', node('home', 0, 0.0, 0.0)))
     done = processed(master, 'order-good')

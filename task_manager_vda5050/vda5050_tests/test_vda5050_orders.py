@@ -3,7 +3,6 @@ adapter, the demo robot's Task Manager and a real mosquitto; the master of
 test_vda5050_master.py sends and watches (its `raw` command for what it would not send)."""
 
 import itertools
-import json
 from typing import Any
 
 import pytest
@@ -11,26 +10,20 @@ import pytest
 from task_manager.client import TaskManagerClient
 from task_manager.core.status import TaskStatus
 from task_manager_vda5050.testing import (
-    MANUFACTURER,
-    SERIAL,
     Master,
     edge,
     ended,
+    errors_of,
     latest_state,
     node,
     order,
     photo,
     processed,
+    refs,
+    with_header,
 )
-from task_manager_vda5050.topics import timestamp
 
 pytestmark = pytest.mark.ros
-
-
-def with_header(document: dict[str, Any], header_id: int = 1) -> str:
-    header = {'headerId': header_id, 'timestamp': timestamp(), 'version': '2.0.0',
-              'manufacturer': MANUFACTURER, 'serialNumber': SERIAL}  # fmt: skip
-    return json.dumps({**header, **document})
 
 
 def horizon(document: dict[str, Any], *nodes: dict[str, Any]) -> dict[str, Any]:
@@ -44,19 +37,6 @@ def horizon(document: dict[str, Any], *nodes: dict[str, Any]) -> dict[str, Any]:
         'nodes': [*document['nodes'], *unreleased],
         'edges': [*document['edges'], *edges],
     }
-
-
-def errors_of(master: Master, error_type: str, count: int = 1) -> list[dict[str, Any]]:
-    """The errors of `error_type` of the first state that has `count` of them."""
-
-    def found(state: dict[str, Any]) -> list[dict[str, Any]]:
-        return [e for e in state['errors'] if e['errorType'] == error_type]
-
-    return found(latest_state(master, lambda s: len(found(s)) == count, error_type))
-
-
-def refs(error: dict[str, Any]) -> dict[str, str]:
-    return {r['referenceKey']: r['referenceValue'] for r in error['errorReferences']}
 
 
 def test_an_update_extends_the_running_order_from_its_last_base_node(
