@@ -1,41 +1,56 @@
 """One request message, read without trusting it: a request to run, or why it is refused.
 
-Before anything parses it, its size, its UTF-8 and how deep it nests are checked (a
-parser recurses into each level: 5,000 levels raise RecursionError), and a retained one is
+Before anything parses it, its size, how deep it nests and its UTF-8 are checked, and then it
+must be plain JSON (no key twice, no NaN): the shared reader of every door,
+`task_manager.protocol.strict_json`, in time linear in the message's length. A retained one is
 refused (it would run again at every reconnection). A refusal is answered with an error
 reply when the message has a usable `request_id` to address it to, and is otherwise a dead
 letter: the request_id is read from the parsed document, or, of a message too large, too
-deep or broken to parse, by a scan of its top level. Nothing here raises, whatever the
-payload, and nothing here reaches a Task Manager.
+deep or broken to parse, by a scan of its top level (linear too). Nothing here raises,
+whatever the payload, and nothing here reaches a Task Manager.
 
-`load_json` is the same guard for the documents the FleetClient receives from robots.
+`load_json` is the same depth guard for the documents the FleetClient receives from robots.
 """
 
 import json
 import re
 from dataclasses import dataclass
-from itertools import accumulate
 from typing import Any
 
 from pydantic import ValidationError
 
 from task_manager.protocol import models, mqtt
 from task_manager.protocol.errors import describe
+from task_manager.protocol.strict_json import MAX_DEPTH, RefusedJsonError, deeper_than, load
 
-MAX_DEPTH = 32
-"""Nesting levels (objects and arrays) a request may have; a mission's task_data uses ~6."""
 OPS = (
     'start_task', 'start_mission', 'cancel', 'stop', 'history', 'reprioritize', 'why', 'pause',
     'resume', 'schedule', 'unschedule', 'enable_schedules', 'schedules', 'confirm',
 )  # fmt: skip
 
-# a JSON string (escapes included) and each structural character; anything else between
-_TOKEN = re.compile(rb'"[^"\\]*(?:\\.[^"\\]*)*"|[{}\[\]:,]', re.DOTALL)
-_STRING = re.compile(rb'"[^"\\]*(?:\\.[^"\\]*)*"', re.DOTALL)
-_NOT_BRACKET = re.compile(rb'[^\[\]{}]+')
-# key: byte, value: its step in nesting depth
-_DEPTH_STEP = tuple(1 if b in b'[{' else -1 if b in b']}' else 0 for b in range(256))
-_REQUEST_ID_KEY = b'"request_id"'
+_SPACE = rb'[ \t\n\r]*+'
+_STRING = rb'"[^"\\]*+(?:\\.[^"\\]*+)*+"'
+_OTHER = rb'[^\[\]{}"]++'
+"""In an object or array: anything but a string or a bracket."""
+
+
+def _container(levels: int) -> bytes:
+    """An object or array nested at most `levels` deep, as a regular expression."""
+    content = _STRING + b'|' + _OTHER
+    for _ in range(levels - 1):
+        content = rb'[\[{](?:' + content + rb')*+[\]}]|' + _STRING + b'|' + _OTHER
+    return rb'[\[{](?:' + content + rb')*+[\]}]'
+
+
+_VALUE = rb'(?:' + _STRING + rb'|[^ \t\n\r\[\]{}",:]++|' + _container(MAX_DEPTH - 1) + rb')'
+_TOP_LEVEL_REQUEST_ID = re.compile(
+    _SPACE + rb'\{(?:' + _SPACE + rb'(?!"request_id"' + _SPACE + rb':)' + _STRING + _SPACE + rb':'
+    + _SPACE + _VALUE + _SPACE + rb',)*+' + _SPACE + rb'"request_id"' + _SPACE + rb':' + _SPACE
+    + rb'(?P<request_id>' + _STRING + rb')',
+    re.DOTALL,
+)  # fmt: skip
+"""From the start of a message: `{`, its keys and values (nested at most MAX_DEPTH levels
+with the object), up to a key `request_id` and its string value."""
 
 
 @dataclass(frozen=True)
@@ -69,21 +84,10 @@ def decode(payload: bytes, max_payload_bytes: int, retained: bool = False) -> De
 
 
 def _decode(payload: bytes, max_payload_bytes: int, retained: bool) -> Decoded:
-    if len(payload) > max_payload_bytes:
-        message = f'the request is {len(payload)} bytes; at most {max_payload_bytes} allowed'
-        return _refused(payload[:max_payload_bytes], 'payload_too_large', message)
     try:
-        text = payload.decode()
-    except UnicodeDecodeError as error:
-        message = f'not UTF-8 text: byte 0x{payload[error.start]:02x} at offset {error.start}'
-        return _refused(payload, 'invalid_request', message)
-    if deeper_than(payload, MAX_DEPTH):
-        message = f'the request nests deeper than {MAX_DEPTH} levels; at most {MAX_DEPTH} allowed'
-        return _refused(payload, 'nesting_too_deep', message)
-    try:
-        document = json.loads(text)
-    except ValueError as error:
-        return _refused(payload, 'invalid_request', f'not valid JSON: {error}')
+        document = load(payload, MAX_DEPTH, max_payload_bytes)
+    except RefusedJsonError as refused:
+        return _refused(payload[:max_payload_bytes], refused.code, refused.message)
     if not isinstance(document, dict):
         return Decoded(error=refusal('invalid_request', 'the message must be a JSON object'))
     op = document.get('op')
@@ -98,7 +102,7 @@ def _decode(payload: bytes, max_payload_bytes: int, retained: bool) -> Decoded:
         )
         return Decoded(request_id, op, error=refusal('retained_request', message))
     try:
-        request = mqtt.RobotRequest.model_validate_json(payload).root
+        request = mqtt.RobotRequest.model_validate(document).root
     except ValidationError as error:
         return Decoded(request_id, op, error=_invalid(error))
     return Decoded(request_id, op, request=request)
@@ -131,59 +135,16 @@ def _id_problem(document: dict[str, Any]) -> dict[str, str]:
     return refusal('invalid_request', message, 'request_id')
 
 
-def deeper_than(payload: bytes, levels: int) -> bool:
-    """Whether the JSON text `payload` nests objects and arrays deeper than `levels`.
-
-    Linear, without recursion: strings are skipped (brackets in them do not count), then
-    the depth is the highest running sum of +1 per opening and -1 per closing bracket.
-    """
-    brackets = _NOT_BRACKET.sub(b'', _STRING.sub(b'', payload))
-    if len(brackets) <= levels:
-        return False
-    return max(accumulate(map(_DEPTH_STEP.__getitem__, brackets))) > levels
-
-
 def top_level_request_id(payload: bytes) -> str:
-    """The `request_id` of a top-level JSON object, read from its tokens without parsing it
-    (it may be too large, too deep, or broken further on); empty if there is none usable."""
-    tokens = _TOKEN.finditer(payload)
-    first = next(tokens, None)
-    if first is None or first.group() != b'{' or payload[: first.start()].strip():
-        return ''
-    depth = 1
-    key = b''
-    expected = 'key'  # at depth 1: key, colon, value, then comma (or the end)
-    for match in tokens:
-        token = match.group()
-        if depth == 1:
-            if expected == 'key':
-                if not token.startswith(b'"'):
-                    return ''
-                key, expected = token, 'colon'
-                continue
-            if expected == 'colon':
-                if token != b':':
-                    return ''
-                expected = 'value'
-                continue
-            if expected == 'value' and key == _REQUEST_ID_KEY:
-                return _id_of_token(token)
-            if token == b',':  # after a value (a number, true...: not a token here)
-                expected = 'key'
-                continue
-            if token == b'}':
-                return ''
-            expected = 'comma'
-        if token in (b'{', b'['):
-            depth += 1
-        elif token in (b'}', b']'):
-            depth -= 1
-    return ''
+    """The `request_id` of a top-level JSON object, read by one regular expression without
+    parsing the object (it may be too large, too deep, or broken further on): the keys and
+    values before it (each nested at most MAX_DEPTH levels) are passed over; empty if there
+    is none usable."""
+    found = _TOP_LEVEL_REQUEST_ID.match(payload)
+    return _id_of_token(found.group('request_id')) if found else ''
 
 
 def _id_of_token(token: bytes) -> str:
-    if not token.startswith(b'"'):
-        return ''
     try:
         return _usable_id(json.loads(token))
     except ValueError:

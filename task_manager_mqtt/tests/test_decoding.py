@@ -1,21 +1,18 @@
 """Fuzzing the request decoder: any bytes, any JSON, any depth and size get exactly one reply
-or one dead letter, and nothing raises (no broker, no ROS: nothing can start here)."""
+or one dead letter, and nothing raises (no broker, no ROS: nothing can start here); a message
+up to the limit is read in linear time, whatever it holds (issue 37, item 4)."""
 
 import json
+import time
 from typing import Any
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from task_manager.protocol import models, mqtt
-from task_manager_mqtt.decoding import (
-    MAX_DEPTH,
-    OPS,
-    decode,
-    deeper_than,
-    load_json,
-    top_level_request_id,
-)
+from task_manager.protocol.strict_json import MAX_DEPTH
+from task_manager_mqtt.decoding import OPS, decode, load_json, top_level_request_id
 from task_manager_mqtt.requests import RequestHandler
 
 MAX_BYTES = 4096
@@ -95,10 +92,13 @@ def test_any_message_gets_one_reply_or_one_dead_letter(payload: bytes, retained:
 
 @settings(max_examples=EXAMPLES // 2, deadline=None)
 @given(value=json_values)
-def test_the_depth_check_agrees_with_the_parsed_document(value: Any) -> None:
+def test_the_fleet_client_reads_any_json_within_the_depth(value: Any) -> None:
     text = json.dumps(value).encode()
-    assert deeper_than(text, MAX_DEPTH) == (depth_of(value) > MAX_DEPTH)
-    assert json.dumps(load_json(text)) == text.decode()  # (NaN is not equal to itself)
+    if depth_of(value) > MAX_DEPTH:
+        with pytest.raises(ValueError, match='nested deeper than 32 levels'):
+            load_json(text)
+    else:
+        assert json.dumps(load_json(text)) == text.decode()  # (NaN is not equal to itself)
 
 
 @settings(max_examples=EXAMPLES // 2, deadline=None)
@@ -136,3 +136,56 @@ def test_a_request_nested_5000_deep_is_refused_by_its_id() -> None:
     kind, reply = outcome(payload, retained=False, max_bytes=1 << 20)
     assert kind == 'reply' and reply.error.code == 'nesting_too_deep'
     assert f'at most {MAX_DEPTH}' in reply.error.message
+
+
+LIMIT = 1 << 20
+"""The bridge's default --max-payload-bytes."""
+DECODE_MAX_SEC = 0.2
+"""The most one message up to the limit may take to be read (~30 ms here; before issue 37, a
+message of 64 kB of escaped quotes took 9 s, and the bridge answered nothing else meanwhile)."""
+
+
+def filled(head: bytes, unit: bytes, tail: bytes = b'') -> bytes:
+    """`head`, `unit` as many times as fit in LIMIT bytes with `tail`, then `tail`."""
+    return head + unit * ((LIMIT - len(head) - len(tail)) // len(unit)) + tail
+
+
+# each: a message up to the limit, the request_id its reply goes to ('': a dead letter), code
+ADVERSARIAL = {
+    'escaped quotes': (filled(b'"', b'\\"'), '', 'invalid_request'),
+    'escaped quotes, then the id': (filled(b'{"x": "', b'\\"', b'", "request_id": "r"'), 'r',
+                                    'invalid_request'),
+    'the id, then escaped quotes': (filled(b'{"request_id": "r", "x": "', b'\\"'), 'r',
+                                    'invalid_request'),
+    'backslashes': (filled(b'{"request_id": "r", "x": "', b'\\'), 'r', 'invalid_request'),
+    'brackets in strings, then the id': (
+        filled(b'{"x": [', b'"[{\\"",', b'""], "request_id": "r"'), 'r', 'invalid_request'
+    ),
+    'nested, the id, deep brackets': (
+        filled(b'{"x": [', b'[[[]]],', b'[]], "request_id": "r", "y": ' + b'[' * 40), 'r',
+        'nesting_too_deep'
+    ),
+    'the id, then deep brackets': (filled(b'{"request_id": "r", "x": ', b'['), 'r',
+                                   'nesting_too_deep'),
+    'unicode escapes': (filled(b'{"request_id": "r", "x": "', b'\\uD83D\\uDE00'), 'r',
+                        'invalid_request'),
+    'over the limit': (filled(b'{"request_id": "r", "x": "', b'\\"') + b'\\"', 'r',
+                       'payload_too_large'),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ('payload', 'request_id', 'code'), ADVERSARIAL.values(), ids=list(ADVERSARIAL.keys())
+)
+def test_a_message_up_to_the_limit_is_read_in_linear_time(
+    payload: bytes, request_id: str, code: str
+) -> None:
+    took = []
+    for _ in range(3):  # the shortest of three: the decoder's own time (CPU, this thread's)
+        started = time.thread_time()
+        decoded = decode(payload, LIMIT)
+        took.append(time.thread_time() - started)
+
+    assert decoded.error is not None
+    assert (decoded.request_id, decoded.error['code']) == (request_id, code)
+    assert min(took) < DECODE_MAX_SEC, f'{min(took) * 1000:.1f} ms'

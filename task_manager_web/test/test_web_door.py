@@ -1,17 +1,21 @@
 """The gateway's door against a real gateway process, without a Task Manager: what it answers
 before any request reaches a node (headers, Host, token, body, slow heads, the access log).
 
-One gateway serves the module: nothing here changes it.
+One gateway serves the module: nothing here changes it. The last test has a gateway of its
+own, with a Task Manager: what a body costs the door before it knows who sent it.
 """
 
 import socket
+import threading
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import httpx
 import pytest
 
-from task_manager.testing.gateway import TIMEOUT_SEC, check
+from task_manager.core.bounds import TASK_DATA_MAX_BYTES
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
 from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
@@ -217,3 +221,59 @@ def test_the_access_log_has_every_request_and_no_token(
     assert 'token=<removed>' in encoded
     access_lines = [line for line in gateway.log_lines if ' HTTP/1.1" ' in line]
     assert not [line for line in access_lines if 'door-token' in line or 'secret-2' in line]
+
+
+ESCAPED_QUOTES = b'"' + b'\\"' * (TASK_DATA_MAX_BYTES // 2 - 1)
+"""1 MiB of `"\\"\\"...`, a string never closed: the door's depth check of old took 36 s for 128
+kB of it (issue 37, item 4), the event loop blocked all along."""
+STOP_MAX_SEC = 2.0
+
+
+def test_a_large_body_without_a_token_does_not_delay_an_operators_stop(
+    robot: Robot, tmp_path: Path
+) -> None:
+    token_file = tmp_path / 'tokens'
+    token_file.write_text('operator operator-token-0123456789 alice\n')
+    gateway = GatewayProcess(token_file)
+    anyone = httpx.Client(base_url=gateway.url, timeout=TIMEOUT_SEC)
+    alice = httpx.Client(
+        base_url=gateway.url,
+        headers={'Authorization': 'Bearer operator-token-0123456789'},
+        timeout=TIMEOUT_SEC,
+    )
+    answers: list[httpx.Response] = []
+    done = threading.Event()
+
+    def send_bodies() -> None:
+        """The large body, again and again, without a token, until the stop has its answer."""
+        while not done.is_set():
+            answers.append(
+                anyone.post(
+                    '/api/tasks/start',
+                    content=ESCAPED_QUOTES,
+                    headers={'Content-Type': 'application/json'},
+                )
+            )
+
+    sender = threading.Thread(target=send_bodies)
+    try:
+        wait_until(lambda: alice.get('/api/health').json()['connected'], 'gateway connected')
+        sender.start()
+        wait_until(lambda: answers, 'the first large body answered')
+        began = time.monotonic()
+        stop = alice.post('/api/stop')
+        stop_sec = time.monotonic() - began
+        done.set()
+        sender.join()
+    finally:
+        done.set()
+        anyone.close()
+        alice.close()
+        assert gateway.stop() == 0, '\n'.join(gateway.log_lines)
+
+    assert stop.status_code == 200, stop.text
+    assert (stop.json()['status'], stop.json()['source']) == ('DONE', 'WEB:alice')
+    assert stop_sec < STOP_MAX_SEC, f'the stop took {stop_sec:.2f} s'
+    assert {(a.status_code, a.json()['error']['code']) for a in answers} == {
+        (422, 'invalid_request')
+    }

@@ -1,25 +1,30 @@
-"""A request's JSON text, read without trusting it.
+"""A request's JSON text, read without trusting it: the one reader of every door (the web
+gateway's bodies, the MQTT bridge's requests, the VDA 5050 adapter's messages).
 
-How deep it nests is checked before it is parsed (a parser recurses into each level: 5,000
-levels raise RecursionError), and what Python's parser takes but a request must not hold is
-refused: a key twice in one object (the parser keeps the last one, another reader may keep
-the first), and NaN, Infinity and numbers too large for a float (not JSON; the Task Manager
-would refuse the task later, as task_data_parsing_failed).
+Its size and how deep it nests are checked before it is parsed (a parser recurses into each
+level: 5,000 levels raise RecursionError), in time linear in its length whatever it holds
+(a door runs it before it knows who sent the request), and what Python's parser takes but a
+request must not hold is refused: a key twice in one object (the parser keeps the last one,
+another reader may keep the first), and NaN, Infinity and numbers too large for a float (not
+JSON; the Task Manager would refuse the task later, as task_data_parsing_failed).
 """
 
+import functools
 import json
 import math
 import re
-from itertools import accumulate
 from typing import Any
 
-MAX_DEPTH = 32
+from task_manager.core.bounds import JSON_MAX_DEPTH, cut_text
+
+MAX_DEPTH = JSON_MAX_DEPTH
 """Nesting levels (objects and arrays) a request may have; a mission's task_data uses ~6."""
 
-_STRING = re.compile(rb'"[^"\\]*(?:\\.[^"\\]*)*"', re.DOTALL)
-_NOT_BRACKET = re.compile(rb'[^\[\]{}]+')
-# key: byte, value: its step in nesting depth
-_DEPTH_STEP = tuple(1 if b in b'[{' else -1 if b in b']}' else 0 for b in range(256))
+# every byte but a quote and a bracket (deleted), and the braces as brackets
+_NOT_MARK = bytes(b for b in range(256) if b not in b'"[]{}')
+_AS_BRACKET = bytes.maketrans(b'{}', b'[]')
+_STRING = rb'"[^"]*+"'
+"""A string once only quotes and brackets are left: it holds brackets, which do not count."""
 
 
 class RefusedJsonError(ValueError):
@@ -34,18 +39,46 @@ class RefusedJsonError(ValueError):
 def deeper_than(payload: bytes, levels: int) -> bool:
     """Whether the JSON text `payload` nests objects and arrays deeper than `levels`.
 
-    Linear, without recursion: strings are skipped (brackets in them do not count), then
-    the depth is the highest running sum of +1 per opening and -1 per closing bracket.
+    Linear, without recursion and without a step per byte in Python:
+
+    1. the escapes `\\\\` and `\\"` are taken out, from left to right as a string reads them
+       (JSON has no backslash outside a string: a parser stops there, so what follows it
+       cannot make the parser recurse);
+    2. every byte but the quotes and brackets is deleted, braces become brackets, and two
+       quotes side by side are dropped (an empty string, or two strings with nothing between
+       them: no bracket changes sides); a string left open runs to the end and is cut;
+    3. one regular expression then reads the brackets outside the strings, with a group
+       for each level up to `levels`: it fails exactly when a bracket opens deeper.
+       A close with nothing open is passed over (a parser stops there too), and closes are
+       added at the end so that brackets left open are closed.
     """
-    brackets = _NOT_BRACKET.sub(b'', _STRING.sub(b'', payload))
-    if len(brackets) <= levels:
+    text = payload.replace(b'\\\\', b'').replace(b'\\"', b'')
+    marks = text.translate(_AS_BRACKET, _NOT_MARK)
+    if marks.count(b'[') <= levels:
         return False
-    return max(accumulate(map(_DEPTH_STEP.__getitem__, brackets))) > levels
+    marks = marks.replace(b'""', b'')
+    if marks.count(b'"') % 2:
+        marks = marks[: marks.rindex(b'"')]
+    return _nested_within(levels).fullmatch(marks + b']' * (levels + 1)) is None
 
 
-def load(payload: bytes, max_depth: int = MAX_DEPTH) -> Any:
+@functools.cache
+def _nested_within(levels: int) -> re.Pattern[bytes]:
+    """Brackets and strings (step 3 of deeper_than), the brackets `levels` deep at most."""
+    content = _STRING  # what the deepest group may hold
+    for _ in range(levels):
+        group = rb'\[(?:' + content + rb')*+\]'
+        content = group + b'|' + _STRING
+    return re.compile(rb'(?:' + content + rb'|\]++)*+')
+
+
+def load(payload: bytes, max_depth: int = MAX_DEPTH, max_bytes: int | None = None) -> Any:
     """The document in `payload`; RefusedJsonError for anything not plain JSON of at most
-    `max_depth` levels, with a duplicate key or a number that is not finite."""
+    `max_bytes` bytes (None: any size) and `max_depth` levels, with a duplicate key or a
+    number that is not finite."""
+    if max_bytes is not None and len(payload) > max_bytes:
+        message = f'the request is {len(payload)} bytes; at most {max_bytes} allowed'
+        raise RefusedJsonError('payload_too_large', message)
     if deeper_than(payload, max_depth):
         raise RefusedJsonError(
             'nesting_too_deep',
@@ -77,7 +110,7 @@ def _without_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     for key, value in pairs:
         if key in document:
             raise RefusedJsonError(
-                'invalid_request', f'the key {key!r} is given twice in one object'
+                'invalid_request', f'the key {cut_text(key)!r} is given twice in one object'
             )
         document[key] = value
     return document
