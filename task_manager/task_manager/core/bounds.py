@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 __all__ = [
+    'COUNT',
     'DECISIONS_PER_TASK_MAX',
     'DELAY_SECONDS',
     'ECHO_MAX_CHARACTERS',
@@ -82,8 +83,9 @@ def _number(value: float) -> str:
 SECONDS = NumberBound(0.0, 7 * 24 * 3600.0, 's')
 """Any timeout, wait, grace, backoff or confirmation: at most a week. A ROS timer holds its
 period in signed 64-bit nanoseconds (292 years); a week keeps every sum of them far from it."""
-PERIOD_SECONDS = NumberBound(1.0, 366 * 24 * 3600.0, 's')
-"""A schedule's period: at least a second, at most a year."""
+PERIOD_SECONDS = NumberBound(0.1, 366 * 24 * 3600.0, 's')
+"""A schedule's period: at most ten runs a second (one every 0.001 s ran 200 times a second and
+kept doing so after restarts), at most a year."""
 DELAY_SECONDS = NumberBound(0.0, 366 * 24 * 3600.0, 's')
 """A schedule's delay before its one run: at most a year."""
 EPOCH_SECONDS = NumberBound(0.0, 253_402_300_799.0, 's')
@@ -93,6 +95,8 @@ the last instant a datetime can hold."""
 # ---- numbers ------------------------------------------------------------------------------------
 PRIORITY = NumberBound(-(2**31), 2**31 - 1)
 """A task's priority: the int32 of TaskOptions."""
+COUNT = NumberBound(0, 2**31 - 1)
+"""A count a request gives (a schedule's max_runs)."""
 
 # ---- sizes and counts ---------------------------------------------------------------------------
 TEXT_MAX_CHARACTERS = 256

@@ -11,12 +11,14 @@ from typing import Any
 from zoneinfo import ZoneInfo
 
 from task_manager.core.admission.options import RequestOptions
+from task_manager.core.bounds import DELAY_SECONDS
 from task_manager.core.schedules.schedule import (
     DEFAULT_MISFIRE_GRACE_SEC,
     MIN_PERIOD_SEC,
     OverlapPolicy,
     ScheduleError,
     ScheduleSpec,
+    check_bounds,
     check_cron,
     first_fire_time,
     in_window,
@@ -64,6 +66,7 @@ def parse_schedule_request(
         misfire_grace_sec=grace if grace >= 0 else DEFAULT_MISFIRE_GRACE_SEC,
         options=_options(fields),
     )
+    check_bounds(spec)
     _check_window(spec, now, zone)
     return spec
 
@@ -92,6 +95,8 @@ def _when(fields: Mapping[str, Any], now: float) -> dict[str, Any]:
         raise ScheduleError(
             'delay_sec', f'delay_sec must be more than 0 s, got {number_text(delay)}'
         )
+    if problem := DELAY_SECONDS.problem('delay_sec', delay):
+        raise ScheduleError('delay_sec', problem)
     if period and period < MIN_PERIOD_SEC:
         raise ScheduleError(
             'period_sec',

@@ -18,6 +18,16 @@ from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from croniter import CroniterBadDateError, CroniterError, croniter  # type: ignore[import-untyped]
 
+from task_manager.core.admission.options import RequestOptions
+from task_manager.core.bounds import (
+    COUNT,
+    EPOCH_SECONDS,
+    PERIOD_SECONDS,
+    SECONDS,
+    TASK_DATA_MAX_BYTES,
+    NumberBound,
+)
+
 # A robot reboot plus ROS bring-up takes a few minutes: a nightly 02:00 mission that starts at
 # 02:10 is still the night's mission, while one that starts hours late, when people are around,
 # must not. 15 minutes covers the first and refuses the second.
@@ -27,8 +37,7 @@ DEFAULT_MISFIRE_GRACE_SEC = 900.0
 # arithmetic); past this many the count is a lower bound, so a catch-up never stalls the node.
 CRON_COUNT_LIMIT = 10_000
 
-# Below this, period times would step by less than a float's resolution of an epoch time.
-MIN_PERIOD_SEC = 0.001
+MIN_PERIOD_SEC = PERIOD_SECONDS.low
 
 _CRON_HELP = "5 fields: minute hour day-of-month month day-of-week, e.g. '0 2 * * *'"
 # Steps past local times that a fixed-hour cron skips on a DST fall-back night (at most hours).
@@ -131,14 +140,43 @@ class ScheduleSpec:
 
     @classmethod
     def from_json(cls, text: str) -> 'ScheduleSpec':
-        """The spec stored by to_json; ValueError if it is not one this version can run."""
+        """The spec stored by to_json; ValueError if it is not one this version can run (a
+        ScheduleError naming the field for one outside the bounds, e.g. an older version's)."""
         values = load_fields(_with_options(text), _SPEC_TYPES)
         values['overlap'] = OverlapPolicy(values['overlap'])
         spec = cls(**values)
         zone_of('time_zone', spec.time_zone)
         if spec.cron:
             check_cron(spec.cron)
+        check_bounds(spec)
         return spec
+
+
+def check_bounds(spec: ScheduleSpec) -> None:
+    """Raise ScheduleError naming the first field of `spec` outside its bound (core/bounds.py):
+    the same check for a request and for a schedule read back from the history file."""
+    numbers: list[tuple[str, NumberBound, float | None]] = [
+        ('created', EPOCH_SECONDS, spec.created),
+        ('at', EPOCH_SECONDS, spec.at),
+        ('start', EPOCH_SECONDS, spec.start),
+        ('end', EPOCH_SECONDS, spec.end),
+        ('period_sec', PERIOD_SECONDS, spec.period_sec or None),
+        ('misfire_grace_sec', SECONDS, spec.misfire_grace_sec),
+        ('max_runs', COUNT, spec.max_runs),
+    ]
+    for name, bound, value in numbers:
+        if value is not None and (problem := bound.problem(name, value)):
+            raise ScheduleError(name, problem)
+    if (size := len(spec.task_data.encode())) > TASK_DATA_MAX_BYTES:
+        raise ScheduleError(
+            'task_data', f'task_data is {size} bytes; at most {TASK_DATA_MAX_BYTES} are allowed'
+        )
+    try:
+        options = RequestOptions.from_dict(spec.options)
+    except (TypeError, ValueError) as error:
+        raise ScheduleError('options', f'options: {error}') from None
+    if problem := options.problem():
+        raise ScheduleError('options', f'options: {problem}')
 
 
 _NUMBER = (float, int)

@@ -41,23 +41,25 @@ class ScheduleStore:
         self._db = db
         self._transaction = transaction
 
-    def load(self) -> tuple[list[tuple[ScheduleSpec, ScheduleState]], list[str]]:
-        """Every stored schedule in creation order, and the ids of the rows that cannot be read.
+    def load(self) -> tuple[list[tuple[ScheduleSpec, ScheduleState]], list[tuple[str, str]]]:
+        """Every stored schedule in creation order, and the rows that cannot be run: (id, why).
 
-        A row that cannot be read (corrupt, or written by a newer version) is left as it is, so
-        the version that wrote it can still use it; the caller reports it.
+        A row that cannot be read (corrupt, written by a newer version, or outside the bounds
+        of core/bounds.py, as an older version could store) is left as it is, so the version
+        that wrote it can still use it; the caller reports it.
         """
-        schedules, bad = [], []
+        schedules: list[tuple[ScheduleSpec, ScheduleState]] = []
+        bad: list[tuple[str, str]] = []
         rows = self._db.execute('SELECT schedule_id, spec, state FROM schedules ORDER BY position')
         for schedule_id, spec_text, state_text in rows:
             try:
                 spec = ScheduleSpec.from_json(spec_text)
                 state = ScheduleState.from_json(state_text)
-            except (ValueError, TypeError):  # json's errors and ScheduleError are ValueErrors
-                bad.append(schedule_id)
+            except (ValueError, TypeError) as error:  # json's and ScheduleError are ValueErrors
+                bad.append((schedule_id, str(error)))
                 continue
             if spec.schedule_id != schedule_id:
-                bad.append(schedule_id)
+                bad.append((schedule_id, f'its spec names another schedule, {spec.schedule_id!r}'))
                 continue
             schedules.append((spec, state))
         return schedules, bad

@@ -15,6 +15,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
 from task_manager.core.admission.options import RequestOptions
+from task_manager.core.bounds import cut_text
 from task_manager.core.schedules.book import (
     Firing,
     RunAction,
@@ -62,10 +63,10 @@ class TaskScheduler:
         stored, unreadable = self._store.load()
         for spec, state in stored:
             self.book.add(spec, state)
-        for schedule_id in unreadable:
+        for schedule_id, why in unreadable:
             self._log.error(
-                f'schedule {schedule_id!r} in the history file cannot be read by this version; '
-                'it is left as it is and does not run'
+                f'schedule {cut_text(schedule_id)!r} in the history file cannot be run by this '
+                f'version ({cut_text(why)}); it is left as it is and does not run'
             )
         if stored:
             self._log.info(f'{len(stored)} schedule(s) loaded')

@@ -11,6 +11,7 @@ from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import EnableSchedules, ScheduleTask, Unschedule
 
 from task_manager.core.admission.options import RequestOptions
+from task_manager.core.bounds import SCHEDULES_MAX
 from task_manager.core.schedules.book import ScheduleState
 from task_manager.core.schedules.request import parse_schedule_request
 from task_manager.core.schedules.schedule import (
@@ -101,6 +102,12 @@ class ScheduleTaskRunner:
 
     def _check_task(self, spec: ScheduleSpec) -> None:
         """The scheduled task must exist and take its task_data, and the id must be free."""
+        if len(self._scheduler.book) >= SCHEDULES_MAX:
+            raise TaskDataError(
+                '',
+                f'this Task Manager keeps at most {SCHEDULES_MAX} schedules; remove one first '
+                '(system/unschedule)',
+            )
         if spec.schedule_id in self._scheduler.book:
             raise TaskDataError(
                 'schedule_id',

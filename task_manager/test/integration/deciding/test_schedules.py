@@ -6,6 +6,7 @@ the tests control in test/unit/schedules/.
 """
 
 import json
+import sqlite3
 import time
 from pathlib import Path
 from typing import Any
@@ -297,3 +298,28 @@ def test_a_restart_keeps_schedules_and_runs_a_missed_run_once_within_its_grace(
     assert (too_late.run_count, too_late.missed_count, _seconds(too_late.next_run)) == (0, 1, 0)
     assert second.results_for('too-late-run-1') == []
     assert set(schedules) == {'catch-up', 'too-late'}
+
+
+def test_a_stored_schedule_outside_the_bounds_is_reported_and_set_aside_at_start(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, tmp_path: Path
+) -> None:
+    """An older version stored `period_sec: 1e300`; every read of the schedules then crashed
+    the node, restarts included."""
+    history = tmp_path / 'old.sqlite'
+    first, _ = _launch(ros, launch_task_manager, topic_prefix, history_path=str(history))
+    _schedule(first, 'kept', 'work', 1, period_sec=3600)
+    _schedule(first, 'broken', 'work', 1, period_sec=3600)
+    first.process.stop()  # type: ignore[attr-defined]
+    with sqlite3.connect(history) as db:
+        (text,) = db.execute("SELECT spec FROM schedules WHERE schedule_id = 'broken'").fetchone()
+        db.execute(
+            "UPDATE schedules SET spec = ? WHERE schedule_id = 'broken'",
+            (json.dumps({**json.loads(text), 'period_sec': 1e300}),),
+        )
+
+    second, _ = _launch(ros, launch_task_manager, topic_prefix, history_path=str(history))
+
+    line = second.process.wait_for_log(r"schedule 'broken' .*", TIMEOUT_SEC)  # type: ignore[attr-defined]
+    assert 'period_sec must be from 0.1 to 31622400 s, got 1e+300' in line
+    assert set(_schedules(ros)) == {'kept'}
+    assert second.run('parallel', {'order': 1}).task_status == 'DONE'

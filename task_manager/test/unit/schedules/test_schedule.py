@@ -140,8 +140,16 @@ BAD_REQUESTS = [
     ({'delay_sec': 'soon'}, 'delay_sec', r'must be a finite number of seconds'),
     ({'delay_sec': float('nan')}, 'delay_sec', r'must be a finite number of seconds'),
     ({'period_sec': True}, 'period_sec', r'must be a finite number of seconds'),
-    ({'period_sec': -60}, 'period_sec', r'period_sec must be at least 0.001 s, got -60'),
-    ({'period_sec': 1e-6}, 'period_sec', r'period_sec must be at least 0.001 s'),
+    ({'period_sec': -60}, 'period_sec', r'period_sec must be at least 0.1 s, got -60'),
+    ({'period_sec': 1e-6}, 'period_sec', r'period_sec must be at least 0.1 s'),
+    ({'period_sec': 1e300}, 'period_sec', r'period_sec must be from 0.1 to 31622400 s, got 1e\+300'),
+    ({'delay_sec': 1e300}, 'delay_sec', r'delay_sec must be from 0 to 31622400 s, got 1e\+300'),
+    ({'period_sec': 60, 'misfire_grace_sec': 1e300}, 'misfire_grace_sec',
+     r'misfire_grace_sec must be from 0 to 604800 s, got 1e\+300'),
+    ({'period_sec': 60, 'max_runs': 2**40}, 'max_runs',
+     r'max_runs must be from 0 to 2147483647, got 1099511627776'),
+    ({'period_sec': 60, 'task_data': 'x' * 1_048_577}, 'task_data',
+     r'task_data is 1048577 bytes; at most 1048576 are allowed'),
     ({'cron': '61 * * * *'}, 'cron',
      r"cron '61 \* \* \* \*' is not a cron expression \(5 fields: minute hour day-of-month month "
      r"day-of-week, e.g. '0 2 \* \* \*'\): "),
@@ -369,7 +377,7 @@ def test_a_one_shot_has_one_time_to_catch_up() -> None:
 def test_describe_says_when_it_fires() -> None:
     assert request(at='2026-11-25T02:00:00Z').describe() == 'once at 2026-11-25T02:00:00+00:00'
     assert request(period_sec=7200).describe() == 'every 7200 s'
-    assert request(period_sec=0.5).describe() == 'every 0.5 s'
+    assert request(period_sec=1.5).describe() == 'every 1.5 s'
     assert request(cron='0  2 * * *', time_zone='Europe/Paris').describe() == (
         "cron '0 2 * * *' (Europe/Paris)"
     )
@@ -388,14 +396,14 @@ COMMON = st.fixed_dictionaries(
         'time_zone': st.sampled_from(['UTC', 'Europe/Paris', 'America/New_York']),
         'start': st.none() | NUMBERS,
         'end': st.none() | NUMBERS,
-        'max_runs': st.integers(0, 2**40),
+        'max_runs': st.integers(0, 2**31 - 1),
         'overlap': st.sampled_from(OverlapPolicy),
-        'misfire_grace_sec': NUMBERS,
+        'misfire_grace_sec': st.floats(min_value=0, max_value=604_800),
     }
 )
 WHEN = st.one_of(
     st.fixed_dictionaries({'at': NUMBERS}),
-    st.fixed_dictionaries({'period_sec': st.floats(0.001, 1e9)}),
+    st.fixed_dictionaries({'period_sec': st.floats(0.1, 366 * 24 * 3600.0)}),
     st.fixed_dictionaries({'cron': st.sampled_from(['0 2 * * *', '*/15 * * * *', '0 8 * * 1-5'])}),
 )
 SPECS = st.builds(lambda common, when: ScheduleSpec(**common, **when), COMMON, WHEN)

@@ -1,6 +1,7 @@
 """ScheduleStore: the schedules table in an in-memory SQLite database."""
 
 import contextlib
+import json
 import sqlite3
 from collections.abc import Iterator
 from typing import Any
@@ -152,5 +153,34 @@ def test_a_row_that_cannot_be_read_is_reported_skipped_and_kept(
     schedules, bad = store.load()
 
     assert schedules == [(spec('good'), ScheduleState())]
-    assert bad == ['corrupt', 'newer', 'bad-state', 'renamed']
+    assert [schedule_id for schedule_id, _ in bad] == ['corrupt', 'newer', 'bad-state', 'renamed']
+    assert "its spec names another schedule, 'other'" in dict(bad)['renamed']
     assert db.execute('SELECT count(*) FROM schedules').fetchone()[0] == 5
+
+
+@pytest.mark.parametrize(
+    ('field', 'value', 'why'),
+    [
+        ('period_sec', 1e300, 'period_sec must be from 0.1 to 31622400 s, got 1e+300'),
+        ('period_sec', 0.001, 'period_sec must be from 0.1 to 31622400 s, got 0.001'),
+        ('misfire_grace_sec', 1e300, 'misfire_grace_sec must be from 0 to 604800 s, got 1e+300'),
+        ('start', 1e300, 'start must be from 0 to 253402300799 s, got 1e+300'),
+        ('options', {'priority': 2**40}, 'options: priority must be from -2147483648'),
+    ],
+)
+def test_a_stored_schedule_outside_the_bounds_is_set_aside_with_why(
+    db: sqlite3.Connection, store: ScheduleStore, field: str, value: Any, why: str
+) -> None:
+    """An older version stored such schedules; every read of them crashed the node."""
+    stored = json.loads(spec('old').to_json())
+    stored[field] = value
+    db.execute(
+        'INSERT INTO schedules VALUES (?, ?, ?, ?)',
+        ('old', json.dumps(stored), ScheduleState().to_json(), 1),
+    )
+
+    schedules, bad = store.load()
+
+    assert schedules == []
+    assert [schedule_id for schedule_id, _ in bad] == ['old']
+    assert bad[0][1].startswith(why)
