@@ -40,7 +40,7 @@ HTTP_TIMEOUT_SEC = 30.0
 @contextmanager
 def running_gateway(ctx: BenchContext) -> Iterator[tuple[GatewayProcess, httpx.Client]]:
     token_file = ctx.log_dir / 'web_token'
-    token_file.write_text('bench-token\n')
+    token_file.write_text('bench-token-0123456789\n')
     gateway = GatewayProcess(token_file)
     headers = {'Authorization': f'Bearer {gateway.token}'}
     try:

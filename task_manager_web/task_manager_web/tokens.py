@@ -2,8 +2,11 @@
 
 A token file holds one `ROLE TOKEN [NAME]` line per token; blank lines and comments (from a
 word that starts with `#` to the end of its line) are skipped. A file whose only line is one
-bare token (the format of old) holds an admin token without a name. A line that cannot be
-read stops the gateway with its line number; no message ever shows a token.
+bare token (the format of old) holds an admin token without a name. Every token, in either
+format, has at least TOKEN_MIN_CHARACTERS characters (core/bounds.py) and is given once, and
+every name once; a role word is one of ROLES, and a bare token may not begin with one joined
+to it (`viewer=TOKEN` would be an admin's). A line that cannot be read stops the gateway with
+its line number; no message ever shows a token.
 """
 
 import enum
@@ -14,15 +17,17 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
+from task_manager.core.bounds import TOKEN_MIN_CHARACTERS
+
 GENERATED_NAME = 'admin'
 """The name of the token the gateway makes when it is given no token file."""
-MIN_TOKEN_CHARACTERS = 16
-"""The shortest token of a `ROLE TOKEN [NAME]` line (a bare token of old may be shorter)."""
 NAME = re.compile(r'[A-Za-z0-9._@-]{1,64}')
 """A token's name: it ends up in the source of every task the token starts (`WEB:alice`)."""
 TOKEN = re.compile(r'[!-~]+')
 """A token: printable ASCII without spaces (an HTTP header carries it)."""
 LINE_FORMAT = 'ROLE TOKEN [NAME]'
+JOINED_ROLE = re.compile(r'(?i)(viewer|operator|admin)[=:,;]')
+"""A bare token that begins with a role word and a separator: a `ROLE TOKEN` line mistyped."""
 
 
 class Role(enum.IntEnum):
@@ -87,9 +92,7 @@ def parse_tokens(text: str, where: str) -> tuple[Token, ...]:
         raise TokenFileError(f'{where} holds no token: write one `{LINE_FORMAT}` line per token')
     if len(lines) == 1 and len(lines[0][1]) == 1:
         number, (secret,) = lines[0]
-        if secret in ROLES:
-            raise TokenFileError(f'{where}, line {number}: a role without a token')
-        return (Token(_checked_secret(secret, where, number, 1), Role.ADMIN),)
+        return (_bare_token(secret, where, number),)
     tokens = tuple(_token(words, where, number) for number, words in lines)
     _check_unique(tokens, [number for number, _ in lines], where)
     return tokens
@@ -101,6 +104,18 @@ def _words(lines: Iterable[str]) -> Iterable[tuple[int, list[str]]]:
         words = line.split()
         comment = next((i for i, word in enumerate(words) if word.startswith('#')), len(words))
         yield number, words[:comment]
+
+
+def _bare_token(secret: str, where: str, number: int) -> Token:
+    """The admin token of a file whose only line is one word."""
+    if secret in ROLES:
+        raise TokenFileError(f'{where}, line {number}: a role without a token')
+    if joined := JOINED_ROLE.match(secret):
+        raise TokenFileError(
+            f'{where}, line {number}: a role word joined to a token by {joined[0][-1]!r} would '
+            f"be one bare token, an admin's; write `{LINE_FORMAT}`, the words apart"
+        )
+    return Token(_checked_secret(secret, where, number), Role.ADMIN)
 
 
 def _token(words: list[str], where: str, number: int) -> Token:
@@ -119,29 +134,38 @@ def _token(words: list[str], where: str, number: int) -> Token:
         raise TokenFileError(
             f"{where}, line {number}: a name is 1 to 64 letters, digits, '.', '_', '@' or '-'"
         )
-    return Token(_checked_secret(words[1], where, number, MIN_TOKEN_CHARACTERS), role, name)
+    return Token(_checked_secret(words[1], where, number), role, name)
 
 
-def _checked_secret(secret: str, where: str, number: int, min_characters: int) -> str:
+def _checked_secret(secret: str, where: str, number: int) -> str:
     if not TOKEN.fullmatch(secret):
         raise TokenFileError(
             f'{where}, line {number}: a token is printable ASCII characters without spaces'
         )
-    if len(secret) < min_characters:
+    if len(secret) < TOKEN_MIN_CHARACTERS:
         raise TokenFileError(
             f'{where}, line {number}: the token has {len(secret)} characters; at least '
-            f'{min_characters} are needed (make one: python3 -c "import secrets; '
+            f'{TOKEN_MIN_CHARACTERS} are needed (make one: python3 -c "import secrets; '
             'print(secrets.token_urlsafe(24))")'
         )
     return secret
 
 
 def _check_unique(tokens: tuple[Token, ...], numbers: list[int], where: str) -> None:
-    """One line per token: the same token twice would have two roles or names."""
-    first_line: dict[str, int] = {}  # key: a token, value: the number of its first line
+    """One line per token, and per name: the same token twice would have two roles or names,
+    the same name twice would make two holders one in the history (`WEB:alice`)."""
+    token_line: dict[str, int] = {}  # key: a token, value: the number of its first line
+    name_line: dict[str, int] = {}  # key: a name, value: the number of its first line
     for token, number in zip(tokens, numbers, strict=True):
-        if token.secret in first_line:
+        if token.secret in token_line:
             raise TokenFileError(
-                f'{where}, line {number}: the same token as line {first_line[token.secret]}'
+                f'{where}, line {number}: the same token as line {token_line[token.secret]}'
             )
-        first_line[token.secret] = number
+        if token.name in name_line:
+            raise TokenFileError(
+                f'{where}, line {number}: the same name as line {name_line[token.name]}; '
+                "each name is one holder's"
+            )
+        token_line[token.secret] = number
+        if token.name:
+            name_line[token.name] = number

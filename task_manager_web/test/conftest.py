@@ -23,7 +23,7 @@ from task_manager_web.testing import GatewayProcess, HeldRead, gateway_client
 def start_gateway(tmp_path: Path) -> Iterator[Callable[..., GatewayProcess]]:
     gateways: list[GatewayProcess] = []
     token_file = tmp_path / 'token'
-    token_file.write_text('test-token-1234\n')
+    token_file.write_text('test-token-0123456789\n')
 
     def start(*args: str) -> GatewayProcess:
         gateway = GatewayProcess(token_file, *args)

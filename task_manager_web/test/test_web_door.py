@@ -32,7 +32,7 @@ SECURITY_HEADERS = {
 @pytest.fixture(scope='module')
 def gateway(tmp_path_factory: pytest.TempPathFactory) -> Iterator[GatewayProcess]:
     token_file = tmp_path_factory.mktemp('door') / 'token'
-    token_file.write_text('door-token-5678\n')
+    token_file.write_text('door-token-0123456789\n')
     gateway = GatewayProcess(
         token_file,
         '--access-log',
@@ -211,7 +211,7 @@ def test_a_head_sent_too_slowly_loses_its_connection(gateway: GatewayProcess) ->
 def test_the_access_log_has_every_request_and_no_token(
     gateway: GatewayProcess, http: httpx.Client
 ) -> None:
-    http.get('/api/health', params={'probe': 'access-log', 'token': 'door-token-5678'})
+    http.get('/api/health', params={'probe': 'access-log', 'token': 'door-token-0123456789'})
     http.get('/api/health?probe=encoded&%74oken=secret-2')  # Starlette reads it as `token`
 
     plain = gateway.wait_for_log(r'probe=access-log', TIMEOUT_SEC)

@@ -272,9 +272,13 @@ def test_a_token_file_holds_roles_tokens_and_names_with_comments() -> None:
     )
 
 
-@pytest.mark.parametrize('text', ['short\n', '# the token\n\n  short  \n'])
+BARE = 'bare-0123456789ab'
+"""A bare token of 16 characters, the shortest there may be."""
+
+
+@pytest.mark.parametrize('text', [f'{BARE}\n', f'# the token\n\n  {BARE}  \n'])
 def test_a_file_of_one_bare_token_holds_an_admin_token_without_name(text: str) -> None:
-    assert parse_tokens(text, 'tokens') == (Token('short', Role.ADMIN, ''),)
+    assert parse_tokens(text, 'tokens') == (Token(BARE, Role.ADMIN, ''),)
 
 
 @pytest.mark.parametrize(
@@ -294,10 +298,21 @@ def test_a_file_of_one_bare_token_holds_an_admin_token_without_name(text: str) -
         (f'root {TOKENS[ADMIN]}\n', 'tokens, line 1: the first word is no role'),
         (f'operator {TOKENS[OPERATOR]} al/ice\n', 'tokens, line 1: a name is 1 to 64'),
         ('viewer alice\n', 'tokens, line 1: the token has 5 characters; at least 16'),
+        ('operator short-012345678\n', 'tokens, line 1: the token has 15 characters; at least'),
+        ('short-012345678\n', 'tokens, line 1: the token has 15 characters; at least 16'),
+        ('# one bare token\nx\n', 'tokens, line 2: the token has 1 characters; at least 16'),
+        (f'viewer={TOKENS[VIEWER]}\n', "tokens, line 1: a role word joined to a token by '='"),
+        (f'Operator:{TOKENS[OPERATOR]}\n', "tokens, line 1: a role word joined to a token by ':'"),
+        (f'Viewer {TOKENS[VIEWER]} victor\n', 'tokens, line 1: the first word is no role'),
+        (f'viewers {TOKENS[VIEWER]}\n', 'tokens, line 1: the first word is no role'),
         (f'viewer {TOKENS[VIEWER]}é\n', 'tokens, line 1: a token is printable ASCII'),
         (
             f'viewer {TOKENS[VIEWER]} a\n# b\nadmin {TOKENS[VIEWER]} b\n',
             'tokens, line 3: the same token as line 1',
+        ),
+        (
+            f'viewer {TOKENS[VIEWER]} alice\noperator {TOKENS[OPERATOR]} alice\n',
+            'tokens, line 2: the same name as line 1',
         ),
     ],
 )
@@ -306,7 +321,8 @@ def test_a_bad_token_file_says_which_line_and_never_shows_a_token(text: str, mes
         parse_tokens(text, 'tokens')
 
     assert str(raised.value).startswith(message)
-    assert not any(token in str(raised.value) for token in (*TOKENS.values(), 'alice'))
+    shown = (*TOKENS.values(), 'alice', 'short-012345678')
+    assert not any(token in str(raised.value) for token in shown)
 
 
 def test_the_gateway_does_not_start_with_a_bad_token_file(tmp_path: Path) -> None:

@@ -28,6 +28,7 @@ __all__ = [
     'SECONDS',
     'TASK_DATA_MAX_BYTES',
     'TEXT_MAX_CHARACTERS',
+    'TOKEN_MIN_CHARACTERS',
     'VDA5050_ACTIONS_MAX',
     'VDA5050_ID_MAX_CHARACTERS',
     'VDA5050_INSTANT_ACTIONS_KEPT',
@@ -127,6 +128,9 @@ SCHEDULES_MAX = 1000
 """The schedules one Task Manager keeps."""
 ECHO_MAX_CHARACTERS = 200
 """The most of a caller's own text (an unknown name, a bad value) an error message repeats."""
+TOKEN_MIN_CHARACTERS = 16
+"""The shortest token of the web gateway's token file, whatever the line's format: 16 printable
+characters are over 100 bits when drawn at random (`secrets.token_urlsafe(24)` makes 32)."""
 
 
 # ---- the VDA 5050 adapter ---------------------------------------------------------------------
