@@ -44,6 +44,8 @@ __all__ = [
     'NumberBound',
     'cut_text',
     'duplicate_problem',
+    'ids_problem',
+    'task_data_problem',
 ]
 
 
@@ -167,6 +169,23 @@ VDA5050_INSTANT_ACTIONS_KEPT = 50
 """Instant actions kept in a VDA 5050 state's actionStates: the oldest ended ones beyond go."""
 VDA5050_RESULT_DESCRIPTION_MAX_CHARACTERS = 500
 """An action's resultDescription in a VDA 5050 state (its task's result or error), cut beyond."""
+
+
+def task_data_problem(task_data: str) -> str:
+    """Why a request's task_data is too large; empty when it is not."""
+    if len(task_data) * 4 <= TASK_DATA_MAX_BYTES:  # at most 4 bytes a character: no need to count
+        return ''
+    if (size := len(task_data.encode(errors='surrogatepass'))) > TASK_DATA_MAX_BYTES:
+        return f'task_data is {size} bytes; at most {TASK_DATA_MAX_BYTES} are allowed'
+    return ''
+
+
+def ids_problem(field: str, ids: list[str]) -> str:
+    """Why a list of task ids may not be `field`: more than IDS_MAX, or one given twice (each
+    one would act, and be recorded, again); empty when it may."""
+    if len(ids) > IDS_MAX:
+        return f'{field} has {len(ids)} ids; at most {IDS_MAX} are allowed'
+    return duplicate_problem(field, ids)
 
 
 def duplicate_problem(field: str, ids: list[str]) -> str:

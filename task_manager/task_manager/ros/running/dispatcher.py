@@ -14,6 +14,7 @@ from rclpy.task import Future
 
 from task_manager.core.admission.arbiter import DEFAULT_MAX_QUEUED, Verdict
 from task_manager.core.admission.decisions import DecisionKind
+from task_manager.core.bounds import task_data_problem
 from task_manager.core.errors import TaskRequestError
 from task_manager.core.history.store import TaskHistory
 from task_manager.core.registry import TaskRegistry
@@ -150,6 +151,8 @@ class TaskDispatcher:
         record = self._new_record(request)
         task_id = record.task_id
         if problem := request_problem(task_id, request.task_name, request.source):
+            return self._reject(record, ErrorCode.INVALID_REQUEST, problem), None
+        if problem := task_data_problem(request.task_data):
             return self._reject(record, ErrorCode.INVALID_REQUEST, problem), None
         runner = self.runners_by_name.get(request.task_name)
         if runner is None:

@@ -5,11 +5,12 @@ from typing import Any
 from rclpy.node import Node
 from task_manager_msgs.srv import CancelTasks, StopTasks
 
+from task_manager.core.bounds import ids_problem
 from task_manager.core.status import CancelReason, TaskStatus
 from task_manager.core.system_tasks import CANCEL_TASK_ALIAS_SPEC, CANCEL_TASK_SPEC, STOP_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.message_json import message_from_json
+from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
@@ -36,7 +37,10 @@ class CancelTasksRunner:
         self._dispatcher = dispatcher
 
     def parse(self, task_data: str, task_id: str) -> Any:
-        return message_from_json(CancelTasks.Request, task_data)
+        request = message_from_json(CancelTasks.Request, task_data)
+        if problem := ids_problem('cancelled_tasks', list(request.cancelled_tasks)):
+            raise TaskDataError('cancelled_tasks', problem)
+        return request
 
     async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
         return CoroutineExecution(self._node, self._cancel(list(message.cancelled_tasks), record))

@@ -7,6 +7,7 @@ from rclpy.task import Future
 from task_manager_msgs.action import Mission
 from task_manager_msgs.msg import SubtaskResult
 
+from task_manager.core.bounds import IDS_MAX
 from task_manager.core.json_text import compact_json
 from task_manager.core.mission import MissionProgress, SubtaskRefusal, SubtaskRow
 from task_manager.core.names import MISSION, MISSION_SOURCE
@@ -139,6 +140,10 @@ class MissionRunner:
         """The mission's rows, each checked, and the unskippable problems (key: the field at
         fault, value: why)."""
         goal = message_from_dict(Mission.Goal, _subtask_data_as_text(parse_json_text(task_data)))
+        if len(goal.subtasks) > IDS_MAX:
+            raise TaskDataError(
+                'subtasks', f'{len(goal.subtasks)} subtasks; a mission has at most {IDS_MAX}'
+            )
         for index, subtask in enumerate(goal.subtasks):
             if not subtask.task_name.strip():
                 raise TaskDataError(f'subtasks[{index}].task_name', 'every subtask needs a name')

@@ -7,12 +7,13 @@ from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.srv import PauseTasks, ResumeTasks
 
+from task_manager.core.bounds import ids_problem
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import PAUSE_SPEC, RESUME_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.message_json import message_from_json
+from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
@@ -35,7 +36,10 @@ class _PauseStepRunner:
         raise NotImplementedError
 
     def parse(self, task_data: str, task_id: str) -> Any:
-        return message_from_json(self._request_type, task_data)
+        request = message_from_json(self._request_type, task_data)
+        if problem := ids_problem('task_ids', list(request.task_ids)):
+            raise TaskDataError('task_ids', problem)
+        return request
 
     async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
         return CoroutineExecution(self._node, self._apply(list(message.task_ids), record))

@@ -5,10 +5,11 @@ from typing import Any
 from rclpy.node import Node
 from task_manager_msgs.srv import ReprioritizeTasks
 
+from task_manager.core.bounds import ids_problem
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import REPRIORITIZE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.message_json import message_from_json
+from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
@@ -23,7 +24,10 @@ class ReprioritizeTasksRunner:
         self._dispatcher = dispatcher
 
     def parse(self, task_data: str, task_id: str) -> Any:
-        return message_from_json(ReprioritizeTasks.Request, task_data)
+        request = message_from_json(ReprioritizeTasks.Request, task_data)
+        if problem := ids_problem('task_ids', list(request.task_ids)):
+            raise TaskDataError('task_ids', problem)
+        return request
 
     async def start(self, message: Any, record: TaskRecord) -> CoroutineExecution:
         return CoroutineExecution(self._node, self._apply(message, record))

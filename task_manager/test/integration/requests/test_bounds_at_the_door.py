@@ -56,3 +56,55 @@ def test_a_system_task_duration_beyond_a_week_is_refused_naming_it(
     error = json.loads(refused.task_result)['error']
     assert f"field '{field}'" in error and '604800' in error
     assert tm.run('system/wait', {'duration': 0.01}).task_status == 'DONE'
+
+
+def test_task_data_over_a_mebibyte_is_refused_naming_its_size(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm = launch_task_manager({'drive': action_task('drive', f'{topic_prefix}/drive')})
+    data = json.dumps({'order': 1, 'note': 'x' * 1_048_576})
+
+    refused = tm.run('drive', data)
+
+    assert (refused.task_status, refused.error_code) == ('ERROR', 'invalid_request')
+    assert json.loads(refused.task_result)['error'] == (
+        f'task_data is {len(data)} bytes; at most 1048576 are allowed'
+    )
+
+
+@pytest.mark.parametrize(
+    ('task_name', 'task_data', 'field'),
+    [
+        ('system/cancel_task', {'cancelled_tasks': ['a', 'b', 'a']}, 'cancelled_tasks'),
+        ('system/pause', {'task_ids': ['a', 'a']}, 'task_ids'),
+        ('system/reprioritize', {'task_ids': ['a'] * 1000, 'priority': 5}, 'task_ids'),
+    ],
+)
+def test_an_id_given_twice_is_refused_naming_it(
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    task_name: str,
+    task_data: dict[str, object],
+    field: str,
+) -> None:
+    """Reprioritize with one id 1,000 times added 1,000 decisions to the task per request."""
+    tm = launch_task_manager({'drive': action_task('drive', f'{topic_prefix}/drive')})
+
+    refused = tm.run(task_name, task_data)
+
+    assert (refused.task_status, refused.error_code) == ('ERROR', 'task_data_parsing_failed')
+    assert json.loads(refused.task_result)['error'] == (
+        f"field '{field}': {field} names 'a' more than once; each id at most once"
+    )
+
+
+def test_a_mission_of_more_than_a_thousand_subtasks_is_refused(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    tm = launch_task_manager({'drive': action_task('drive', f'{topic_prefix}/drive')})
+    subtasks = [{'task_name': 'system/wait', 'task_data': '{}'}] * 1001
+
+    refused = tm.run('system/mission', {'subtasks': subtasks})
+
+    assert (refused.task_status, refused.error_code) == ('ERROR', 'task_data_parsing_failed')
+    assert 'a mission has at most 1000' in json.loads(refused.task_result)['error']
