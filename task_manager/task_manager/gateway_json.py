@@ -63,12 +63,12 @@ def task_json(state: TaskState) -> dict[str, Any]:
 
 
 def decisions_json(decisions: list[Decision]) -> list[dict[str, Any]]:
-    """Decision documents, oldest first (`omitted` only where some were left out)."""
+    """Decision documents, oldest first (`omitted` > 0 where some were left out)."""
     return [
-        {'at': iso(each.at), 'decision': each.decision, 'reason': each.reason}
-        | ({'omitted': each.omitted} if each.omitted else {})
+        {'at': iso(each.at), 'decision': each.decision, 'reason': each.reason,
+         'omitted': each.omitted}
         for each in decisions
-    ]
+    ]  # fmt: skip
 
 
 def result_json(result: TaskResult) -> dict[str, Any]:

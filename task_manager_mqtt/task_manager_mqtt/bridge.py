@@ -39,7 +39,7 @@ from task_manager_mqtt.connection import (
 )
 from task_manager_mqtt.decoding import refusal
 from task_manager_mqtt.outbox import ResultOutbox
-from task_manager_mqtt.outgoing import fitted
+from task_manager_mqtt.outgoing import Outgoing
 from task_manager_mqtt.requests import RequestHandler
 from task_manager_mqtt.settings import BridgeSettings, Broker
 from task_manager_mqtt.topics import Topics
@@ -89,6 +89,7 @@ class Bridge:
         self._stopping = False
         self._largest_payload: int = settings.max_payload_bytes
         """Of a message sent: the bridge's limit, or the broker's if smaller."""
+        self._outgoing = Outgoing()
         self._reconnecting = False
         # the rest belongs to the worker
         self._broker_up = False
@@ -125,7 +126,8 @@ class Bridge:
         self._stopping = True
         if self.mqtt.is_connected():
             info = self._publish(self.topics.connection, self._connection('OFFLINE'), 1, True)
-            info.wait_for_publish(OFFLINE_TIMEOUT_SEC)
+            if info is not None:
+                info.wait_for_publish(OFFLINE_TIMEOUT_SEC)
         self.mqtt.disconnect()
         self.mqtt.loop_stop()
         for unsubscribe in self._unsubscribe:
@@ -377,7 +379,10 @@ class Bridge:
     def _publish_result(self, sequence: int, document: dict[str, Any]) -> None:
         self.outbox.before_send()
         info = self._publish(self.topics.result, document, 1, False)
-        self.outbox.mark_sent(sequence, info.mid)
+        if info is None:  # nothing of it fits in a message (logged): it is never sent
+            self.outbox.skip(sequence)
+        else:
+            self.outbox.mark_sent(sequence, info.mid)
 
     # ---- retained state -----------------------------------------------------------------------
 
@@ -418,8 +423,15 @@ class Bridge:
 
     def _publish(
         self, topic: str, document: dict[str, Any], qos: int, retain: bool
-    ) -> mqtt.MQTTMessageInfo:
-        payload = fitted(topic.rsplit('/', 1)[-1], document, self._largest_payload)
+    ) -> mqtt.MQTTMessageInfo | None:
+        """Publish `document`, made to fit in a message (outgoing.py); None if nothing fits.
+
+        Never a message over the limit: the broker would drop the connection, and the MQTT
+        client would send that message again at every reconnection."""
+        name = topic.rsplit('/', 1)[-1]
+        payload = self._outgoing.fitted(name, document, self._largest_payload)
+        if payload is None:
+            return None
         return self.mqtt.publish(topic, payload, qos=qos, retain=retain)
 
 

@@ -479,6 +479,8 @@ class FleetClient:
                 robot.connection = document
             elif name == 'active_tasks':
                 robot.active_tasks = (document or {}).get('tasks', [])
+                omitted = (document or {}).get('omitted')
+                robot.active_tasks_omitted = omitted if isinstance(omitted, int) else 0
             elif name == 'tasks':
                 robot.tasks = (document or {}).get('tasks', [])
             self._changed.notify_all()

@@ -26,6 +26,8 @@ class RobotView:
     robot_id: str
     connection: Document | None = None
     active_tasks: list[Document] = field(default_factory=list)
+    active_tasks_omitted: int = 0
+    """Active tasks left out of `active_tasks` so that its message fit the broker's limit."""
     tasks: list[Document] = field(default_factory=list)
     last_sequence: int = 0
     """Of the last result passed on (results at or below it are duplicates)."""

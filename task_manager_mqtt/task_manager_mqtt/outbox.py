@@ -50,6 +50,14 @@ class ResultOutbox:
             if message_id in early:  # acknowledged before publish() returned
                 self._acknowledge(message_id)
 
+    def skip(self, sequence: int) -> None:
+        """`sequence` will never be sent (nothing of it fits in a message): as acknowledged."""
+        with self._lock:
+            self._early_acks = None
+            self.sent = max(self.sent, sequence)
+            self._unacked[sequence] = True
+            self._advance()
+
     def on_ack(self, message_id: int) -> None:
         """The broker acknowledged message `message_id` (on the MQTT client's thread)."""
         with self._lock:
@@ -80,6 +88,10 @@ class ResultOutbox:
         if sequence not in self._unacked:
             return  # sent before resend_unacked() and not yet again: it will be
         self._unacked[sequence] = True
+        self._advance()
+
+    def _advance(self) -> None:
+        """`acked` past every acknowledged sequence at the head of those unacknowledged."""
         advanced = self.acked
         while self._unacked:
             first = next(iter(self._unacked))

@@ -221,17 +221,28 @@ class Connection(BaseModel):
 
 
 class ActiveTasks(BaseModel):
-    """`<prefix>/<robot_id>/active_tasks` (retained): every active task."""
+    """`<prefix>/<robot_id>/active_tasks` (retained): every active task, or as many as fit in
+    a message (running ones first) and how many were left out."""
 
     timestamp: datetime
     tasks: list[Task]
+    omitted: int = Field(
+        0,
+        ge=0,
+        description="Active tasks left out so that the message fits the broker's size limit "
+        '(the running ones come first); each of them is on the `event` topic as it changes.',
+    )
 
 
 class DeclaredTasks(BaseModel):
-    """`<prefix>/<robot_id>/tasks` (retained): the tasks the robot runs."""
+    """`<prefix>/<robot_id>/tasks` (retained): the tasks the robot runs, or as many as fit in
+    a message and how many were left out."""
 
     timestamp: datetime
     tasks: list[DeclaredTask]
+    omitted: int = Field(
+        0, ge=0, description="Declared tasks left out so that the message fits the broker's limit."
+    )
 
 
 class DeadLetter(BaseModel):
