@@ -1,7 +1,13 @@
 """The gateways' requests as client calls: one function per request document of the protocol,
 used by the web gateway and the MQTT bridge alike, so that both ask the Task Manager the same
-thing for the same document. They block: call them from a worker thread."""
+thing for the same document. They block: call them from a worker thread.
 
+Each door stamps the source of what it starts with its own (`WEB`, `CLOUD`), followed by the
+name of who asked (`WEB:alice`, `CLOUD:alice`): `door_source`. No request through a gateway
+may claim another door's source (`source_priorities` would rank it as that door's).
+"""
+
+import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -15,12 +21,36 @@ from task_manager.client import (
     TaskResult,
     When,
 )
+from task_manager.core.admission.priority import SOURCE_SEPARATOR
 from task_manager.protocol import models
 
+SOURCE_NAME = re.compile(r'[A-Za-z0-9._@-]{1,64}')
+"""A name a door puts after its own source (a web token's, an MQTT request's): no separator in
+it, so that no name can make another door's source."""
+SOURCE_NAME_RULE = "1 to 64 letters, digits, '.', '_', '@' or '-'"
 # the fields of a start's options: the same names as the client's keywords
 OPTION_FIELDS = frozenset(
     {'priority', 'on_conflict', 'timeout_sec', 'queue_timeout_sec', 'feedback_timeout_sec'}
 )
+
+
+def door_source(door: str, name: str = '') -> str:
+    """The source of what `name` starts through the door whose source is `door`: `door`, or
+    `door:name` (`WEB:alice`)."""
+    return f'{door}{SOURCE_SEPARATOR}{name}' if name else door
+
+
+def claimed_source(door: str, claimed: str) -> str:
+    """The source of a start through the door `door` whose request says `claimed`: the door's
+    own for '' or `door`, `door:name` for a name or `door:name`; ValueError (naming what is
+    allowed) for anything else, another door's source among them (`WEB:boss`)."""
+    name = claimed.removeprefix(f'{door}{SOURCE_SEPARATOR}') if claimed != door else ''
+    if name and not SOURCE_NAME.fullmatch(name):
+        raise ValueError(
+            f'source: the name of who asks ({SOURCE_NAME_RULE}), or {door}:<name>; the '
+            f"source is {door}:<name> (empty: {door}), another door's cannot be claimed"
+        )
+    return door_source(door, name)
 
 
 def options_of(

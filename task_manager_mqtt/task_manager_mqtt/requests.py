@@ -7,7 +7,9 @@ one without is a dead letter (see Answer). No Task Manager is `task_manager_unav
 A start whose task id the Task Manager already knows starts nothing: the reply is that
 task, with `duplicate: true`; `why` of a task it does not know is `unknown_task_id`, and
 `unschedule` or `enable_schedules` of a schedule it does not have `unknown_schedule_id`, and
-`confirm` of a task that is no waiting confirmation `not_waiting`. Pause, resume, the
+`confirm` of a task that is no waiting confirmation `not_waiting`. What a start starts has
+the bridge's source, followed by the name the request's `source` gives (`CLOUD:alice`); one
+that claims another door's source (`WEB:boss`) is `invalid_request`. Pause, resume, the
 schedules and confirm go through the same calls as the web gateway's routes
 (`gateway_requests`). Whatever happens, `answer` returns one Answer.
 """
@@ -207,26 +209,34 @@ class RequestHandler:
                 self.client.wait_until_available(NODE_WAIT_SEC)
 
     def _start_task(self, request: mqtt.StartTaskRequest) -> dict[str, Any]:
+        source = self._source_of(request)
         task_id = request.task_id or request.request_id
         if (known := self._known(task_id)) is not None:
             return known
         self.client.wait_until_available()
-        handle = gateway_requests.start_task(
-            self.client, request, task_id=task_id, source=request.source or self.source
-        )
+        handle = gateway_requests.start_task(self.client, request, task_id=task_id, source=source)
         self._remember(handle)
         return _started(handle)
 
     def _start_mission(self, request: mqtt.StartMissionRequest) -> dict[str, Any]:
+        source = self._source_of(request)
         task_id = request.task_id or request.request_id
         if (known := self._known(task_id)) is not None:
             return known
         self.client.wait_until_available()
         handle, subtask_ids = gateway_requests.start_mission(
-            self.client, request, task_id=task_id, source=request.source or self.source
+            self.client, request, task_id=task_id, source=source
         )
         self._remember(handle)
         return {**_started(handle), 'subtask_ids': subtask_ids}
+
+    def _source_of(self, request: mqtt.StartTaskRequest | mqtt.StartMissionRequest) -> str:
+        """The bridge's source (`CLOUD`), followed by the name the request gives, if any
+        (`CLOUD:alice`): never another door's."""
+        try:
+            return gateway_requests.claimed_source(self.source, request.source)
+        except ValueError as error:
+            raise Refusal('invalid_request', str(error), 'source') from None
 
     def _known(self, task_id: str) -> dict[str, Any] | None:
         """The reply to a start of a task id the Task Manager knows (active or ended)."""

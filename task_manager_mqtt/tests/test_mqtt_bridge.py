@@ -77,6 +77,41 @@ def test_a_task_and_a_mission_from_the_cloud(online: FleetClient) -> None:
     assert {t['task_name'] for t in robot.tasks} >= {'fib', 'instant', 'system/mission'}
 
 
+def test_a_start_has_the_bridges_source_never_another_doors(online: FleetClient) -> None:
+    """CLOUD, or CLOUD:<the name the request's source gives> (issue 37, item 3: a start from
+    the cloud claimed WEB:boss, Mission or schedule:nightly, and their source priorities)."""
+    instant = {'task_name': 'instant', 'task_data': {'data': True}}
+    unnamed = online.request(ROBOT, 'start_task', request_id='unnamed', source='', **instant)
+    assert unnamed.result(TIMEOUT_SEC)['ok']
+    named = {
+        claimed: online.start_task(ROBOT, 'instant', {'data': True}, source=claimed)
+        for claimed in ('CLOUD', 'alice', 'CLOUD:bob', 'Mission')
+    }
+    mission = online.start_mission(ROBOT, [instant], source='carol')
+    refused = [
+        online.request(ROBOT, 'start_task', request_id=f'claims-{index}', source=claimed,
+                       **instant).result(TIMEOUT_SEC)
+        for index, claimed in enumerate(['WEB:boss', 'schedule:nightly', 'CLOUD:WEB:boss', 'a b'])
+    ]  # fmt: skip
+
+    sources = {claimed: task.result()['source'] for claimed, task in named.items()}
+    assert sources == {
+        'CLOUD': 'CLOUD',
+        'alice': 'CLOUD:alice',
+        'CLOUD:bob': 'CLOUD:bob',
+        'Mission': 'CLOUD:Mission',
+    }
+    assert mission.result()['source'] == 'CLOUD:carol'
+    for reply in refused:
+        error = check(reply, 'mqtt_reply')['error']
+        assert not reply['ok'] and (error['code'], error['field']) == ('invalid_request', 'source')
+        assert "source: the name of who asks (1 to 64 letters, digits, '.'" in error['message']
+    stored = {t['task_id']: t['source'] for t in online.history(ROBOT, task_name='instant')}
+    assert stored['unnamed'] == 'CLOUD'
+    assert not [task_id for task_id in stored if task_id.startswith('claims-')]
+    assert {s.partition(':')[0] for s in stored.values()} == {'CLOUD', 'Mission'}
+
+
 def test_a_request_delivered_twice_starts_one_task(online: FleetClient) -> None:
     request: dict[str, Any] = {
         'task_name': 'fib',

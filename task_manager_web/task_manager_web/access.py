@@ -24,7 +24,7 @@ from pydantic import BaseModel
 from starlette.datastructures import Headers
 from starlette.types import Scope
 
-from task_manager.core.admission.priority import SOURCE_SEPARATOR
+from task_manager.gateway_requests import door_source
 from task_manager_web.errors import ApiError
 from task_manager_web.tokens import Role, Token
 
@@ -99,8 +99,7 @@ class Access:
         return self._caller_of(self._holder(given, self._find(given) if given else None))
 
     def _caller_of(self, token: Token) -> Caller:
-        source = f'{self._source}{SOURCE_SEPARATOR}{token.name}' if token.name else self._source
-        return Caller(token.role, token.name, source)
+        return Caller(token.role, token.name, door_source(self._source, token.name))
 
     @staticmethod
     def _holder(given: str | None, token: Token | None) -> Token:

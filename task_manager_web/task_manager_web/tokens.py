@@ -18,10 +18,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from task_manager.core.bounds import TOKEN_MIN_CHARACTERS
+from task_manager.gateway_requests import SOURCE_NAME, SOURCE_NAME_RULE
 
 GENERATED_NAME = 'admin'
 """The name of the token the gateway makes when it is given no token file."""
-NAME = re.compile(r'[A-Za-z0-9._@-]{1,64}')
+NAME = SOURCE_NAME
 """A token's name: it ends up in the source of every task the token starts (`WEB:alice`)."""
 TOKEN = re.compile(r'[!-~]+')
 """A token: printable ASCII without spaces (an HTTP header carries it)."""
@@ -131,9 +132,7 @@ def _token(words: list[str], where: str, number: int) -> Token:
         )
     name = words[2] if len(words) == 3 else ''
     if name and not NAME.fullmatch(name):
-        raise TokenFileError(
-            f"{where}, line {number}: a name is 1 to 64 letters, digits, '.', '_', '@' or '-'"
-        )
+        raise TokenFileError(f'{where}, line {number}: a name is {SOURCE_NAME_RULE}')
     return Token(_checked_secret(words[1], where, number), role, name)
 
 
