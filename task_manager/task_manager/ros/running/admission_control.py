@@ -105,8 +105,14 @@ class AdmissionControl:
             self._deadlines.clear((task_id, key))
         for preemption in run.preemptions if not run.preempted else ():
             victim = self._dispatcher.runs_by_id.get(preemption.victim.task_id)
-            if victim is not None and not victim.finished.done():  # never pre-empted after all
-                self.arbiter.reinstate(victim.task_id)
+            if victim is None or victim.finished.done():
+                continue
+            if not self.arbiter.reinstate(victim.task_id):  # never pre-empted after all...
+                # ...but another task took one of its resources meanwhile: it must not run on
+                # holding nothing beside that task, so it is pre-empted as decided
+                reason = f'{preemption.reason}, which ended first; its resources were taken'
+                victim.record.note(DecisionKind.PREEMPTED, reason)
+                self._dispatcher.cancel(victim.task_id, CancelReason.CONFLICT)
         was_queued = self.arbiter.is_queued(task_id)
         started = self.arbiter.release(task_id)
         self._start_queued(started)

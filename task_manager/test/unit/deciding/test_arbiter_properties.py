@@ -75,6 +75,8 @@ class Arbitration(RuleBasedStateMachine):
         self.arbiter = Arbiter()
         self.requests: dict[str, Request] = {}
         self.stopping: list[str] = []
+        # key: a pre-empted task's id, value: the id of the task that pre-empted it
+        self.preempted_by: dict[str, str] = {}
         self.numbers = itertools.count(1)
 
     @initialize(max_queued=st.integers(1, 5))
@@ -226,6 +228,7 @@ class Arbitration(RuleBasedStateMachine):
                 )
                 self.end(victim, State.PREEMPTED)
                 self.stopping.append(victim.task_id)
+                self.preempted_by[victim.task_id] = request.task_id
             for victim in victims:
                 self.end_subtasks(victim)
             return
@@ -263,6 +266,36 @@ class Arbitration(RuleBasedStateMachine):
     def a_preempted_task_has_ended(self, index: int) -> None:
         task_id = self.stopping.pop(index % len(self.stopping))
         self.start(self.arbiter.release(task_id))
+
+    def preemptors_yet_to_cancel(self) -> list[Request]:
+        """Running tasks whose victims are still ending (their cancel may not have begun)."""
+        ids_ = {self.preempted_by[v] for v in self.stopping if v in self.preempted_by}
+        return [r for r in self.in_state(State.RUNNING) if r.task_id in ids_]
+
+    @precondition(lambda self: self.preemptors_yet_to_cancel())
+    @rule(index=st.integers(0, 50))
+    def a_preemptor_gives_up_before_it_cancels(self, index: int) -> None:
+        """It ends before it has cancelled its victims: each one holds its resources again,
+        unless another task took one of them meanwhile; then it stays pre-empted (the node
+        cancels it): it never runs on holding nothing beside that task."""
+        preemptors = self.preemptors_yet_to_cancel()
+        preemptor = preemptors[index % len(preemptors)]
+        victims = [v for v in self.stopping if self.preempted_by.get(v) == preemptor.task_id]
+        for victim in map(self.requests.__getitem__, victims):
+            if any(self.requests[a].state is not State.RUNNING for a in self.ancestors(victim)):
+                continue  # its mission is ending: it cancels the victim
+            lineage = self.ancestors(victim) | {preemptor.task_id}
+            taken = [
+                r
+                for r in self.in_state(State.RUNNING)
+                if r.task_id not in lineage and r.resources & victim.resources
+            ]
+            assert self.arbiter.reinstate(victim.task_id) is not bool(taken), (victim, taken)
+            if not taken:
+                self.stopping.remove(victim.task_id)
+                victim.state = State.RUNNING
+                victim.ends.pop()
+        self.release(preemptor)
 
     @precondition(lambda self: self.in_state(State.QUEUED))
     @rule(index=st.integers(0, 50), priority=st.integers(0, 3))
