@@ -4,7 +4,7 @@ from dataclasses import asdict, dataclass
 from enum import StrEnum
 from typing import Any
 
-from task_manager.core.bounds import PRIORITY, SECONDS
+from task_manager.core.bounds import PRIORITY, SECONDS, cut_text
 
 
 class OnConflict(StrEnum):
@@ -24,7 +24,8 @@ def parse_on_conflict(text: object) -> OnConflict:
         return OnConflict(str(text).strip().lower())
     except ValueError:
         allowed = ', '.join(mode.value for mode in OnConflict)
-        raise ValueError(f'on_conflict must be one of {allowed}, got {text!r}') from None
+        got = cut_text(str(text)) if isinstance(text, str) else text
+        raise ValueError(f'on_conflict must be one of {allowed}, got {got!r}') from None
 
 
 @dataclass(frozen=True)
