@@ -23,11 +23,13 @@ class TimedExecution:
         self._record = record
         self._started = node.get_clock().now()
         self.outcome: Future[TaskEnd] = Future()
-        self._timers: list[Timer] = [node.create_timer(FEEDBACK_PERIOD_SEC, self._publish_feedback)]
+        self._timers: list[Timer] = []
+        # the deadline first: a period rcl refuses must not leave a feedback timer behind
         if deadline_sec is not None:
             self._timers.append(
                 node.create_timer(deadline_sec, lambda: self.end(self.at_deadline()))
             )
+        self._timers.append(node.create_timer(FEEDBACK_PERIOD_SEC, self._publish_feedback))
         self._publish_feedback()
 
     def feedback_at(self, elapsed_sec: float) -> dict[str, Any]:
