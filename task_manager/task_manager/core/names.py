@@ -2,8 +2,10 @@
 
 The node, the client, the gateways and the tests import them from here: the node's name, its
 action, topics and services, the system tasks, the source of a mission's subtasks, and the
-limits a request is held to.
+limits a request is held to (their values in core/bounds.py, the home of every bound).
 """
+
+from task_manager.core import bounds
 
 NODE_NAME = 'task_manager'
 
@@ -63,5 +65,5 @@ HISTORY_QUERY_LIMIT_MAX = 10_000
 """The most rows one /task_manager/query_task_history answer holds."""
 HISTORY_QUERY_LIMIT_DEFAULT = 100
 """The rows of a history query that names no limit."""
-IDS_MAX = 1000
-"""The most task ids in one cancel, and subtasks in one mission, from a gateway."""
+IDS_MAX = bounds.IDS_MAX
+"""The most task ids in one request, and subtasks in one mission (core/bounds.py)."""

@@ -9,7 +9,9 @@ refused in every one of them, and so is an id or source longer than MAX_LENGTH.
 
 import unicodedata
 
-MAX_LENGTH = 256
+from task_manager.core.bounds import TEXT_MAX_CHARACTERS
+
+MAX_LENGTH = TEXT_MAX_CHARACTERS
 """Characters an id or a source may have (a UUID has 36)."""
 LOG_LENGTH = 120
 """Characters of a refused value that its log line shows."""
