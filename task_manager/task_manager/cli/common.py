@@ -13,6 +13,7 @@ import typer
 from rich.console import Console
 
 from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, TaskStatus
+from task_manager.client.records import Decision
 from task_manager.client.tasks import PRIORITY_MAX, PRIORITY_MIN
 from task_manager.core.admission.options import OnConflict
 
@@ -218,12 +219,17 @@ def result_json(result: TaskResult) -> str:
     return json.dumps(data, indent=2, ensure_ascii=False)
 
 
-def finish(result: TaskResult) -> None:
-    """Print a task's result as JSON (and why it failed, or was pre-empted, on stderr); exit
-    with its status' code."""
+# the decisions that end a task (docs/deciding-what-runs.md): why it ended, for stderr
+_ENDING_DECISIONS = ('preempted', 'timeout')
+
+
+def finish(result: TaskResult, decisions: list[Decision] | None = None) -> None:
+    """Print a task's result as JSON (and on stderr why it failed, or, from its `decisions`,
+    why the Task Manager ended it: pre-empted, timed out); exit with its status' code."""
     output.print_json(result_json(result))
-    reason = result.result.get('reason')
-    why = result.error_message or (reason if isinstance(reason, str) else '')
+    why = result.error_message
+    if not why and decisions and decisions[-1].decision in _ENDING_DECISIONS:
+        why = decisions[-1].reason
     if why:
         what = result.error_code or result.status
         progress.print(f'{what}: {why}', markup=False, soft_wrap=True)

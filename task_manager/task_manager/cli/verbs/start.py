@@ -9,7 +9,7 @@ from rich.live import Live
 from rich.spinner import Spinner
 from rich.text import Text
 
-from task_manager import TaskHandle, TaskManagerClient, TaskResult, TaskStatus
+from task_manager import TaskHandle, TaskManagerClient, TaskManagerError, TaskResult, TaskStatus
 from task_manager.cli.common import (
     EXIT_INTERRUPTED,
     connected,
@@ -25,6 +25,7 @@ from task_manager.cli.common import (
     source_option,
     start_option_keywords,
 )
+from task_manager.client.records import Decision
 
 LIVE_REFRESH_PER_SEC = 10
 
@@ -55,7 +56,8 @@ def start(
         if no_wait:
             output.print(handle.task_id)
             return
-        finish(follow(client, handle))
+        result = follow(client, handle)
+        finish(result, why_it_ended(client, result))
 
 
 class LiveLine:
@@ -85,6 +87,17 @@ def status_text(status: TaskStatus, queue_position: int) -> str:
     if status is TaskStatus.QUEUED and queue_position:
         return f'{status} #{queue_position}'
     return str(status)
+
+
+def why_it_ended(client: TaskManagerClient, result: TaskResult) -> list[Decision] | None:
+    """The decisions of a task that ended without an error of its own (pre-empted, timed
+    out: its result is its server's), from the node; None when there is nothing to explain."""
+    if result.status is TaskStatus.DONE or result.error_message:
+        return None
+    try:
+        return client.why(result.task_id)
+    except TaskManagerError:
+        return None
 
 
 def follow(client: TaskManagerClient, handle: TaskHandle) -> TaskResult:

@@ -118,3 +118,17 @@ def test_a_mission_is_started_with_its_options(
     assert json.loads(refused.stdout)['error_code'] == 'resource_busy'
     assert 'drive-1 (priority 9), which holds base' in refused.stderr
     servers['drive'].wait_for_goals(1, TIMEOUT_SEC)[0].succeed()
+
+
+def test_a_timed_out_task_prints_its_servers_result_and_says_why_on_stderr(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    robot(ros, launch_task_manager, topic_prefix)
+
+    ended = taskctl('start', 'drive', '{"order": 1}', '--id', 'slow', '--timeout', '0.5')
+
+    assert ended.returncode == 1
+    printed = json.loads(ended.stdout)
+    assert (printed['status'], printed['error_code']) == ('ERROR', 'timeout')
+    assert printed['result'] == {'sequence': []}  # the server's, nothing added
+    assert ended.stderr.strip().splitlines()[-1] == 'timeout: timed out: ran 0.5 s (timeout_sec)'
