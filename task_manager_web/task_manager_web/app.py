@@ -22,6 +22,7 @@ from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
+from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
@@ -38,7 +39,7 @@ from task_manager_web.access import (
 from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.errors import ApiError, add_error_handlers
 from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
-from task_manager_web.history_csv import history_csv
+from task_manager_web.history_page import history_page
 from task_manager_web.metrics import GatewayMetrics, RequestMetrics, node_snapshot
 from task_manager_web.node_link import EventStream, Link, NodeLink
 from task_manager_web.operator_routes import add_operator_routes
@@ -70,6 +71,8 @@ class Settings:
     """Reads in flight per client (a token's holder, or an address without it); more: 429."""
     metrics_without_token: bool = False
     """GET /metrics without a token (else it needs one, even with read_without_token)."""
+    max_history_bytes: int = HISTORY_PAGE_MAX_BYTES
+    """The largest history page answered (JSON or CSV); a larger one is refused."""
 
 
 def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient]) -> FastAPI:
@@ -106,6 +109,7 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
     app.state.access = access
     metrics = GatewayMetrics()
     app.state.metrics = metrics
+    app.state.max_history_bytes = settings.max_history_bytes
     # the last added is the outermost
     app.add_middleware(
         BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
@@ -286,20 +290,19 @@ def _add_routes(app: FastAPI) -> None:
     @app.get(
         '/api/history',
         tags=['state'],
+        response_model=list[models.Task],
         responses={200: {'content': {'text/csv': {}}}},
     )
-    async def history(_: Viewer, link: Link, query: Annotated[HistoryParameters, Query()]) -> Any:
-        """Ended tasks from the durable history, newest first; format=csv for a spreadsheet."""
+    async def history(
+        request: Request, _: Viewer, link: Link, query: Annotated[HistoryParameters, Query()]
+    ) -> Response:
+        """Ended tasks from the durable history, newest first; format=csv for a spreadsheet.
+        At most --max-history-bytes (8 MiB): a larger page is refused, 422 reply_too_large,
+        saying how many tasks fit."""
         # the query's fields are the client's filters, by the same names
         states = await link.read(link.client.history, **query.model_dump(exclude={'format'}))
         tasks = [task_json(s) for s in states]
-        if query.format == 'csv':
-            return Response(
-                history_csv(tasks),
-                media_type='text/csv',
-                headers={'Content-Disposition': 'attachment; filename="task_history.csv"'},
-            )
-        return [models.Task.model_validate(t) for t in tasks]
+        return history_page(tasks, query.format == 'csv', request.app.state.max_history_bytes)
 
     @app.get(
         '/api/events',

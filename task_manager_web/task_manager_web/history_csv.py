@@ -31,14 +31,25 @@ FORMULA_STARTS = ('=', '+', '-', '@', '\t', '\r')
 
 def history_csv(tasks: list[dict[str, Any]]) -> str:
     """CSV text with a header row, from Task documents; `result` as compact JSON."""
+    return ''.join(csv_lines(tasks))
+
+
+def csv_lines(tasks: list[dict[str, Any]]) -> list[str]:
+    """The header line, then one line per task (lines that a cell's line break continues)."""
     out = io.StringIO()
     # CRLF, as RFC 4180 has it: the writer then also quotes a cell holding a lone CR
     writer = csv.writer(out, lineterminator='\r\n')
-    writer.writerow(COLUMNS)
+    rows: list[list[Any]] = [list(COLUMNS)]
     for task in tasks:
-        row = {**task, 'result': json.dumps(task.get('result'), separators=(',', ':'))}
-        writer.writerow([_cell(row.get(column)) for column in COLUMNS])
-    return out.getvalue()
+        cells = {**task, 'result': json.dumps(task.get('result'), separators=(',', ':'))}
+        rows.append([_cell(cells.get(column)) for column in COLUMNS])
+    lines = []
+    for row in rows:
+        writer.writerow(row)
+        lines.append(out.getvalue())
+        out.seek(0)
+        out.truncate()
+    return lines
 
 
 def _cell(value: Any) -> Any:

@@ -16,6 +16,7 @@ from pathlib import Path
 import uvicorn
 
 from task_manager.client import TaskManagerClient
+from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager.discovery import use_quick_discovery
 from task_manager.secret_file import exposure_warning
 from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
@@ -58,6 +59,13 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument(
         '--max-body-bytes', type=int, default=1_048_576, help='largest request body (1 MiB)'
+    )
+    parser.add_argument(
+        '--max-history-bytes',
+        type=int,
+        default=HISTORY_PAGE_MAX_BYTES,
+        help='largest history page answered, JSON or CSV; a larger one is refused with '
+        'reply_too_large (8 MiB)',
     )
     parser.add_argument(
         '--max-reads-per-client',
@@ -146,6 +154,7 @@ def main(argv: list[str] | None = None) -> None:
         source=arguments.source,
         max_body_bytes=arguments.max_body_bytes,
         max_reads_per_client=arguments.max_reads_per_client,
+        max_history_bytes=arguments.max_history_bytes,
         allowed_hosts=(*LOCAL_HOSTS, arguments.host, *arguments.allowed_host),
     )
     app = create_app(

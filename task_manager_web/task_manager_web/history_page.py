@@ -1,0 +1,51 @@
+"""A page of the history as the gateway answers it, JSON or CSV, of at most `max_bytes`.
+
+A page that would be larger is refused as MQTT refuses a reply over its message size: 422
+`reply_too_large`, naming `limit` and how many of the tasks asked for would fit, so that the
+caller asks for that many and pages on. Nothing is cut silently: a page either holds every
+task asked for or none.
+"""
+
+from typing import Any
+
+from fastapi import Response
+
+from task_manager.core.json_text import compact_json
+from task_manager_web.errors import ApiError
+from task_manager_web.history_csv import csv_lines
+
+JSON_TYPE = 'application/json'
+CSV_HEADERS = {'Content-Disposition': 'attachment; filename="task_history.csv"'}
+
+
+def history_page(tasks: list[dict[str, Any]], as_csv: bool, max_bytes: int) -> Response:
+    """Task documents as a JSON array, or CSV with a header line; ApiError if over max_bytes."""
+    if as_csv:
+        header, *lines = csv_lines(tasks)
+        sizes = [len(line.encode()) for line in lines]
+        _check(sizes, len(header.encode()), max_bytes)
+        return Response(header + ''.join(lines), media_type='text/csv', headers=CSV_HEADERS)
+    documents = [compact_json(task) for task in tasks]
+    sizes = [len(document.encode()) + 1 for document in documents]  # and a comma, or ]
+    _check(sizes, 1, max_bytes)
+    return Response(f'[{",".join(documents)}]', media_type=JSON_TYPE)
+
+
+def _check(sizes: list[int], overhead: int, max_bytes: int) -> None:
+    total = overhead + sum(sizes)
+    if total <= max_bytes:
+        return
+    room, fit = max_bytes - overhead, 0
+    for size in sizes:
+        room -= size
+        if room < 0:
+            break
+        fit += 1
+    raise ApiError(
+        422,
+        'reply_too_large',
+        f'the answer ({len(sizes)} tasks) would be {total} bytes; at most {max_bytes} are '
+        f'answered: ask for fewer (limit; the first {fit} of these fit), and page on with '
+        'after_sequence (oldest_first=true) or until',
+        'limit',
+    )
