@@ -24,6 +24,7 @@ from bench import (
     history,
     isolation,
     leak,
+    memory,
     mission,
     mqtt,
     schedules,
@@ -57,6 +58,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'history': history.run,
     'schedules': schedules.run,
     'leak': leak.run,
+    'memory': memory.run,
     'startup': startup.run,
 }
 

@@ -1,12 +1,17 @@
 """Who may do what on the gateway: a bearer token with a role (tokens.py) on every request.
 
 Each route names the role it needs with one annotation of its caller, `Viewer`, `Operator`
-or `Admin` (`StreamViewer` for the event stream, `MetricsViewer` for /metrics): the rule of
-every route is there. Reading needs a token unless the gateway runs with
+(`StreamViewer` for the event stream, `MetricsViewer` for /metrics), or, for a route that runs
+a system task, `runs(<the task>)`: the role of SYSTEM_TASK_ROLES
+(task_roles.py), the one table of what each system task needs, however a request asks for it.
+A start, a mission and a schedule then check what they start (check_need): a system task
+named in a start, a mission's step or a schedule needs its own role there too, and a priority
+of one's own an admin's. Reading needs a token unless the gateway runs with
 --read-without-token (then anyone reads, as a viewer); /metrics needs one unless
 --metrics-without-token. Tokens are compared in constant time. Only the event stream also
 takes the token as `?token=` (a browser's EventSource cannot send headers). No token, or an
-unknown one: 401 with `WWW-Authenticate: Bearer`; a role below the route's: 403, nothing done.
+unknown one: 401 with `WWW-Authenticate: Bearer`; a role below what is asked: 403, nothing
+done.
 
 Each dependency answers who sent the request, a `Caller`: the source of the tasks it starts
 is set here, never taken from the request (`WEB`, `WEB:<token name>` for a named token), so
@@ -16,7 +21,7 @@ that the history says who did it.
 import secrets
 from collections.abc import Awaitable, Callable, Sequence
 from dataclasses import dataclass
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 from fastapi import Depends, Query, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
@@ -26,6 +31,7 @@ from starlette.types import Scope
 
 from task_manager.gateway_requests import door_source
 from task_manager_web.errors import ApiError
+from task_manager_web.task_roles import SYSTEM_TASK_ROLES, TASK_ROLE, Need, UnreadableTaskDataError
 from task_manager_web.tokens import Role, Token
 
 _BEARER = HTTPBearer(auto_error=False, description='A token of the gateway (its token file).')
@@ -127,6 +133,17 @@ def forbidden(what: str, needed: Role, role: Role, field: str = '', hint: str = 
     return ApiError(403, 'forbidden', message + (f' ({hint})' if hint else ''), field)
 
 
+def check_need(caller: Caller, needed: Callable[[], Need]) -> None:
+    """403 when what `needed` says a request asks for needs a role above the caller's; 422
+    when it cannot be known (a task_data in JSON text that is not plain JSON)."""
+    try:
+        need = needed()
+    except UnreadableTaskDataError as unreadable:
+        raise ApiError(422, 'invalid_request', str(unreadable), unreadable.field) from None
+    if caller.role < need.role:
+        raise forbidden(need.what, need.role, caller.role, field=need.field)
+
+
 def check_start_priority(caller: Caller, priority: int | None) -> None:
     """A start that gives its own priority decides what it pre-empts and overtakes in the
     queue, as reprioritize does: an admin's; an operator's start leaves it out, and runs at
@@ -174,12 +191,16 @@ async def _metrics_viewer(request: Request, credentials: Credentials) -> Caller 
     return _access(request).metrics_caller(given)
 
 
+def runs(task_name: str) -> Any:
+    """The dependency of a route that runs system task `task_name`: the role the table gives
+    it (`caller: Annotated[Caller, runs(REPRIORITIZE)]`)."""
+    return Depends(_needs(SYSTEM_TASK_ROLES[task_name]))
+
+
 Viewer = Annotated[Caller, Depends(_needs(Role.VIEWER))]
 """A request that only reads (any token; none needed with --read-without-token)."""
-Operator = Annotated[Caller, Depends(_needs(Role.OPERATOR))]
-"""A request that starts, cancels, stops, pauses, resumes or confirms (operator or admin)."""
-Admin = Annotated[Caller, Depends(_needs(Role.ADMIN))]
-"""A request that changes the schedules or the priorities (admin)."""
+Operator = Annotated[Caller, Depends(_needs(TASK_ROLE))]
+"""A request that starts a task (what it starts is checked then), or answers a confirmation."""
 StreamViewer = Annotated[Caller, Depends(_stream_viewer)]
 """As Viewer, for the event stream: the header, or `?token=`."""
 MetricsViewer = Annotated[Caller | None, Depends(_metrics_viewer)]

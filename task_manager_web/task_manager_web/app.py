@@ -23,18 +23,21 @@ from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
+from task_manager.core.names import CANCEL_TASK, MISSION, REPRIORITIZE, STOP
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
 from task_manager_web.access import (
     Access,
-    Admin,
+    Caller,
     Identity,
     MetricsViewer,
     Operator,
     StreamViewer,
     Viewer,
+    check_need,
     check_start_priority,
+    runs,
 )
 from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.errors import ApiError, add_error_handlers
@@ -44,6 +47,7 @@ from task_manager_web.metrics import GatewayMetrics, RequestMetrics, node_snapsh
 from task_manager_web.node_link import EventStream, Link, NodeLink
 from task_manager_web.operator_routes import add_operator_routes
 from task_manager_web.read_bound import ReadBound
+from task_manager_web.task_roles import needed_by_steps, needed_to_start
 from task_manager_web.tokens import Token
 
 KEEPALIVE_SEC = 15.0
@@ -196,9 +200,12 @@ def _add_routes(app: FastAPI) -> None:
         The options (priority, on_conflict, timeout_sec, queue_timeout_sec,
         feedback_timeout_sec) are the task's declaration's when left out. A task the Task
         Manager refuses (unknown, bad task_data, a busy resource, ...) is no HTTP error: it
-        ends ERROR with its error code and message. A priority needs role admin.
+        ends ERROR with its error code and message. A priority needs role admin, and a system
+        task the role of its own route (system/reprioritize, system/schedule: admin), in a
+        mission's step or a schedule's task too.
         """
         check_start_priority(caller, body.priority)
+        check_need(caller, lambda: needed_to_start(body.task_name, body.task_data))
         handle = await link.start(
             gateway_requests.start_task,
             link.client,
@@ -216,7 +223,7 @@ def _add_routes(app: FastAPI) -> None:
     )
     async def start_mission(
         body: models.StartMission,
-        caller: Operator,
+        caller: Annotated[Caller, runs(MISSION)],
         link: Link,
         response: Response,
         wait: Wait = False,
@@ -225,9 +232,11 @@ def _add_routes(app: FastAPI) -> None:
         """Start system/mission with these subtasks; its id and the subtasks' ids at once.
 
         Its options are a start's, for the mission as one unit (it queues as one); a
-        priority needs role admin.
+        priority needs role admin, and a step that is a system task the role of its own route.
         """
         check_start_priority(caller, body.priority)
+        steps = [step.model_dump() for step in body.subtasks]
+        check_need(caller, lambda: needed_by_steps(steps, 'subtasks'))
         handle, subtask_ids = await link.start(
             gateway_requests.start_mission,
             link.client,
@@ -238,7 +247,9 @@ def _add_routes(app: FastAPI) -> None:
         return await _started(link, handle, response, wait, timeout_sec, subtask_ids)
 
     @app.post('/api/tasks/cancel', tags=['tasks'])
-    async def cancel_tasks(body: models.CancelTasks, caller: Operator, link: Link) -> models.Task:
+    async def cancel_tasks(
+        body: models.CancelTasks, caller: Annotated[Caller, runs(CANCEL_TASK)], link: Link
+    ) -> models.Task:
         """system/cancel_task: cancel these tasks, whoever started them; its result."""
         result = await link.control(
             gateway_requests.cancel_tasks, link.client, body, source=caller.source
@@ -246,7 +257,9 @@ def _add_routes(app: FastAPI) -> None:
         return models.Task.model_validate(result_json(result))
 
     @app.post('/api/tasks/reprioritize', tags=['tasks'])
-    async def reprioritize(body: models.Reprioritize, caller: Admin, link: Link) -> models.Task:
+    async def reprioritize(
+        body: models.Reprioritize, caller: Annotated[Caller, runs(REPRIORITIZE)], link: Link
+    ) -> models.Task:
         """system/reprioritize: a new priority for these active tasks (a queued one moves in
         the queue at once); its result, with `successful_changes` and `errors`."""
         result = await link.control(
@@ -255,7 +268,7 @@ def _add_routes(app: FastAPI) -> None:
         return models.Task.model_validate(result_json(result))
 
     @app.post('/api/stop', tags=['tasks'])
-    async def stop(caller: Operator, link: Link) -> models.Task:
+    async def stop(caller: Annotated[Caller, runs(STOP)], link: Link) -> models.Task:
         """system/stop: cancel every task declared cancel_on_stop; its result."""
         result = await link.control(link.client.stop, source=caller.source)
         return models.Task.model_validate(result_json(result))

@@ -3,11 +3,14 @@ system task (or confirm_task) run through the client in a control thread, its re
 answer documents `task_manager.protocol`'s.
 """
 
+from typing import Annotated
+
 from fastapi import FastAPI
 
 from task_manager import gateway_requests
 from task_manager.client import ConfirmAnswer
 from task_manager.core.confirmation import AnswerRefusal, not_found_reason
+from task_manager.core.names import ENABLE_SCHEDULE, PAUSE, RESUME, SCHEDULE, UNSCHEDULE
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import (
     confirmed_json,
@@ -18,21 +21,31 @@ from task_manager.gateway_json import (
     scheduled_json,
 )
 from task_manager.protocol import models
-from task_manager_web.access import Admin, Operator, Viewer
+from task_manager_web.access import Caller, Operator, Viewer, check_need, runs
 from task_manager_web.errors import ApiError
 from task_manager_web.node_link import Link
+from task_manager_web.task_roles import (
+    Need,
+    needed_by_steps,
+    needed_to_start,
+    with_runs_priority,
+)
 
 
 def add_operator_routes(app: FastAPI) -> None:
     @app.post('/api/tasks/pause', tags=['tasks'])
-    async def pause(body: models.PauseTasks, caller: Operator, link: Link) -> models.Paused:
+    async def pause(
+        body: models.PauseTasks, caller: Annotated[Caller, runs(PAUSE)], link: Link
+    ) -> models.Paused:
         """system/pause: pause these tasks (a mission between its subtasks, a task declared
         `pause: restart` at once); the ids paused and why not the others."""
         result = await link.control(gateway_requests.pause, link.client, body, source=caller.source)
         return models.Paused.model_validate(paused_json(result))
 
     @app.post('/api/tasks/resume', tags=['tasks'])
-    async def resume(body: models.ResumeTasks, caller: Operator, link: Link) -> models.Resumed:
+    async def resume(
+        body: models.ResumeTasks, caller: Annotated[Caller, runs(RESUME)], link: Link
+    ) -> models.Resumed:
         """system/resume: resume these paused tasks; the ids running again and why not the
         others."""
         result = await link.control(
@@ -63,11 +76,14 @@ def add_operator_routes(app: FastAPI) -> None:
         return [models.Schedule.model_validate(schedule_json(s)) for s in found]
 
     @app.post('/api/schedules', tags=['schedules'])
-    async def schedule(body: models.ScheduleTask, caller: Admin, link: Link) -> models.Scheduled:
+    async def schedule(
+        body: models.ScheduleTask, caller: Annotated[Caller, runs(SCHEDULE)], link: Link
+    ) -> models.Scheduled:
         """system/schedule: a task or a mission run at set times (exactly one of at,
         delay_sec, period_sec, cron). One the Task Manager refuses (an unknown task, bad
         task_data or cron, an id taken, ...) is no HTTP error: `scheduled` is false and
-        `message` says why."""
+        `message` says why. What it runs needs the role its start would need."""
+        check_need(caller, lambda: _needed_to_schedule(body))
         result = await link.control(
             gateway_requests.schedule, link.client, body, source=caller.source
         )
@@ -75,7 +91,10 @@ def add_operator_routes(app: FastAPI) -> None:
 
     @app.patch('/api/schedules/{schedule_id:path}', tags=['schedules'])
     async def enable_schedule(
-        schedule_id: str, body: models.EnableSchedule, caller: Admin, link: Link
+        schedule_id: str,
+        body: models.EnableSchedule,
+        caller: Annotated[Caller, runs(ENABLE_SCHEDULE)],
+        link: Link,
     ) -> models.Schedule:
         """system/enable_schedule: disable a schedule (no runs, its counts kept) or enable it
         again (from its next due time after now); the schedule then."""
@@ -92,7 +111,9 @@ def add_operator_routes(app: FastAPI) -> None:
         return models.Schedule.model_validate(schedule_json(found))
 
     @app.delete('/api/schedules/{schedule_id:path}', tags=['schedules'])
-    async def unschedule(schedule_id: str, caller: Admin, link: Link) -> models.Task:
+    async def unschedule(
+        schedule_id: str, caller: Annotated[Caller, runs(UNSCHEDULE)], link: Link
+    ) -> models.Task:
         """system/unschedule: remove a schedule (its runs already started go on); the system
         task, ended."""
         _check_schedule_id(schedule_id)
@@ -102,6 +123,15 @@ def add_operator_routes(app: FastAPI) -> None:
         if result is None:
             raise _unknown(schedule_id)
         return models.Task.model_validate(result_json(result))
+
+
+def _needed_to_schedule(body: models.ScheduleTask) -> Need:
+    """What the schedule's task or mission, and its runs' priority, need."""
+    if body.subtasks is None:
+        scheduled = needed_to_start(body.task_name, body.task_data)
+    else:
+        scheduled = needed_by_steps([step.model_dump() for step in body.subtasks], 'subtasks')
+    return with_runs_priority(scheduled, body.priority is not None, 'priority')
 
 
 def _check_schedule_id(schedule_id: str) -> None:
