@@ -39,8 +39,8 @@ def test_a_document_that_fits_is_sent_as_it_is() -> None:
 
 
 def test_a_history_too_large_is_an_error_reply_saying_how_many_tasks_fit() -> None:
-    history = {'request_id': 'h1', 'ok': True, 'op': 'history',
-               'tasks': [task(f't{n}') for n in range(50)]}  # fmt: skip
+    tasks = [task(f't{n}') for n in range(50)]
+    history = {'request_id': 'h1', 'ok': True, 'op': 'history', 'tasks': tasks}
     reply = check(sent('reply', history), 'mqtt_reply')
     assert (reply['request_id'], reply['ok'], reply['error']['code']) == (
         'h1', False, 'reply_too_large',
@@ -48,8 +48,8 @@ def test_a_history_too_large_is_an_error_reply_saying_how_many_tasks_fit() -> No
     assert reply['error']['field'] == 'limit'
     fit = int(reply['error']['message'].split('ask for fewer (limit; the first ')[1].split()[0])
     assert 'and page with after_sequence' in reply['error']['message']
-    assert sent('reply', {**history, 'tasks': history['tasks'][:fit]})['ok']
-    assert not sent('reply', {**history, 'tasks': history['tasks'][: fit + 1]})['ok']
+    assert sent('reply', {**history, 'tasks': tasks[:fit]})['ok']
+    assert not sent('reply', {**history, 'tasks': tasks[: fit + 1]})['ok']
 
 
 def test_a_result_too_large_goes_out_without_it() -> None:
@@ -100,9 +100,9 @@ def test_declared_tasks_over_the_limit_keep_as_many_as_fit() -> None:
 
 def test_a_task_with_many_decisions_and_a_long_error_is_made_smaller_step_by_step() -> None:
     error = 'e' * 5000
+    left_out = {'at': STAMP, 'decision': 'omitted', 'reason': 'r', 'omitted': 900}
     many = task(LONG_ID, {'error': error}, status='ERROR', error_message=error,
-                decisions=decisions(99) + [{'at': STAMP, 'decision': 'omitted', 'reason': 'r',
-                                            'omitted': 900}])  # fmt: skip
+                decisions=[*decisions(99), left_out])  # fmt: skip
 
     result = check(sent('result', many, 4000), 'task')
     bare = check(sent('result', many, 900), 'task')
