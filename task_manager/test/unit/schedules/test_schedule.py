@@ -86,7 +86,7 @@ def test_a_request_keeps_its_admission_options_and_a_stored_spec_without_them_lo
 
 def test_a_request_with_unusable_options_is_refused_naming_them() -> None:
     with pytest.raises(
-        ScheduleError, match='options: timeout_sec must be from 0 to 604800 s, got -1.0'
+        ScheduleError, match=r'options: timeout_sec must be from 0 to 604800 s, got -1\.0'
     ):
         request(period_sec=60, options=RequestOptions(timeout_sec=-1.0))
 
@@ -142,7 +142,8 @@ BAD_REQUESTS = [
     ({'period_sec': True}, 'period_sec', r'must be a finite number of seconds'),
     ({'period_sec': -60}, 'period_sec', r'period_sec must be at least 0.1 s, got -60'),
     ({'period_sec': 1e-6}, 'period_sec', r'period_sec must be at least 0.1 s'),
-    ({'period_sec': 1e300}, 'period_sec', r'period_sec must be from 0.1 to 31622400 s, got 1e\+300'),
+    ({'period_sec': 1e300}, 'period_sec',
+     r'period_sec must be from 0.1 to 31622400 s, got 1e\+300'),
     ({'delay_sec': 1e300}, 'delay_sec', r'delay_sec must be from 0 to 31622400 s, got 1e\+300'),
     ({'period_sec': 60, 'misfire_grace_sec': 1e300}, 'misfire_grace_sec',
      r'misfire_grace_sec must be from 0 to 604800 s, got 1e\+300'),
