@@ -20,6 +20,7 @@ from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.request_window import RequestWindow
 
 
 def action_service_name(action_name: str, service: str) -> str:
@@ -30,7 +31,12 @@ def action_service_name(action_name: str, service: str) -> str:
 class ActionServicesClient:
     """Sends goals, gets results, cancels and receives feedback of one action server."""
 
-    def __init__(self, node: Node, action_type: Any, action_name: str) -> None:
+    def __init__(
+        self, node: Node, action_type: Any, action_name: str, requests_in_flight: int = 0
+    ) -> None:
+        """`requests_in_flight` > 0: goals, cancels and results asked again are sent at most
+        that many unanswered at a time per service (see request_window.py), for a server that
+        keeps only a few unread requests; 0: each at once (a server with deep queues)."""
         impl = action_type.Impl
         self._impl = impl
         self._node = node
@@ -50,6 +56,13 @@ class ActionServicesClient:
             action_service_name(action_name, 'cancel_goal'),
             qos_profile=DEEP_RELIABLE,
         )
+        self._windows: tuple[RequestWindow, RequestWindow, RequestWindow] | None = None
+        if requests_in_flight > 0:
+            self._windows = (
+                RequestWindow(node, self._send_goal, requests_in_flight),
+                RequestWindow(node, self._get_result, requests_in_flight),
+                RequestWindow(node, self._cancel, requests_in_flight),
+            )
         self._feedback_topic = f'{action_name.rstrip("/")}/_action/feedback'
         # key: goal id (bytes), value: called with each feedback message of that goal
         self._feedback_callbacks: dict[bytes, Callable[[Any], None]] = {}
@@ -87,27 +100,47 @@ class ActionServicesClient:
                     DEEP_RELIABLE,
                 )
         request = self._impl.SendGoalService.Request(goal_id=_uuid(goal_id), goal=goal)
+        if self._windows is not None:
+            return goal_id, self._windows[0].call_async(request)
         return goal_id, self._send_goal.call_async(request)
 
-    def get_result(self, goal_id: bytes) -> Future[Any]:
-        """A future of the GetResult response (`status`, `result`), once the goal has ended."""
-        return self._get_result.call_async(
-            self._impl.GetResultService.Request(goal_id=_uuid(goal_id))
-        )
+    def get_result(self, goal_id: bytes, again: bool = False) -> Future[Any]:
+        """A future of the GetResult response (`status`, `result`), once the goal has ended.
+
+        `again`: the goal's result was asked for already and not answered (paced like a
+        cancel: a round of asks again must not be a burst that a server drops)."""
+        request = self._impl.GetResultService.Request(goal_id=_uuid(goal_id))
+        if again and self._windows is not None:
+            return self._windows[1].call_async(request)
+        return self._get_result.call_async(request)
 
     def cancel(self, goal_id: bytes) -> Future[Any]:
         """A future of the CancelGoal response for one goal."""
         request = self._impl.CancelGoalService.Request()
         request.goal_info.goal_id = _uuid(goal_id)
+        if self._windows is not None:
+            return self._windows[2].call_async(request)
         return self._cancel.call_async(request)
 
     def forget_request(self, future: Future[Any]) -> None:
         """Stop waiting for the response to a SendGoal request (it was answered otherwise)."""
-        self._send_goal.remove_pending_request(future)
+        if self._windows is not None:
+            self._windows[0].forget(future)
+        else:
+            self._send_goal.remove_pending_request(future)
+
+    def forget_cancel_request(self, future: Future[Any]) -> None:
+        """Stop waiting for the response to a CancelGoal request (it is sent again)."""
+        if self._windows is not None:
+            self._windows[2].forget(future)
+        else:
+            self._cancel.remove_pending_request(future)
 
     def forget_result_request(self, future: Future[Any]) -> None:
         """Stop waiting for the response to a GetResult request (asked again, or answered)."""
         self._get_result.remove_pending_request(future)
+        if self._windows is not None:
+            self._windows[1].forget(future)
 
     def forget(self, goal_id: bytes) -> None:
         """The goal has ended: drop its feedback callback."""

@@ -13,7 +13,7 @@ from task_manager.core.status import ErrorCode, ServerOutcome, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, status_for_action_outcome
 from task_manager.core.task_spec import TaskSpec
 from task_manager.rclpy_tools.action_services import ActionServicesClient
-from task_manager.rclpy_tools.futures import wait_for, wait_until_ready
+from task_manager.rclpy_tools.futures import first_completed, wait_for, wait_until_ready
 from task_manager.ros.message_json import message_from_json, message_to_dict
 from task_manager.ros.running.execution import RunnerTimeouts
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
@@ -31,6 +31,8 @@ def server_outcome(goal_status: int) -> ServerOutcome:
     return _OUTCOMES.get(goal_status, ServerOutcome.ABORTED)
 
 
+# How long a cancel request may go unanswered before it is sent again.
+CANCEL_AGAIN_SEC = 1.0
 # The longest wait between two requests for a goal's result, in ticks of the server watch.
 RESULT_ASK_INTERVAL_MAX_TICKS = 8
 
@@ -60,8 +62,8 @@ class ActionExecution:
         self._result_request = self._ask_for_result()
         self.outcome.add_done_callback(lambda _: self._forget())
 
-    def _ask_for_result(self) -> Future:
-        request = self._client.get_result(self._goal_id)
+    def _ask_for_result(self, again: bool = False) -> Future:
+        request = self._client.get_result(self._goal_id, again)
         request.add_done_callback(self._on_result)
         return request
 
@@ -75,7 +77,7 @@ class ActionExecution:
         self._ticks_since_ask = 0
         self._ticks_between_asks = min(2 * self._ticks_between_asks, RESULT_ASK_INTERVAL_MAX_TICKS)
         self._client.forget_result_request(self._result_request)
-        self._result_request = self._ask_for_result()
+        self._result_request = self._ask_for_result(again=True)
 
     def _forget(self) -> None:
         self._client.forget(self._goal_id)
@@ -101,17 +103,32 @@ class ActionExecution:
             self.outcome.set_result(TaskEnd(TaskStatus.ERROR, {'error': reason}))
 
     async def cancel(self, timeout_sec: float) -> bool:
+        """Ask the server to cancel the goal, again each CANCEL_AGAIN_SEC while it has not
+        answered (a busy server drops requests beyond its last 10 unread: a cancel is safe to
+        repeat); True once the goal has ended within `timeout_sec`."""
         if self.outcome.done():
             return True
-        started = self._node.get_clock().now()
-        cancel_future = self._client.cancel(self._goal_id)
-        if not await wait_for(self._node, cancel_future, timeout_sec):
-            return self.outcome.done()
+        clock = self._node.get_clock()
+        started = clock.now()
+
+        def remaining_sec() -> float:
+            return timeout_sec - (clock.now() - started).nanoseconds / 1e9
+
+        while True:
+            cancel_future = self._client.cancel(self._goal_id)
+            answered_or_ended = first_completed([cancel_future, self.outcome])
+            wait_sec = min(CANCEL_AGAIN_SEC, remaining_sec())
+            if await wait_for(self._node, answered_or_ended, wait_sec):
+                break
+            self._client.forget_cancel_request(cancel_future)
+            if remaining_sec() <= 0:
+                return self.outcome.done()
+        if self.outcome.done():
+            return True
         response = cancel_future.result()
         if response is None or response.return_code == CancelGoal.Response.ERROR_REJECTED:
             return self.outcome.done()
-        elapsed_sec = (self._node.get_clock().now() - started).nanoseconds / 1e9
-        return await wait_for(self._node, self.outcome, timeout_sec - elapsed_sec)
+        return await wait_for(self._node, self.outcome, remaining_sec())
 
 
 class ActionTaskRunner:
@@ -124,7 +141,9 @@ class ActionTaskRunner:
         self._node = node
         self._action_type = action_type
         self._timeouts = timeouts
-        self._client = ActionServicesClient(node, action_type, spec.topic)
+        self._client = ActionServicesClient(
+            node, action_type, spec.topic, timeouts.server_requests_in_flight
+        )
         self._watch = ServerWatch(
             node,
             self._probe,

@@ -7,6 +7,7 @@ from rclpy.task import Future
 
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
+from task_manager.rclpy_tools.request_window import DEFAULT_SIZE
 
 
 @dataclass(frozen=True)
@@ -23,6 +24,9 @@ class RunnerTimeouts:
     """How often the server of running tasks is checked."""
     server_loss_timeout_sec: float = 5.0
     """How long a server may give no sign of life before its tasks end ERROR."""
+    server_requests_in_flight: int = DEFAULT_SIZE
+    """Goals, cancels and results asked again, sent to one action server at most this many
+    unanswered at a time (a server keeps 10 unread requests by default; 0: no bound)."""
 
 
 class Execution(Protocol):

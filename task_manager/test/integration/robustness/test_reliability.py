@@ -210,3 +210,40 @@ def test_a_goal_its_restarted_server_no_longer_knows_ends_error(
 
     assert result.task_status == 'ERROR'
     assert 'no longer knows the goal' in json.loads(result.task_result)['error']
+
+
+def test_a_stop_cancels_every_goal_of_a_server_that_keeps_only_ten_requests(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    busy_server_node: rclpy.node.Node,
+) -> None:
+    """system/stop sends a cancel per goal; a server on rclpy's default QoS keeps only its
+    last 10 unread requests, so a burst of them reached it as 19 of 200. They go out at most
+    8 unanswered at a time."""
+    tm = launch_task_manager(
+        {
+            'drive': action_task(
+                'drive', f'{topic_prefix}/drive', reentrant=True, cancel_on_stop=True
+            )
+        },
+        server_check_period=0.2,
+        server_loss_timeout=30.0,
+    )
+    release = threading.Event()
+    server = ScriptedActionServer(busy_server_node, Fibonacci, f'{topic_prefix}/drive')
+    ids = [f'drive-{index}' for index in range(GOALS_IN_FLIGHT * 2)]
+    handles = [tm.send('drive', {'order': 1}, task_id=task_id) for task_id in ids]
+    tm.wait_active(lambda tasks: sum(status == 'IN_PROGRESS' for _, status in tasks) == len(ids))
+    server.wait_for_goals(len(ids), TIMEOUT_SEC)
+    # the server's executor is busy for a moment as the stop's cancels arrive
+    busy = busy_server_node.create_guard_condition(lambda: release.wait(TIMEOUT_SEC))
+    busy.trigger()
+    stop = tm.send('system/stop', {})
+    threading.Timer(0.5, release.set).start()
+
+    stopped = tm.result_of(stop).result
+
+    assert stopped.task_status == 'DONE', stopped.task_result
+    assert all(goal.cancel_requested.is_set() for goal in server.goals.items)
+    assert [tm.result_of(h).result.task_status for h in handles] == ['CANCELED'] * len(ids)

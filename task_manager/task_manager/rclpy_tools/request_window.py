@@ -1,0 +1,107 @@
+"""At most a few requests of one service client unanswered at a time; the rest wait, in order.
+
+A ROS 2 service server keeps only its last few unread requests (10 by default in rclpy and
+rclcpp, the depth of its request reader; Nav2's servers too) and drops older ones unanswered
+when a burst reaches it faster than its executor takes them: 200 cancels sent at once by a
+`system/stop` reached a server as 19. Sending at most `size` (fewer than 10) at a time, and the
+next as each is answered, keeps any burst within what a server keeps.
+
+A request that is not answered within `slot_timeout_sec` (dropped anyway, or held by its
+server, as a goal callback may) gives its place up, so that a lost answer never closes the
+window; its answer, should it come later, still completes its future.
+
+Runs on the node's executor thread (its callbacks and timer), as the node's runners do.
+"""
+
+import functools
+import time
+from collections import OrderedDict, deque
+from typing import Any
+
+from rclpy.client import Client
+from rclpy.node import Node
+from rclpy.task import Future
+from rclpy.timer import Timer
+
+# Below the 10 unread requests rclpy's and rclcpp's servers keep by default.
+DEFAULT_SIZE = 8
+DEFAULT_SLOT_TIMEOUT_SEC = 0.5
+
+
+class RequestWindow:
+    """Sends the requests of one service client, at most `size` unanswered at a time."""
+
+    def __init__(
+        self,
+        node: Node,
+        client: Client[Any, Any],
+        size: int = DEFAULT_SIZE,
+        slot_timeout_sec: float = DEFAULT_SLOT_TIMEOUT_SEC,
+    ) -> None:
+        self._node = node
+        self._client = client
+        self._size = size
+        self._slot_timeout_sec = slot_timeout_sec
+        self._waiting: deque[tuple[Any, Future[Any]]] = deque()
+        # key: the caller's future of a request holding a place, value: when it was sent
+        self._in_flight: OrderedDict[Future[Any], float] = OrderedDict()
+        # key: the caller's future, value: the client's future of the request sent
+        self._sent: dict[Future[Any], Future[Any]] = {}
+        self._timer: Timer | None = None
+
+    def call_async(self, request: Any) -> Future[Any]:
+        """A future of the response, as Client.call_async's; the request waits its turn."""
+        future: Future[Any] = Future()
+        self._waiting.append((request, future))
+        self._pump()
+        return future
+
+    def forget(self, future: Future[Any]) -> None:
+        """The caller waits no more for this request's response (sent or not)."""
+        sent = self._sent.pop(future, None)
+        if sent is not None and not sent.done():
+            self._client.remove_pending_request(sent)
+        if not future.done():
+            future.cancel()
+        self._in_flight.pop(future, None)
+        self._pump()
+
+    def _pump(self) -> None:
+        now = time.monotonic()
+        while self._in_flight:  # oldest first: places given up by requests long unanswered
+            oldest, sent_at = next(iter(self._in_flight.items()))
+            if now - sent_at < self._slot_timeout_sec:
+                break
+            del self._in_flight[oldest]
+        while self._waiting and len(self._in_flight) < self._size:
+            request, future = self._waiting.popleft()
+            if future.done():  # forgotten while it waited
+                continue
+            sent = self._client.call_async(request)
+            self._sent[future] = sent
+            self._in_flight[future] = now
+            sent.add_done_callback(functools.partial(self._answered, future))
+        self._arm(bool(self._waiting))
+
+    def _answered(self, future: Future[Any], sent: Future[Any]) -> None:
+        self._sent.pop(future, None)
+        self._in_flight.pop(future, None)
+        if not future.done() and not sent.cancelled():
+            future.set_result(sent.result())
+        self._pump()
+
+    def _arm(self, waiting: bool) -> None:
+        """While requests wait for a place, a timer gives up the places of unanswered ones."""
+        if not waiting:
+            if self._timer is not None:
+                self._timer.cancel()
+            return
+        if self._timer is None:
+            self._timer = self._node.create_timer(self._slot_timeout_sec, self._pump)
+        elif self._timer.is_canceled():
+            self._timer.reset()
+
+    def destroy(self) -> None:
+        if self._timer is not None:
+            self._node.destroy_timer(self._timer)
+            self._timer = None
