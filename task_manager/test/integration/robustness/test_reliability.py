@@ -237,8 +237,10 @@ def test_a_stop_cancels_every_goal_of_a_server_that_keeps_only_ten_requests(
     tm.wait_active(lambda tasks: sum(status == 'IN_PROGRESS' for _, status in tasks) == len(ids))
     server.wait_for_goals(len(ids), TIMEOUT_SEC)
     # the server's executor is busy for a moment as the stop's cancels arrive
-    busy = busy_server_node.create_guard_condition(lambda: release.wait(TIMEOUT_SEC))
-    busy.trigger()
+    def keep_busy() -> None:
+        release.wait(TIMEOUT_SEC)
+
+    busy_server_node.create_guard_condition(keep_busy).trigger()
     stop = tm.send('system/stop', {})
     threading.Timer(0.5, release.set).start()
 
