@@ -30,7 +30,7 @@ help:
 
 install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo \
   $(STAMPS)/task_manager_web $(STAMPS)/task_manager_mqtt $(STAMPS)/chromium $(STAMPS)/mosquitto \
-  $(STAMPS)/task_manager_vda5050 $(STAMPS)/vda5050_master
+  $(STAMPS)/task_manager_vda5050 $(STAMPS)/vda5050_master $(STAMPS)/task_manager_console
 
 $(PY):
 	python3 -m venv $(VENV)
@@ -86,6 +86,12 @@ $(STAMPS)/task_manager_vda5050: task_manager_vda5050/pyproject.toml task_manager
 	$(PIP) install --quiet -e task_manager_vda5050 -c $(CONSTRAINTS)
 	@touch $@
 
+# The fleet console (a separate process and package, cloud-side: no rclpy; it reaches the robots
+# through the broker with the MQTT bridge's FleetClient). Its tests start a PostgreSQL server.
+$(STAMPS)/task_manager_console: task_manager_console/pyproject.toml task_manager_console/setup.py | $(STAMPS)/task_manager_mqtt $(STAMPS)/postgresql
+	$(PIP) install --quiet -e 'task_manager_console[dev]' -c $(CONSTRAINTS)
+	@touch $@
+
 # The independent master control of the adapter's tests (npm's vda-5050-lib), installed from
 # its lock file into the package's test_tools/node_modules (never globally).
 $(STAMPS)/vda5050_master: task_manager_vda5050/test_tools/package.json task_manager_vda5050/test_tools/package-lock.json | $(PY)
@@ -110,6 +116,11 @@ $(STAMPS)/chromium: | $(PY)
 # Debian's mosquitto: the broker of the MQTT tests, `make fleet` and the bench (started by them).
 $(STAMPS)/mosquitto: | $(PY)
 	$(call debian_package,mosquitto,mosquitto,MQTT tests and make fleet)
+
+# Debian's PostgreSQL: the fleet console's tests and `make fleet FLEET_DB=postgres` start a
+# server of their own from its binaries (Debian keeps them in /usr/lib/postgresql/<version>/bin).
+$(STAMPS)/postgresql: | $(PY)
+	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
 # `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain).
 # The layers' contracts (.importlinter), run outside the repository's root: there the colcon

@@ -48,10 +48,20 @@ def new_client(
     return client
 
 
-def connect(client: mqtt.Client, broker: Broker, keepalive_sec: int, session_sec: int) -> None:
-    """Connect in the background (retrying), keeping the session for `session_sec` when away."""
+def connect(
+    client: mqtt.Client,
+    broker: Broker,
+    keepalive_sec: int,
+    session_sec: int,
+    receive_maximum: int = 0,
+) -> None:
+    """Connect in the background (retrying), keeping the session for `session_sec` when away;
+    `receive_maximum`: the most QoS 1 messages not acknowledged yet that the broker may send
+    (0: the broker's choice)."""
     properties = Properties(PacketTypes.CONNECT)
     properties.SessionExpiryInterval = session_sec
+    if receive_maximum:
+        properties.ReceiveMaximum = receive_maximum
     client.connect_async(
         broker.host, broker.port, keepalive=keepalive_sec, clean_start=False, properties=properties
     )

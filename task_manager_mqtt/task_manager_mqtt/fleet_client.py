@@ -5,6 +5,10 @@ Given a client id of its own (stable across runs), it keeps a session on the bro
 that results robots send while this client is away (a restart, the broker's) wait for it
 there; without one, its session ends with its connection. Each robot's results are
 told apart by sequence number: one delivered twice (after a reconnection) is passed on once.
+
+A client that keeps the results somewhere (the fleet console's database) holds them
+(`hold_results`): each result is acknowledged to the broker only once it is kept, so that the
+broker keeps it, and delivers it again at the next connection, until then.
 """
 
 import itertools
@@ -59,6 +63,9 @@ class FleetClient:
         events: bool = False,
         ca_file: str = '',
         password: str = '',
+        hold_results: bool = False,
+        receive_maximum: int = 0,
+        max_message_bytes: int = 0,
     ) -> None:
         """`client_id`: a stable one keeps this client's session (and the results sent while
         it is away) on the broker for SESSION_EXPIRY_SEC; empty: a new id, no session kept.
@@ -69,6 +76,13 @@ class FleetClient:
         `ca_file`: with an mqtts:// URL, the certificate authorities to trust (else the
         system's). `password`: the account's, if the URL has none (read from a file, say: a
         password on a command line is visible to every user of the machine in `ps`).
+
+        `hold_results`: a result message is acknowledged to the broker only when the
+        `acknowledge` of `on_held_result` is called (see there); every other message at once.
+        `receive_maximum`: the most QoS 1 messages the broker sends before their
+        acknowledgements (MQTT 5's Receive Maximum; 0: the broker's choice).
+        `max_message_bytes`: a robot's message larger than this is not read, but reported to
+        `on_bad_message` (0: any size the broker passes on).
         """
         broker = Broker.from_url(broker_url, Tls(ca_file=ca_file) if ca_file else None)
         self.broker = replace(broker, password=password) if password else broker
@@ -91,12 +105,22 @@ class FleetClient:
         self._robot_callbacks: list[Callable[[RobotView], None]] = []
         self._event_callbacks: list[Callable[[str, Document], None]] = []
         self._dead_letter_callbacks: list[Callable[[str, Document], None]] = []
+        self._held_callbacks: list[Callable[[str, Document, Callable[[], None]], None]] = []
+        self._state_callbacks: list[Callable[[str, str, Document | None], None]] = []
+        self._bad_message_callbacks: list[Callable[[str, str, str], None]] = []
+        self._hold_results = hold_results
+        self._receive_maximum = receive_maximum
+        self._max_message_bytes = max_message_bytes
         self._followed = (*FOLLOWED, 'event') if events else FOLLOWED
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
         self._session_sec = SESSION_EXPIRY_SEC if client_id else 0
         self._mqtt = new_client(
-            client_id or f'fleet_{uuid.uuid4().hex[:12]}', self.broker, RECONNECT_MAX_SEC, 1000
+            client_id or f'fleet_{uuid.uuid4().hex[:12]}',
+            self.broker,
+            RECONNECT_MAX_SEC,
+            1000,
+            manual_ack=hold_results,
         )
         self._mqtt.on_connect = self._on_connect
         self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
@@ -118,7 +142,7 @@ class FleetClient:
 
     def connect(self, timeout_sec: float = TIMEOUT_SEC) -> None:
         """Connect and subscribe (reconnecting by itself afterwards); FleetError if not in time."""
-        connect(self._mqtt, self.broker, KEEPALIVE_SEC, self._session_sec)
+        connect(self._mqtt, self.broker, KEEPALIVE_SEC, self._session_sec, self._receive_maximum)
         if not self._subscribed.wait(timeout_sec):
             self.close()
             raise FleetError(f'no connection to the broker at {self.broker.url} in {timeout_sec} s')
@@ -368,6 +392,23 @@ class FleetClient:
         answer, having no usable request_id (a DeadLetter document: the reason, an excerpt)."""
         self._dead_letter_callbacks.append(callback)
 
+    def on_held_result(self, callback: Callable[[str, Document, Callable[[], None]], None]) -> None:
+        """With `hold_results`: `callback(robot_id, task, acknowledge)` for every delivery of
+        every result, again after a reconnection too (the callback tells them apart by robot
+        and sequence); the broker keeps the result until `acknowledge()` is called (from any
+        thread), once it is kept. The callback must not wait: it is on the MQTT thread."""
+        self._held_callbacks.append(callback)
+
+    def on_state(self, callback: Callable[[str, str, Document | None], None]) -> None:
+        """`callback(robot_id, name, document)` for every retained state document as it comes
+        (`name`: connection, tasks or active_tasks; None: the retained one was cleared)."""
+        self._state_callbacks.append(callback)
+
+    def on_bad_message(self, callback: Callable[[str, str, str], None]) -> None:
+        """`callback(robot_id, name, why)` for every message of a robot that is not read (too
+        large, not JSON, not an object); with one, this client logs none of them itself."""
+        self._bad_message_callbacks.append(callback)
+
     def on_robot_change(self, callback: Callable[[RobotView], None]) -> None:
         """`callback(robot)` when a robot's connection, active or declared tasks change."""
         self._robot_callbacks.append(callback)
@@ -423,26 +464,56 @@ class FleetClient:
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
         """The callbacks' boundary: an exception here would end paho's network thread."""
+        held = False
         try:
-            self._dispatch(message.topic, bytes(message.payload))
+            held = self._dispatch(message.topic, bytes(message.payload), message.mid, message.qos)
         except Exception as error:  # a robot's bad document, or a user's callback: logged
             LOG.error('%s: %s: %s', message.topic, type(error).__name__, error)
+        finally:
+            if self._hold_results and not held:
+                self._mqtt.ack(message.mid, message.qos)
 
-    def _dispatch(self, topic: str, payload: bytes) -> None:
+    def _dispatch(self, topic: str, payload: bytes, mid: int = 0, qos: int = 0) -> bool:
+        """Pass the message on; whether a held result's acknowledgement was handed over."""
         name = topic.rsplit('/', 1)[-1]
         robot_id = self._all.robot_of(topic)
+        limit = self._max_message_bytes
+        if limit and len(payload) > limit:
+            self._bad_message(robot_id, name, f'{len(payload)} bytes; at most {limit} are read')
+            return False
         try:
             document = load_json(payload) if payload else None
         except ValueError as error:  # the robot's documents are checked as its requests are
-            LOG.warning('%s: not JSON (%s), ignored', topic, str(error)[:200])
-            return
+            self._bad_message(robot_id, name, f'not JSON ({str(error)[:200]})')
+            return False
         if not isinstance(document, dict | None):
-            LOG.warning('%s: not a JSON object, ignored', topic)
+            self._bad_message(robot_id, name, 'not a JSON object')
+        elif name == 'result' and self._hold_results and self._held_callbacks:
+            if document is not None:
+                self._on_held(robot_id, document, mid, qos)
+                return True
         elif name in self._handlers:
             if document is not None:
                 self._handlers[name](robot_id, document)
         else:
             self._on_robot_state(robot_id, name, document)
+        return False
+
+    def _bad_message(self, robot_id: str, name: str, why: str) -> None:
+        if not self._bad_message_callbacks:
+            LOG.warning('%s/%s/%s: %s, ignored', self.prefix, robot_id, name, why)
+        for callback in self._bad_message_callbacks:
+            callback(robot_id, name, why)
+
+    def _on_held(self, robot_id: str, task: Document, mid: int, qos: int) -> None:
+        """Every delivery to the held callbacks (then, once per sequence, to on_result's)."""
+
+        def acknowledge() -> None:
+            self._mqtt.ack(mid, qos)
+
+        for callback in self._held_callbacks:
+            callback(robot_id, task, acknowledge)
+        self._on_result(robot_id, task)
 
     def _on_event(self, robot_id: str, document: Document) -> None:
         for callback in self._event_callbacks:
@@ -484,6 +555,8 @@ class FleetClient:
             elif name == 'tasks':
                 robot.tasks = (document or {}).get('tasks', [])
             self._changed.notify_all()
+        for state_callback in self._state_callbacks:
+            state_callback(robot_id, name, document)
         for callback in self._robot_callbacks:
             callback(robot)
 

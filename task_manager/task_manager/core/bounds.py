@@ -15,6 +15,9 @@ __all__ = [
     'DELAY_SECONDS',
     'ECHO_MAX_CHARACTERS',
     'EPOCH_SECONDS',
+    'FLEET_HISTORY_ROWS_DEFAULT',
+    'FLEET_HISTORY_ROWS_MAX',
+    'FLEET_RESULTS_HELD_MAX',
     'HISTORY_BYTES_DEFAULT',
     'HISTORY_PAGE_MAX_BYTES',
     'HISTORY_RESULT_MAX_BYTES',
@@ -134,6 +137,15 @@ TOKEN_MIN_CHARACTERS = 16
 """The shortest token of the web gateway's token file, whatever the line's format: 16 printable
 characters are over 100 bits when drawn at random (`secrets.token_urlsafe(24)` makes 32)."""
 
+
+# ---- the fleet console --------------------------------------------------------------------------
+FLEET_HISTORY_ROWS_DEFAULT = 100
+"""The results a query of the fleet history returns when it asks for no `limit`."""
+FLEET_HISTORY_ROWS_MAX = 10_000
+"""The most results one query of the fleet history returns (its `limit`)."""
+FLEET_RESULTS_HELD_MAX = 10_000
+"""Results the console has received and not yet stored (nor acknowledged to the broker): its
+MQTT Receive Maximum. While its database is away the broker keeps the rest."""
 
 # ---- the VDA 5050 adapter ---------------------------------------------------------------------
 VDA5050_ID_MAX_CHARACTERS = 100

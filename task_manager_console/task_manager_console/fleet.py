@@ -1,0 +1,510 @@
+"""`Fleet`: the console's view of every robot on the broker, and its fleet history.
+
+It follows every robot under the prefix through one FleetClient (a persistent session: the
+broker keeps what robots send while the console is away) and stores each robot's results in
+the FleetHistory exactly once, in order: a result is acknowledged to the broker only once it
+is stored (or refused for good), so that one received while the database is away stays with
+the broker, and one received twice is stored once (its robot and sequence are its key).
+
+Threads: the MQTT client's (documents in, never waiting), one that stores results (in batches,
+retrying while the database is away) and a small pool for slower reads (a robot's schedules,
+its last stored result). Callbacks of `on_change` run on those threads and must not wait.
+"""
+
+import logging
+import queue
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import TimeoutError as FutureTimeout
+from dataclasses import dataclass, replace
+from datetime import UTC, datetime
+from typing import Unpack
+
+from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.fleet_types import TIMEOUT_SEC, FleetError, StartOptions
+from task_manager_mqtt.settings import DEFAULT_MAX_PAYLOAD_BYTES, DEFAULT_PREFIX
+
+from task_manager.core.bounds import FLEET_RESULTS_HELD_MAX, ids_problem
+from task_manager.core.request_text import request_problem
+from task_manager_console.bad_messages import BadMessages
+from task_manager_console.robots import (
+    BadDocumentError,
+    ConnectionState,
+    RobotState,
+    robot_id_problem,
+)
+from task_manager_console.store.fleet_history import DatabaseUnavailable, FleetHistory
+from task_manager_console.store.rows import BadResultError, Document, document_of, row_of, utc
+
+LOG = logging.getLogger('task_manager_console.fleet')
+CONSOLE_CLIENT_ID = 'task-manager-console'
+"""The console's MQTT client id; a broker that ties ids to accounts uses the account's name."""
+STORE_BATCH_MAX = 500
+"""Results stored in one transaction, at most."""
+RETRY_MIN_SEC = 0.5
+RETRY_MAX_SEC = 5.0
+"""While the database is away, a store is tried again after 0.5 s, doubling up to 5 s."""
+READERS = 2
+"""Threads of the slower reads (schedules, last results)."""
+
+
+@dataclass(frozen=True)
+class Change:
+    """One change of the fleet: a robot's new state, and the result just stored, if any."""
+
+    robot: RobotState
+    result: Document | None = None
+    """A result newly stored (a fleet history document), when that is the change."""
+
+
+@dataclass(frozen=True)
+class _Held:
+    """A result received and not yet acknowledged to the broker."""
+
+    robot_id: str
+    task: Document
+    acknowledge: Callable[[], None]
+
+
+class Fleet:
+    """Every robot under the prefix and its results; use as a context manager, or call
+    `start()` then `close()`."""
+
+    def __init__(
+        self,
+        broker_url: str,
+        history: FleetHistory,
+        *,
+        prefix: str = DEFAULT_PREFIX,
+        client_id: str = CONSOLE_CLIENT_ID,
+        password: str = '',
+        ca_file: str = '',
+        events: bool = False,
+        max_message_bytes: int = DEFAULT_MAX_PAYLOAD_BYTES,
+    ) -> None:
+        """`broker_url`, `password`, `ca_file`: as FleetClient's; its own account (one account
+        holds one connection). `events`: also follow every task event (see `on_event`).
+        `max_message_bytes`: a robot's message larger than this is ignored (counted)."""
+        self.history = history
+        self.client = FleetClient(
+            broker_url,
+            prefix=prefix,
+            client_id=client_id,
+            events=events,
+            ca_file=ca_file,
+            password=password,
+            hold_results=True,
+            receive_maximum=FLEET_RESULTS_HELD_MAX,
+            max_message_bytes=max_message_bytes,
+        )
+        self.bad_messages = BadMessages(LOG)
+        self.results_stored = 0
+        """Results stored since the start (each once)."""
+        self.duplicates = 0
+        """Results received again and not stored again."""
+        self.database_up = True
+        """False while stores fail (results wait with the broker meanwhile)."""
+        self._robots: dict[str, RobotState] = {}
+        self._lock = threading.Lock()
+        self._callbacks: list[Callable[[Change], None]] = []
+        self._held: queue.Queue[_Held | None] = queue.Queue()
+        self._stopping = threading.Event()
+        self._storer = threading.Thread(target=self._store_results, name='fleet-history')
+        self._readers = ThreadPoolExecutor(READERS, thread_name_prefix='fleet-reads')
+        self.client.on_held_result(self._on_result)
+        self.client.on_state(self._on_state)
+        self.client.on_bad_message(self._on_bad_message)
+
+    def __enter__(self) -> 'Fleet':
+        self.start()
+        return self
+
+    def __exit__(self, *_: object) -> None:
+        self.close()
+
+    def start(self, timeout_sec: float = TIMEOUT_SEC) -> None:
+        """Start storing, connect and follow; FleetError if the broker is not reached in time."""
+        self._storer.start()
+        try:
+            self.client.connect(timeout_sec)
+        except FleetError:
+            self._stop_storing()
+            raise
+
+    def close(self) -> None:
+        """Disconnect (the broker keeps the session), then stop storing: results not stored
+        yet are not acknowledged, so the broker delivers them again at the next start."""
+        self.client.close()
+        self._stop_storing()
+        self._readers.shutdown(wait=True, cancel_futures=True)
+
+    def _stop_storing(self) -> None:
+        self._stopping.set()
+        self._held.put(None)
+        if self._storer.is_alive():
+            self._storer.join()
+
+    # ---- what is known ------------------------------------------------------------------------
+
+    @property
+    def robots(self) -> dict[str, RobotState]:
+        """Every robot seen, by id (a copy: the states themselves never change)."""
+        with self._lock:
+            return dict(self._robots)
+
+    def robot(self, robot_id: str) -> RobotState | None:
+        with self._lock:
+            return self._robots.get(robot_id)
+
+    def on_change(self, callback: Callable[[Change], None]) -> Callable[[], None]:
+        """`callback(change)` at each change of a robot and each result stored; returns the
+        function that removes it. It runs on the console's threads and must not wait."""
+        with self._lock:
+            self._callbacks.append(callback)
+
+        def remove() -> None:
+            with self._lock:
+                if callback in self._callbacks:
+                    self._callbacks.remove(callback)
+
+        return remove
+
+    def on_event(self, callback: Callable[[str, Document], None]) -> None:
+        """`callback(robot_id, event)` for every TaskEvent document (with `events=True`)."""
+        self.client.on_event(callback)
+
+    def results_waiting(self) -> int:
+        """Results received and not yet stored (nor acknowledged)."""
+        return self._held.qsize()
+
+    def wait_for(
+        self, condition: Callable[[dict[str, RobotState]], bool], timeout_sec: float
+    ) -> bool:
+        """Wait until `condition(robots)` holds (checked at each change); whether it did."""
+        changed = threading.Condition()
+
+        def notify(_: Change) -> None:
+            with changed:
+                changed.notify_all()
+
+        remove = self.on_change(notify)
+        try:
+            with changed:
+                return changed.wait_for(lambda: condition(self.robots), timeout_sec)
+        finally:
+            remove()
+
+    # ---- acting on robots ---------------------------------------------------------------------
+
+    def start_task(
+        self,
+        robot_id: str,
+        task_name: str,
+        task_data: Document | None = None,
+        *,
+        task_id: str = '',
+        source: str = '',
+        reply_timeout_sec: float = TIMEOUT_SEC,
+        **options: Unpack[StartOptions],
+    ) -> Document:
+        """Start a task on an ONLINE robot; the robot's reply (task_id, duplicate, task), within
+        `reply_timeout_sec` (`options`: FleetClient.start_task's, `timeout_sec` the task's).
+        FleetError: `invalid_request`, `unknown_robot`, `robot_offline`, or the robot's own."""
+        self._check(robot_id, task_id=task_id, task_name=task_name, source=source)
+        started = self.client.start_task(
+            robot_id, task_name, task_data, task_id=task_id, source=source, **options
+        )
+        return started.accepted(reply_timeout_sec)
+
+    def start_mission(
+        self,
+        robot_id: str,
+        subtasks: list[Document],
+        *,
+        task_id: str = '',
+        source: str = '',
+        reply_timeout_sec: float = TIMEOUT_SEC,
+        **options: Unpack[StartOptions],
+    ) -> Document:
+        """Start a mission on an ONLINE robot (`subtasks` as FleetClient.start_mission's); the
+        robot's reply (task_id, subtask_ids, duplicate, task)."""
+        self._check(robot_id, task_id=task_id, source=source)
+        started = self.client.start_mission(
+            robot_id, subtasks, task_id=task_id, source=source, **options
+        )
+        return started.accepted(reply_timeout_sec)
+
+    def cancel(
+        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/cancel_task on the robot; its ended Task document."""
+        self._check(robot_id, task_ids=task_ids)
+        return self.client.cancel(robot_id, task_ids, timeout_sec)
+
+    def pause(
+        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/pause on the robot; its Paused document."""
+        self._check(robot_id, task_ids=task_ids)
+        return self.client.pause(robot_id, task_ids, timeout_sec)
+
+    def resume(
+        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/resume on the robot; its Resumed document."""
+        self._check(robot_id, task_ids=task_ids)
+        return self.client.resume(robot_id, task_ids, timeout_sec)
+
+    def reprioritize(
+        self, robot_id: str, task_ids: list[str], priority: int, timeout_sec: float = TIMEOUT_SEC
+    ) -> Document:
+        """system/reprioritize on the robot; its ended Task document."""
+        self._check(robot_id, task_ids=task_ids)
+        return self.client.reprioritize(robot_id, task_ids, priority, timeout_sec)
+
+    def confirm(
+        self,
+        robot_id: str,
+        task_id: str,
+        *,
+        reject: bool = False,
+        comment: str = '',
+        timeout_sec: float = TIMEOUT_SEC,
+    ) -> Document:
+        """Answer a waiting system/confirm on the robot; its Confirmed document."""
+        self._check(robot_id, task_id=task_id)
+        return self.client.confirm(
+            robot_id, task_id, reject=reject, comment=comment, timeout_sec=timeout_sec
+        )
+
+    def stop(self, robot_id: str, timeout_sec: float = TIMEOUT_SEC) -> Document:
+        """system/stop on the robot; its ended Task document."""
+        self._check(robot_id)
+        return self.client.stop(robot_id, timeout_sec)
+
+    def stop_all(self, timeout_sec: float = TIMEOUT_SEC) -> dict[str, Document]:
+        """system/stop on every robot at once; each robot's reply document (`ok`, and `task`
+        or `error`), an OFFLINE robot's being `robot_offline` (it was not asked)."""
+        answers: dict[str, Document] = {}
+        asked: dict[str, Future[Document]] = {}
+        for robot_id, robot in sorted(self.robots.items()):
+            if robot.online:
+                asked[robot_id] = self.client.request(robot_id, 'stop')
+            else:
+                answers[robot_id] = _error(_offline(robot))
+        deadline = time.monotonic() + timeout_sec
+        for robot_id, reply in asked.items():
+            try:
+                answers[robot_id] = reply.result(max(deadline - time.monotonic(), 0.0))
+            except FutureTimeout:
+                message = f'no reply of {robot_id} within {timeout_sec} s'
+                answers[robot_id] = _error(FleetError(message, 'timeout'))
+            except FleetError as error:
+                answers[robot_id] = _error(error)
+        return dict(sorted(answers.items()))
+
+    def refresh_schedules(self, robot_id: str) -> Future[None]:
+        """Ask the robot for its schedules again (in the background); done once `schedules`
+        of its state holds them."""
+        return self._readers.submit(self._read_schedules, robot_id)
+
+    def _check(self, robot_id: str, *, task_ids: list[str] | None = None, **texts: str) -> None:
+        """FleetError unless the robot is ONLINE and the request's texts and ids are usable."""
+        problem = robot_id_problem(robot_id) or request_problem(
+            texts.get('task_id', ''), texts.get('task_name', ''), texts.get('source', '')
+        )
+        if not problem and task_ids is not None:
+            problem = ids_problem('task_ids', task_ids) or next(
+                (p for i in task_ids if (p := request_problem(i, '', '') or '')), ''
+            )
+        if problem:
+            raise FleetError(problem, 'invalid_request')
+        robot = self.robot(robot_id)
+        if robot is None:
+            raise FleetError(f'no robot {robot_id!r} is known on the broker', 'unknown_robot')
+        if not robot.online:
+            raise _offline(robot)
+
+    # ---- on the MQTT client's thread: never wait ----------------------------------------------
+
+    def _on_result(self, robot_id: str, task: Document, acknowledge: Callable[[], None]) -> None:
+        self._held.put(_Held(robot_id, task, acknowledge))
+
+    def _on_state(self, robot_id: str, name: str, document: Document | None) -> None:
+        if problem := robot_id_problem(robot_id):
+            self.bad_messages.count(robot_id, name, problem)
+            return
+        if document is None:  # a retained document cleared: the last one known stays
+            return
+        with self._lock:
+            old = self._robots.get(robot_id)
+            state = old or RobotState(robot_id)
+            try:
+                if name == 'connection':
+                    state = state.with_connection(document)
+                elif name == 'tasks':
+                    state = state.with_tasks(document)
+                elif name == 'active_tasks':
+                    state = state.with_active(document)
+            except BadDocumentError as error:
+                why = str(error)
+            else:
+                why = ''
+                self._robots[robot_id] = state
+        if why:
+            self._on_bad_message(robot_id, name, why)
+            return
+        if old is None:
+            self._readers.submit(self._read_last_result, robot_id)
+        if state.online and not (old and old.online):
+            self.refresh_schedules(robot_id)
+        self._notify(Change(state))
+
+    def _on_bad_message(self, robot_id: str, name: str, why: str) -> None:
+        count = self.bad_messages.count(robot_id, name, why)
+        with self._lock:
+            robot = self._robots.get(robot_id)
+            if robot is not None:
+                self._robots[robot_id] = replace(robot, bad_messages=count)
+
+    # ---- storing results ----------------------------------------------------------------------
+
+    def _store_results(self) -> None:
+        """The storing thread: batches of results, in the order they came, until stopped."""
+        while True:
+            first = self._held.get()
+            if first is None or self._stopping.is_set():
+                return
+            batch = [first]
+            while len(batch) < STORE_BATCH_MAX:
+                try:
+                    item = self._held.get_nowait()
+                except queue.Empty:
+                    break
+                if item is None:
+                    self._held.put(None)  # the end, once this batch is stored
+                    break
+                batch.append(item)
+            try:
+                self._store_batch(batch)
+            except Exception:  # a bug of ours: logged, the thread goes on (not acknowledged)
+                LOG.exception('storing %d results failed', len(batch))
+
+    def _store_batch(self, batch: list[_Held]) -> None:
+        """Store a batch (retrying while the database is away), then acknowledge it all."""
+        stored_at = utc(datetime.now(UTC))
+        rows: list[Document] = []
+        for held in batch:
+            try:
+                rows.append(row_of(held.robot_id, held.task, stored_at))
+            except BadResultError as error:  # never storable: acknowledged, counted
+                self._on_bad_message(held.robot_id, 'result', str(error))
+        new = self._stored(rows)
+        if new is None:  # stopping: the broker keeps them
+            return
+        for row, is_new in zip(rows, new, strict=True):
+            if is_new:
+                self._on_stored(row)
+            else:
+                self.duplicates += 1
+        for held in batch:
+            held.acknowledge()
+
+    def _stored(self, rows: list[Document]) -> list[bool] | None:
+        """Whether each row is new, once stored; None if the console stopped first."""
+        delay = RETRY_MIN_SEC
+        while not self._stopping.is_set():
+            try:
+                new = self._store_rows(rows)
+            except DatabaseUnavailable as error:
+                if self.database_up:
+                    self.database_up = False
+                    LOG.error(
+                        '%s; the results wait with the broker (not acknowledged), '
+                        'trying again every %.0f s at most',
+                        error,
+                        RETRY_MAX_SEC,
+                    )
+                self._stopping.wait(delay)
+                delay = min(delay * 2, RETRY_MAX_SEC)
+                continue
+            if not self.database_up:
+                self.database_up = True
+                LOG.info('the fleet history at %s is back: storing again', self.history.url)
+            return new
+        return None
+
+    def _store_rows(self, rows: list[Document]) -> list[bool]:
+        """history.store_rows; a batch the database refuses is stored row by row, and a row
+        it refuses alone is counted as bad (never stored)."""
+        try:
+            return self.history.store_rows(rows)
+        except BadResultError as error:
+            if len(rows) == 1:
+                self._on_bad_message(rows[0]['robot_id'], 'result', str(error))
+                return [False]
+        return [new for row in rows for new in self._store_rows([row])]
+
+    def _on_stored(self, row: Document) -> None:
+        document = document_of(row)
+        robot_id = row['robot_id']
+        with self._lock:
+            self.results_stored += 1
+            robot = self._robots.get(robot_id) or RobotState(robot_id)
+            robot = self._robots[robot_id] = replace(
+                robot, last_result=document, results_stored=robot.results_stored + 1
+            )
+        self._notify(Change(robot, document))
+
+    # ---- slower reads, on the readers' threads ------------------------------------------------
+
+    def _read_last_result(self, robot_id: str) -> None:
+        try:
+            last = self.history.last_result(robot_id)
+        except DatabaseUnavailable as error:
+            LOG.debug('last result of %s not read: %s', robot_id, error)
+            return
+        if last is None:
+            return
+        with self._lock:
+            robot = self._robots.get(robot_id)
+            if robot is None or robot.last_result is not None:
+                return
+            robot = self._robots[robot_id] = replace(robot, last_result=last)
+        self._notify(Change(robot))
+
+    def _read_schedules(self, robot_id: str) -> None:
+        try:
+            schedules = self.client.schedules(robot_id)
+        except FleetError as error:
+            LOG.info('the schedules of %s were not read: %s', robot_id, error)
+            return
+        with self._lock:
+            robot = self._robots.get(robot_id)
+            if robot is None:
+                return
+            robot = self._robots[robot_id] = replace(robot, schedules=schedules)
+        self._notify(Change(robot))
+
+    def _notify(self, change: Change) -> None:
+        with self._lock:
+            callbacks = list(self._callbacks)
+        for callback in callbacks:
+            try:
+                callback(change)
+            except Exception:  # a callback's bug must not stop the console
+                LOG.exception('a change callback failed')
+
+
+def _offline(robot: RobotState) -> FleetError:
+    state = str(robot.connection_state)
+    if robot.connection_state == ConnectionState.ONLINE:
+        state = 'ONLINE but its bridge reaches no Task Manager'
+    since = f' since {robot.since.isoformat()}' if robot.since else ''
+    return FleetError(f'robot {robot.robot_id} is {state}{since}', 'robot_offline')
+
+
+def _error(error: FleetError) -> Document:
+    return {'ok': False, 'error': {'code': error.code, 'message': str(error)}}
