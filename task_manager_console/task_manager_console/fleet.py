@@ -7,8 +7,8 @@ is stored (or refused for good), so that one received while the database is away
 the broker, and one received twice is stored once (its robot and sequence are its key).
 
 Threads: the MQTT client's (documents in, never waiting), one that stores results (in batches,
-retrying while the database is away) and a small pool for slower reads (a robot's schedules,
-its last stored result). Callbacks of `on_change` run on those threads and must not wait.
+retrying while the database is away) and a small pool for reads of the database (a robot's
+last stored result). Callbacks of `on_change` run on those threads and must not wait.
 """
 
 import logging
@@ -47,7 +47,7 @@ RETRY_MIN_SEC = 0.5
 RETRY_MAX_SEC = 5.0
 """While the database is away, a store is tried again after 0.5 s, doubling up to 5 s."""
 READERS = 2
-"""Threads of the slower reads (schedules, last results)."""
+"""Threads of the reads of the database (last results)."""
 
 
 @dataclass(frozen=True)
@@ -106,8 +106,12 @@ class Fleet:
         """Results received again and not stored again."""
         self.database_up = True
         """False while stores fail (results wait with the broker meanwhile)."""
+        self.results_received = 0
+        """Deliveries of results since the start (duplicates and bad ones too)."""
         self._robots: dict[str, RobotState] = {}
         self._lock = threading.Lock()
+        self._progress = threading.Condition(self._lock)
+        """Notified at each change: of a robot, a result received or stored, the database."""
         self._callbacks: list[Callable[[Change], None]] = []
         self._held: queue.Queue[_Held | None] = queue.Queue()
         self._stopping = threading.Event()
@@ -138,7 +142,7 @@ class Fleet:
         yet are not acknowledged, so the broker delivers them again at the next start."""
         self.client.close()
         self._stop_storing()
-        self._readers.shutdown(wait=True, cancel_futures=True)
+        self._readers.shutdown(wait=True, cancel_futures=True)  # reads of the database: short
 
     def _stop_storing(self) -> None:
         self._stopping.set()
@@ -183,18 +187,13 @@ class Fleet:
         self, condition: Callable[[dict[str, RobotState]], bool], timeout_sec: float
     ) -> bool:
         """Wait until `condition(robots)` holds (checked at each change); whether it did."""
-        changed = threading.Condition()
+        return self.wait_until(lambda: condition(dict(self._robots)), timeout_sec)
 
-        def notify(_: Change) -> None:
-            with changed:
-                changed.notify_all()
-
-        remove = self.on_change(notify)
-        try:
-            with changed:
-                return changed.wait_for(lambda: condition(self.robots), timeout_sec)
-        finally:
-            remove()
+    def wait_until(self, condition: Callable[[], bool], timeout_sec: float) -> bool:
+        """Wait until `condition()` holds, checked at each change of a robot, each result
+        received or stored and each change of `database_up`; whether it did."""
+        with self._progress:
+            return self._progress.wait_for(condition, timeout_sec)
 
     # ---- acting on robots ---------------------------------------------------------------------
 
@@ -305,10 +304,12 @@ class Fleet:
                 answers[robot_id] = _error(error)
         return dict(sorted(answers.items()))
 
-    def refresh_schedules(self, robot_id: str) -> Future[None]:
-        """Ask the robot for its schedules again (in the background); done once `schedules`
-        of its state holds them."""
-        return self._readers.submit(self._read_schedules, robot_id)
+    def refresh_schedules(self, robot_id: str) -> Future[Document]:
+        """Ask the robot for its schedules again; its state's `schedules` holds them once its
+        reply (the future's) has come. Nothing waits for it."""
+        reply = self.client.request(robot_id, 'schedules', schedule_ids=[])
+        reply.add_done_callback(lambda done: self._on_schedules(robot_id, done))
+        return reply
 
     def _check(self, robot_id: str, *, task_ids: list[str] | None = None, **texts: str) -> None:
         """FleetError unless the robot is ONLINE and the request's texts and ids are usable."""
@@ -331,6 +332,9 @@ class Fleet:
 
     def _on_result(self, robot_id: str, task: Document, acknowledge: Callable[[], None]) -> None:
         self._held.put(_Held(robot_id, task, acknowledge))
+        with self._progress:
+            self.results_received += 1
+            self._progress.notify_all()
 
     def _on_state(self, robot_id: str, name: str, document: Document | None) -> None:
         if problem := robot_id_problem(robot_id):
@@ -420,7 +424,7 @@ class Fleet:
                 new = self._store_rows(rows)
             except DatabaseUnavailable as error:
                 if self.database_up:
-                    self.database_up = False
+                    self._set_database_up(False)
                     LOG.error(
                         '%s; the results wait with the broker (not acknowledged), '
                         'trying again every %.0f s at most',
@@ -431,10 +435,15 @@ class Fleet:
                 delay = min(delay * 2, RETRY_MAX_SEC)
                 continue
             if not self.database_up:
-                self.database_up = True
+                self._set_database_up(True)
                 LOG.info('the fleet history at %s is back: storing again', self.history.url)
             return new
         return None
+
+    def _set_database_up(self, up: bool) -> None:
+        with self._progress:
+            self.database_up = up
+            self._progress.notify_all()
 
     def _store_rows(self, rows: list[Document]) -> list[bool]:
         """history.store_rows; a batch the database refuses is stored row by row, and a row
@@ -475,11 +484,15 @@ class Fleet:
             robot = self._robots[robot_id] = replace(robot, last_result=last)
         self._notify(Change(robot))
 
-    def _read_schedules(self, robot_id: str) -> None:
+    def _on_schedules(self, robot_id: str, reply: Future[Document]) -> None:
         try:
-            schedules = self.client.schedules(robot_id)
-        except FleetError as error:
-            LOG.info('the schedules of %s were not read: %s', robot_id, error)
+            document = reply.result()
+        except FleetError as error:  # not sent
+            LOG.info('the schedules of %s were not asked: %s', robot_id, error)
+            return
+        schedules = document.get('schedules')
+        if not document.get('ok') or not isinstance(schedules, list):
+            LOG.info('the schedules of %s were not read: %s', robot_id, document.get('error'))
             return
         with self._lock:
             robot = self._robots.get(robot_id)
@@ -489,8 +502,9 @@ class Fleet:
         self._notify(Change(robot))
 
     def _notify(self, change: Change) -> None:
-        with self._lock:
+        with self._progress:
             callbacks = list(self._callbacks)
+            self._progress.notify_all()
         for callback in callbacks:
             try:
                 callback(change)

@@ -5,8 +5,9 @@ import json
 import shutil
 import tempfile
 import threading
+import time
 import uuid
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -18,9 +19,13 @@ from paho.mqtt.reasoncodes import ReasonCode
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 from task_manager_mqtt.topics import Topics
 
+from task_manager_console.fleet import Change, Fleet
 from task_manager_console.store.local_postgres import PostgresServer
 
-TIMEOUT_SEC = 15.0
+TIMEOUT_SEC = 20.0
+CONSOLE_USER = 'console'
+"""The console's account on the tests' broker."""
+ROBOTS = ('robot1', 'robot2', 'robot3')
 Document = dict[str, Any]
 
 
@@ -197,3 +202,36 @@ class SimulatedRobot:
 
 def _now() -> str:
     return datetime.now(UTC).isoformat()
+
+
+class Results:
+    """The results a Fleet stores, as it stores them (its `on_change`), to wait on."""
+
+    def __init__(self, fleet: Fleet) -> None:
+        self.stored: list[dict[str, Any]] = []
+        self._changed = threading.Condition()
+        fleet.on_change(self._on_change)
+
+    def _on_change(self, change: Change) -> None:
+        if change.result is not None:
+            with self._changed:
+                self.stored.append(change.result)
+                self._changed.notify_all()
+
+    def wait(self, count: int, timeout_sec: float = TIMEOUT_SEC) -> list[dict[str, Any]]:
+        """Wait until `count` results are stored; them."""
+        with self._changed:
+            if not self._changed.wait_for(lambda: len(self.stored) >= count, timeout_sec):
+                raise AssertionError(f'{len(self.stored)} results stored, not {count}')
+            return list(self.stored)
+
+
+def wait_until(condition: Callable[[], object], timeout_sec: float, what: str) -> None:
+    """Check `condition` until it holds (every 50 ms: what it reads, a database another
+    process writes, has no events to wait on); AssertionError naming `what` if it does not
+    within `timeout_sec`."""
+    deadline = time.monotonic() + timeout_sec
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f'{what}: not within {timeout_sec} s')
+        time.sleep(0.05)
