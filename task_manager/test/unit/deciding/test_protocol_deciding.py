@@ -38,7 +38,7 @@ def test_a_queued_task_document_has_its_place_priority_attempt_and_decisions() -
     validator('task_event').validate(event)
     assert (document['queue_position'], document['priority'], document['attempt']) == (2, 3, 1)
     assert document['decisions'] == [
-        {'at': '2026-11-23T02:00:00Z', 'decision': 'queued', 'reason': REASON}
+        {'at': '2026-11-23T02:00:00Z', 'decision': 'queued', 'reason': REASON, 'omitted': 0}
     ]
     assert (event['event'], event['reason']) == ('QUEUED', REASON)
 
