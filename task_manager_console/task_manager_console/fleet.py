@@ -109,7 +109,8 @@ class Fleet:
         self.results_received = 0
         """Deliveries of results since the start (duplicates and bad ones too)."""
         self._robots: dict[str, RobotState] = {}
-        self._lock = threading.Lock()
+        # reentrant: a condition of wait_until may read `robots`
+        self._lock = threading.RLock()
         self._progress = threading.Condition(self._lock)
         """Notified at each change: of a robot, a result received or stored, the database."""
         self._callbacks: list[Callable[[Change], None]] = []
@@ -140,8 +141,8 @@ class Fleet:
     def close(self) -> None:
         """Disconnect (the broker keeps the session), then stop storing: results not stored
         yet are not acknowledged, so the broker delivers them again at the next start."""
+        self._stop_storing()  # the batch being stored is acknowledged before disconnecting
         self.client.close()
-        self._stop_storing()
         self._readers.shutdown(wait=True, cancel_futures=True)  # reads of the database: short
 
     def _stop_storing(self) -> None:
@@ -164,7 +165,9 @@ class Fleet:
 
     def on_change(self, callback: Callable[[Change], None]) -> Callable[[], None]:
         """`callback(change)` at each change of a robot and each result stored; returns the
-        function that removes it. It runs on the console's threads and must not wait."""
+        function that removes it. It runs on the console's threads and must not wait; changes
+        of one robot may reach it out of order from two threads (its newest state is
+        `robot(robot_id)`)."""
         with self._lock:
             self._callbacks.append(callback)
 
