@@ -2,6 +2,7 @@
 no ROS): robots appear by themselves, silent ones show, each result is stored once and in
 order, nothing is lost while the console or its database is away, bad messages are counted."""
 
+import json
 import logging
 from collections.abc import Callable
 from typing import Any
@@ -232,3 +233,23 @@ def test_results_not_stored_stay_with_the_broker_across_a_restart(
     again = start_console()
     assert again.wait_until(lambda: again.results_stored == 30, TIMEOUT_SEC)
     assert sequences(again, 'robot1') == list(range(1, 41))
+
+
+def test_a_robot_id_with_control_characters_is_never_listed(
+    start_console: StartConsole, caplog: pytest.LogCaptureFixture
+) -> None:
+    """As the MQTT client hands the console a message (no broker account can be named so)."""
+    fleet = start_console()
+    robot = SimulatedRobot(0, 'robot\n1', 'unused')
+    with caplog.at_level(logging.WARNING, logger='task_manager_console'):
+        for name, document in (
+            ('connection', robot.connection_document('ONLINE')),
+            ('result', robot.task()),
+        ):
+            topic = f'{robot.topics.prefix}/robot\n1/{name}'
+            fleet.client._dispatch(topic, json.dumps(document).encode(), 1, 1)
+        assert fleet.wait_until(lambda: fleet.bad_messages.total == 2, TIMEOUT_SEC)
+    assert fleet.robots == {}
+    assert fleet.history.count() == 0
+    [line] = [r.getMessage() for r in caplog.records]
+    assert line.startswith('robot robot\\u000a1: a message on connection ignored (1 so far')

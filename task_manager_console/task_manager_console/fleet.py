@@ -194,7 +194,7 @@ class Fleet:
 
     def wait_until(self, condition: Callable[[], bool], timeout_sec: float) -> bool:
         """Wait until `condition()` holds, checked at each change of a robot, each result
-        received or stored and each change of `database_up`; whether it did."""
+        received or stored, each bad message and each change of `database_up`; whether it did."""
         with self._progress:
             return self._progress.wait_for(condition, timeout_sec)
 
@@ -371,10 +371,11 @@ class Fleet:
 
     def _on_bad_message(self, robot_id: str, name: str, why: str) -> None:
         count = self.bad_messages.count(robot_id, name, why)
-        with self._lock:
+        with self._progress:
             robot = self._robots.get(robot_id)
             if robot is not None:
                 self._robots[robot_id] = replace(robot, bad_messages=count)
+            self._progress.notify_all()
 
     # ---- storing results ----------------------------------------------------------------------
 
