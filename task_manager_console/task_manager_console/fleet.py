@@ -130,12 +130,14 @@ class Fleet:
         self.close()
 
     def start(self, timeout_sec: float = TIMEOUT_SEC) -> None:
-        """Start storing, connect and follow; FleetError if the broker is not reached in time."""
+        """Start storing, connect and follow (once per Fleet); FleetError if the broker is not
+        reached in time."""
         self._storer.start()
         try:
             self.client.connect(timeout_sec)
         except FleetError:
             self._stop_storing()
+            self._readers.shutdown(wait=False)
             raise
 
     def close(self) -> None:
