@@ -7,7 +7,6 @@ name of who asked (`WEB:alice`, `CLOUD:alice`): `door_source`. No request throug
 may claim another door's source (`source_priorities` would rank it as that door's).
 """
 
-import re
 from collections.abc import Sequence
 from typing import Any
 
@@ -22,22 +21,13 @@ from task_manager.client import (
     When,
 )
 from task_manager.core.admission.priority import SOURCE_SEPARATOR
+from task_manager.core.sources import SOURCE_NAME, SOURCE_NAME_RULE, door_source
 from task_manager.protocol import models
 
-SOURCE_NAME = re.compile(r'[A-Za-z0-9._@-]{1,64}')
-"""A name a door puts after its own source (a web token's, an MQTT request's): no separator in
-it, so that no name can make another door's source."""
-SOURCE_NAME_RULE = "1 to 64 letters, digits, '.', '_', '@' or '-'"
 # the fields of a start's options: the same names as the client's keywords
 OPTION_FIELDS = frozenset(
     {'priority', 'on_conflict', 'timeout_sec', 'queue_timeout_sec', 'feedback_timeout_sec'}
 )
-
-
-def door_source(door: str, name: str = '') -> str:
-    """The source of what `name` starts through the door whose source is `door`: `door`, or
-    `door:name` (`WEB:alice`)."""
-    return f'{door}{SOURCE_SEPARATOR}{name}' if name else door
 
 
 def claimed_source(door: str, claimed: str) -> str:

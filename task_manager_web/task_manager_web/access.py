@@ -29,7 +29,7 @@ from pydantic import BaseModel
 from starlette.datastructures import Headers
 from starlette.types import Scope
 
-from task_manager.gateway_requests import door_source
+from task_manager.core.sources import door_source
 from task_manager_web.errors import ApiError
 from task_manager_web.task_roles import SYSTEM_TASK_ROLES, TASK_ROLE, Need, UnreadableTaskDataError
 from task_manager_web.tokens import Role, Token

@@ -41,17 +41,17 @@ from task_manager_web.access import (
 )
 from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.errors import ApiError, add_error_handlers
+from task_manager_web.event_stream import event_lines
 from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
 from task_manager_web.history_page import history_page
-from task_manager_web.metrics import GatewayMetrics, RequestMetrics, node_snapshot
-from task_manager_web.node_link import EventStream, Link, NodeLink
+from task_manager_web.metrics import GatewayMetrics, node_snapshot
+from task_manager_web.node_link import Link, NodeLink
 from task_manager_web.operator_routes import add_operator_routes
 from task_manager_web.read_bound import ReadBound
+from task_manager_web.request_metrics import RequestMetrics
 from task_manager_web.task_roles import needed_by_steps, needed_to_start
 from task_manager_web.tokens import Token
 
-KEEPALIVE_SEC = 15.0
-"""An event stream idle this long gets a comment line, which also finds clients gone."""
 WAIT_DEFAULT_SEC = 30.0
 WAIT_MAX_SEC = 600.0
 STATIC = Path(__file__).with_name('static')
@@ -119,7 +119,7 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
         BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
     )
     app.add_middleware(ReadBound, access=access, max_reads=settings.max_reads_per_client)
-    app.add_middleware(RequestMetrics, metrics=metrics)
+    app.add_middleware(RequestMetrics, counts=metrics.request_counts)
     app.add_middleware(FrontDoor, allowed_hosts=settings.allowed_hosts)
     _add_routes(app)
     add_operator_routes(app)
@@ -328,7 +328,11 @@ def _add_routes(app: FastAPI) -> None:
         event (a TaskEvent document) for every change of every task."""
         stream = link.open_stream()
         return StreamingResponse(
-            _event_lines(link, stream),
+            event_lines(
+                stream,
+                [('hello', json.dumps({'connected': link.connected}))],
+                lambda: link.close_stream(stream),
+            ),
             media_type='text/event-stream',
             headers={'Cache-Control': 'no-store', 'X-Accel-Buffering': 'no'},
         )
@@ -360,23 +364,3 @@ async def _started(
             'task': task,
         }
     )
-
-
-async def _event_lines(link: NodeLink, stream: EventStream) -> AsyncIterator[str]:
-    try:
-        yield _sse('hello', json.dumps({'connected': link.connected}))
-        while True:
-            try:
-                kind, text = await asyncio.wait_for(stream.next(), KEEPALIVE_SEC)
-            except TimeoutError:
-                yield ': keepalive\n\n'
-                continue
-            yield _sse(kind, text)
-            if kind == EventStream.OVERFLOW:
-                return
-    finally:
-        link.close_stream(stream)
-
-
-def _sse(kind: str, data: str) -> str:
-    return f'event: {kind}\ndata: {data}\n\n'

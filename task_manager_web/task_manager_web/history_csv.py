@@ -34,15 +34,16 @@ def history_csv(tasks: list[dict[str, Any]]) -> str:
     return ''.join(csv_lines(tasks))
 
 
-def csv_lines(tasks: list[dict[str, Any]]) -> list[str]:
-    """The header line, then one line per task (lines that a cell's line break continues)."""
+def csv_lines(tasks: list[dict[str, Any]], columns: tuple[str, ...] = COLUMNS) -> list[str]:
+    """The header line, then one line per task (lines that a cell's line break continues), of
+    `columns` (the fleet console's begin with `robot_id`)."""
     out = io.StringIO()
     # CRLF, as RFC 4180 has it: the writer then also quotes a cell holding a lone CR
     writer = csv.writer(out, lineterminator='\r\n')
-    rows: list[list[Any]] = [list(COLUMNS)]
+    rows: list[list[Any]] = [list(columns)]
     for task in tasks:
         cells = {**task, 'result': json.dumps(task.get('result'), separators=(',', ':'))}
-        rows.append([_cell(cells.get(column)) for column in COLUMNS])
+        rows.append([_cell(cells.get(column)) for column in columns])
     lines = []
     for row in rows:
         writer.writerow(row)

@@ -10,6 +10,7 @@ is closed. The body's own deadline is the BodyDoor's.
 
 import asyncio
 import logging
+import socket
 from typing import Any
 from urllib.parse import parse_qsl, urlencode
 
@@ -120,3 +121,20 @@ def server_config(
         access.setLevel(logging.INFO)
         access.addFilter(_TokenFilter())
     return config
+
+
+def listen(program: str, host: str, port: int) -> socket.socket:
+    """A socket listening on `host`:`port` (0: any free port); SystemExit naming `program`
+    when it cannot."""
+    family = socket.AF_INET6 if ':' in host else socket.AF_INET
+    # IPPROTO_TCP named: asyncio sets TCP_NODELAY on the accepted connections only then; else a
+    # response sent in two writes waits for the client's delayed ACK (40 ms) on a kept-alive one
+    listener = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        listener.bind((host, port))
+    except OSError as error:
+        listener.close()
+        raise SystemExit(f'{program}: cannot listen on {host}:{port}: {error}') from None
+    listener.listen(128)
+    return listener

@@ -9,7 +9,6 @@ import argparse
 import asyncio
 import contextlib
 import logging
-import socket
 import sys
 from pathlib import Path
 
@@ -18,11 +17,10 @@ import uvicorn
 from task_manager.client import TaskManagerClient
 from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager.discovery import use_quick_discovery
-from task_manager.secret_file import exposure_warning
 from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
 from task_manager_web.front_door import LOCAL_HOSTS
-from task_manager_web.http_server import HEADER_TIMEOUT_SEC, server_config
-from task_manager_web.tokens import Token, TokenFileError, generated_token, read_token_file
+from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
+from task_manager_web.tokens import dashboard_line, door_tokens
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080
@@ -97,44 +95,6 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     return parser.parse_args(argv)
 
 
-def _tokens(token_file: Path | None) -> tuple[Token, ...]:
-    if token_file is None:
-        return (generated_token(),)
-    try:
-        tokens = read_token_file(token_file)
-    except TokenFileError as error:
-        raise SystemExit(f'task-manager-web: --token-file {error}') from None
-    if warning := exposure_warning(token_file):
-        logging.getLogger('task_manager_web').warning(f'--token-file {warning}')
-    return tokens
-
-
-def _dashboard_line(url: str, tokens: tuple[Token, ...], token_file: Path | None) -> str:
-    """The dashboard's link: with the token made here, else how to open it."""
-    if token_file is None:
-        return f'dashboard: {url}?token={tokens[0].secret}'
-    roles = ', '.join(
-        f'{sum(t.role is role for t in tokens)} {role.label}'
-        for role in sorted({t.role for t in tokens}, reverse=True)
-    )
-    return f'dashboard: {url} (open it with ?token=TOKEN, a token of {token_file}: {roles})'
-
-
-def _listen(host: str, port: int) -> socket.socket:
-    family = socket.AF_INET6 if ':' in host else socket.AF_INET
-    # IPPROTO_TCP named: asyncio sets TCP_NODELAY on the accepted connections only then; else a
-    # response sent in two writes waits for the client's delayed ACK (40 ms) on a kept-alive one
-    listener = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
-    listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-    try:
-        listener.bind((host, port))
-    except OSError as error:
-        listener.close()
-        raise SystemExit(f'task-manager-web: cannot listen on {host}:{port}: {error}') from None
-    listener.listen(128)
-    return listener
-
-
 def main(argv: list[str] | None = None) -> None:
     use_quick_discovery()
     arguments = _arguments(argv)
@@ -142,8 +102,8 @@ def main(argv: list[str] | None = None) -> None:
         level=logging.INFO, format='[%(levelname)s] [task_manager_web]: %(message)s'
     )
     try:
-        tokens = _tokens(arguments.token_file)
-        listener = _listen(arguments.host, arguments.port)
+        tokens = door_tokens('task-manager-web', arguments.token_file)
+        listener = listen('task-manager-web', arguments.host, arguments.port)
     except SystemExit as error:
         print(error, file=sys.stderr)
         sys.exit(EXIT_USAGE)
@@ -164,7 +124,7 @@ def main(argv: list[str] | None = None) -> None:
     server = uvicorn.Server(config)
     host, port = listener.getsockname()[:2]
     shown_host = f'[{host}]' if ':' in host else host
-    dashboard = _dashboard_line(f'http://{shown_host}:{port}/', tokens, arguments.token_file)
+    dashboard = dashboard_line(f'http://{shown_host}:{port}/', tokens, arguments.token_file)
     # Ctrl-C is a clean stop from the first line printed on, also before uvicorn has taken the
     # signals over: then it interrupts a print (KeyboardInterrupt) or asyncio.run's start-up,
     # which cancels the server's task (CancelledError)

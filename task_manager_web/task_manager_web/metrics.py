@@ -4,18 +4,17 @@ The node keeps no web stack: the tasks' counts and durations come from the task 
 gateway's TaskManagerClient receives (so they count from the gateway's start), the active,
 paused and queued counts from its latest active task list and the schedules' runs and misses
 from /task_manager/get_schedules, both read when scraped. The gateway's own requests are
-counted by an ASGI middleware. Every gateway has a registry of its own (never the global one).
+counted by an ASGI middleware (request_metrics.py). Every gateway has a registry of its own
+(never the global one).
 """
 
 import contextlib
-import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 from prometheus_client import CollectorRegistry, Counter, Gauge, Histogram
 from prometheus_client.core import CounterMetricFamily, GaugeMetricFamily, Metric
 from prometheus_client.registry import Collector
-from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 from task_manager.client import (
     ActiveTaskInfo,
@@ -27,17 +26,13 @@ from task_manager.client import (
 from task_manager.core.errors import TaskManagerError
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager_web.node_link import NodeLink
+from task_manager_web.request_metrics import RequestCounts
 
 UNKNOWN_TASK_LABEL = '(unknown)'
 """The task_name label of a task refused as unknown: a request cannot add label values."""
-UNMATCHED_ROUTE = '(unmatched)'
-"""The route label of a request that reached no route (404, or refused before routing)."""
 DURATION_BUCKETS_SEC = (0.1, 0.5, 1, 2.5, 5, 10, 30, 60, 120, 300, 600, 1800, 3600)
-METHODS = frozenset({'GET', 'HEAD', 'POST', 'PUT', 'PATCH', 'DELETE', 'OPTIONS'})
-"""Methods named in the method label; any other is `OTHER` (a request cannot add values)."""
 SCRAPE_TIMEOUT_SEC = 2.0
 """The longest a scrape waits for each answer of the Task Manager; without it, left out."""
-REQUEST_BUCKETS_SEC = (0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30)
 
 
 @dataclass(frozen=True)
@@ -110,19 +105,7 @@ class GatewayMetrics:
             '1 while the gateway reaches a Task Manager, else 0.',
             registry=self.registry,
         )
-        self.requests = Counter(
-            'task_manager_web_requests',
-            'HTTP requests answered by the gateway, by route, method and status.',
-            ['route', 'method', 'status'],
-            registry=self.registry,
-        )
-        self.request_duration = Histogram(
-            'task_manager_web_request_duration_seconds',
-            "Time from a request to its answer's head (an event stream: until it opened).",
-            ['route', 'method'],
-            buckets=REQUEST_BUCKETS_SEC,
-            registry=self.registry,
-        )
+        self.request_counts = RequestCounts(self.registry, 'task_manager_web', 'the gateway')
         self._node = _NodeCollector()
         self.registry.register(self._node)
 
@@ -146,35 +129,6 @@ class GatewayMetrics:
         """What the next exposition says of the Task Manager."""
         self.connected.set(1 if connected else 0)
         self._node.snapshot = snapshot
-
-    def request_done(self, route: str, method: str, status: int, duration_sec: float) -> None:
-        self.requests.labels(route, method, str(status)).inc()
-        self.request_duration.labels(route, method).observe(duration_sec)
-
-
-class RequestMetrics:
-    """An ASGI middleware: counts each request and times it to its answer's head."""
-
-    def __init__(self, app: ASGIApp, metrics: GatewayMetrics) -> None:
-        self.app = app
-        self.metrics = metrics
-
-    async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope['type'] != 'http':
-            await self.app(scope, receive, send)
-            return
-        began = time.perf_counter()
-
-        async def send_counted(message: Message) -> None:
-            if message['type'] == 'http.response.start':
-                # the router puts the matched route into the scope (a template: few values)
-                route = getattr(scope.get('route'), 'path', None) or UNMATCHED_ROUTE
-                method = scope['method'] if scope['method'] in METHODS else 'OTHER'
-                duration_sec = time.perf_counter() - began
-                self.metrics.request_done(route, method, message['status'], duration_sec)
-            await send(message)
-
-        await self.app(scope, receive, send_counted)
 
 
 async def node_snapshot(link: NodeLink) -> NodeSnapshot:

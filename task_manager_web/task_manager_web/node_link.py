@@ -14,7 +14,6 @@ Reads are bounded per client before they get here (read_bound.py).
 
 import asyncio
 import contextlib
-import json
 import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -27,6 +26,7 @@ from task_manager.client import TaskEvent, TaskHandle, TaskManagerClient, TaskRe
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
 from task_manager.gateway_json import event_json
+from task_manager_web.event_stream import EventStream
 
 T = TypeVar('T')
 READ_THREADS = 4
@@ -34,34 +34,10 @@ START_THREADS = 8
 CONTROL_THREADS = 4
 """Control (stop, cancel, pause, ...): each holds its thread until its system task ended
 (milliseconds)."""
-STREAM_QUEUE_MAX = 10_000
-"""Events a stream may have waiting; a client that falls this far behind is disconnected."""
 NOT_CONNECTED = (
     'the Task Manager is not reachable: no /task_manager node answers in this ROS domain '
     '(is it running, with the same ROS_DOMAIN_ID?)'
 )
-
-
-class EventStream:
-    """The events waiting for one client of /api/events: (kind, JSON text) pairs."""
-
-    OVERFLOW = 'overflow'
-
-    def __init__(self, max_queued: int = STREAM_QUEUE_MAX) -> None:
-        self._queue: asyncio.Queue[tuple[str, str]] = asyncio.Queue(max_queued)
-
-    def offer(self, kind: str, text: str) -> None:
-        """Queue an event; when full, drop what waits and queue the overflow notice instead."""
-        try:
-            self._queue.put_nowait((kind, text))
-        except asyncio.QueueFull:
-            while not self._queue.empty():
-                self._queue.get_nowait()
-            notice = {'message': f'more than {self._queue.maxsize} events waited: reconnect'}
-            self._queue.put_nowait((self.OVERFLOW, json.dumps(notice)))
-
-    async def next(self) -> tuple[str, str]:
-        return await self._queue.get()
 
 
 class NodeLink:

@@ -21,23 +21,28 @@ READ_PATHS = ('/api/active', '/api/tasks', '/api/history')
 RETRY_AFTER_SEC = 1
 
 
-def is_read(scope: Scope) -> bool:
+def is_read(scope: Scope, paths: tuple[str, ...] = READ_PATHS) -> bool:
+    """Whether the request is a GET or HEAD of one of `paths` or what is under it."""
     path: str = scope['path']
     return scope['method'] in ('GET', 'HEAD') and any(
-        path == prefix or path.startswith(f'{prefix}/') for prefix in READ_PATHS
+        path == prefix or path.startswith(f'{prefix}/') for prefix in paths
     )
 
 
 class ReadBound:
-    def __init__(self, app: ASGIApp, access: Access, max_reads: int) -> None:
+    def __init__(
+        self, app: ASGIApp, access: Access, max_reads: int, paths: tuple[str, ...] = READ_PATHS
+    ) -> None:
+        """`paths`: the reads bounded (the fleet console's are its own)."""
         self.app = app
         self.access = access
         self.max_reads = max_reads
+        self.paths = paths
         # key: a client's key (Access.client_key), value: its reads in flight (none: no entry)
         self._in_flight: Counter[str] = Counter()
 
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
-        if scope['type'] != 'http' or not is_read(scope):
+        if scope['type'] != 'http' or not is_read(scope, self.paths):
             await self.app(scope, receive, send)
             return
         key = self.access.client_key(scope)

@@ -11,6 +11,7 @@ its line number; no message ever shows a token.
 
 import enum
 import hashlib
+import logging
 import re
 import secrets
 from collections.abc import Iterable
@@ -18,7 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from task_manager.core.bounds import TOKEN_MIN_CHARACTERS
-from task_manager.gateway_requests import SOURCE_NAME, SOURCE_NAME_RULE
+from task_manager.core.sources import SOURCE_NAME, SOURCE_NAME_RULE
+from task_manager.secret_file import exposure_warning
 
 GENERATED_NAME = 'admin'
 """The name of the token the gateway makes when it is given no token file."""
@@ -168,3 +170,29 @@ def _check_unique(tokens: tuple[Token, ...], numbers: list[int], where: str) -> 
         token_line[token.secret] = number
         if token.name:
             name_line[token.name] = number
+
+
+def door_tokens(program: str, token_file: Path | None) -> tuple[Token, ...]:
+    """The tokens of a door (`program`'s): those of `token_file`, else one made here (an
+    admin's); SystemExit naming the line when the file cannot be read, a warning logged when
+    other users may read it."""
+    if token_file is None:
+        return (generated_token(),)
+    try:
+        tokens = read_token_file(token_file)
+    except TokenFileError as error:
+        raise SystemExit(f'{program}: --token-file {error}') from None
+    if warning := exposure_warning(token_file):
+        logging.getLogger(program).warning(f'--token-file {warning}')
+    return tokens
+
+
+def dashboard_line(url: str, tokens: tuple[Token, ...], token_file: Path | None) -> str:
+    """The dashboard's link: with the token made here, else how to open it."""
+    if token_file is None:
+        return f'dashboard: {url}?token={tokens[0].secret}'
+    roles = ', '.join(
+        f'{sum(t.role is role for t in tokens)} {role.label}'
+        for role in sorted({t.role for t in tokens}, reverse=True)
+    )
+    return f'dashboard: {url} (open it with ?token=TOKEN, a token of {token_file}: {roles})'
