@@ -81,6 +81,8 @@ def start_console_process(
             str(password_file),
             '--database',
             database_url,
+            '--port',
+            '0',  # its doors on a free port: another test's console may hold one
         ]
         process = NodeProcess(None, command=command)
         processes.append(process)

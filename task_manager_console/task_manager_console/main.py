@@ -21,6 +21,7 @@ from pathlib import Path
 from task_manager_mqtt.fleet_types import FleetError
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, SettingsError
 
+from task_manager_console.app import add_arguments, serve, settings_of
 from task_manager_console.fleet import CONSOLE_CLIENT_ID, Fleet
 from task_manager_console.store.fleet_history import DatabaseUnavailable, FleetHistory
 from task_manager_console.store.location import default_database_url
@@ -63,7 +64,13 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument('--host', default='127.0.0.1', help='address of the doors (%(default)s)')
     parser.add_argument('--port', type=int, default=DEFAULT_PORT, help='their port (%(default)s)')
-    parser.add_argument('--token-file', type=Path, help="the doors' tokens and roles")
+    parser.add_argument(
+        '--token-file',
+        type=Path,
+        help="file of the doors' tokens, one 'ROLE TOKEN [NAME]' line each (ROLE: viewer, "
+        'operator, admin); default: a new admin token, printed',
+    )
+    add_arguments(parser)
     return parser.parse_args(argv)
 
 
@@ -76,6 +83,11 @@ def main(argv: list[str] | None = None) -> int:
             broker = broker.with_password_file(arguments.password_file, LOG)
     except SettingsError as error:
         print(f'task-manager-console: {error}', file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        settings = settings_of(arguments)
+    except SystemExit as error:  # a token file that cannot be read: one line
+        print(error, file=sys.stderr)
         return EXIT_USAGE
     try:
         history = FleetHistory.open(arguments.database or default_database_url())
@@ -107,16 +119,14 @@ def main(argv: list[str] | None = None) -> int:
         history.url,
     )
     try:
-        serve(fleet, arguments, stop)
+        serve(fleet, settings, stop)
+    except SystemExit as error:  # the doors cannot listen: one line
+        print(error, file=sys.stderr)
+        return EXIT_USAGE
     finally:
         fleet.close()
         history.close()
     return 0
-
-
-def serve(fleet: Fleet, arguments: argparse.Namespace, stop: threading.Event) -> None:
-    """Run until `stop` is set: where the doors (REST, events, the page) are served."""
-    stop.wait()
 
 
 if __name__ == '__main__':

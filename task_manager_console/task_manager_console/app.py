@@ -1,0 +1,248 @@
+"""The console's doors: its REST API, event stream, metrics and page (a FastAPI application on a
+Fleet), and `serve`, which runs them until the console stops.
+
+They follow the web gateway's conventions with its own code (task_manager_web: the token file
+and roles, who may do what by effect, the error documents, the security headers, the Host
+allow-list, the body's and the reads' bounds, the HTTP server). Before routing, a request
+passes the same doors (middlewares), outermost first: FrontDoor (Host allow-list; the
+security headers of every answer), RequestMetrics, ReadBound (reads in flight per client),
+BodyDoor (size, time and JSON of the body).
+"""
+
+import argparse
+import asyncio
+import contextlib
+import socket
+import threading
+from collections.abc import AsyncIterator
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import uvicorn
+from fastapi import FastAPI, Request, Response
+from fastapi.responses import FileResponse
+from fastapi.staticfiles import StaticFiles
+from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
+from task_manager_web.access import Access, Identity, MetricsViewer, Viewer
+from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
+from task_manager_web.errors import ApiError, add_error_handlers
+from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
+from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
+from task_manager_web.read_bound import ReadBound
+from task_manager_web.request_metrics import RequestMetrics
+from task_manager_web.tokens import Token, dashboard_line, door_tokens
+
+from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
+from task_manager_console.console_metrics import ConsoleMetrics
+from task_manager_console.fleet import Fleet
+from task_manager_console.fleet_link import FleetLink, Link
+from task_manager_console.fleet_routes import add_fleet_routes
+from task_manager_console.robot_routes import add_robot_routes
+
+PROGRAM = 'task-manager-console'
+STATIC = Path(__file__).with_name('static')
+SOURCE = 'CLOUD'
+"""The door of what the console starts, as the bridges stamp it (`CLOUD:<token name>`)."""
+READ_PATHS = ('/api/robots', '/api/history')
+"""The reads bounded per client (GET of each, and what is under it)."""
+MAX_READS_PER_CLIENT = 32
+MAX_BODY_BYTES = 1_048_576
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The doors' settings (the console's command line gives them)."""
+
+    tokens: tuple[Token, ...]
+    """Who may use the console, each token with its role (and maybe a name)."""
+    host: str = '127.0.0.1'
+    port: int = 0
+    token_file: Path | None = None
+    """Where the tokens come from (None: one made at the start, printed)."""
+    allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
+    """The names a request's Host header may give (its port is not compared)."""
+    metrics_without_token: bool = False
+    max_body_bytes: int = MAX_BODY_BYTES
+    body_timeout_sec: float = BODY_TIMEOUT_SEC
+    max_reads_per_client: int = MAX_READS_PER_CLIENT
+    max_history_bytes: int = HISTORY_PAGE_MAX_BYTES
+    """The largest history page answered (JSON or CSV); a larger one is refused."""
+    header_timeout_sec: float = HEADER_TIMEOUT_SEC
+    access_log: bool = False
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """The doors' options besides --host, --port and --token-file (the console's own)."""
+    parser.add_argument(
+        '--allowed-host',
+        action='append',
+        default=[],
+        metavar='NAME',
+        help='a name the Host header may give besides 127.0.0.1, localhost, ::1 and the --host '
+        "address (the console's name behind a reverse proxy); again for more",
+    )
+    parser.add_argument(
+        '--metrics-without-token',
+        action='store_true',
+        help='let anyone read GET /metrics (a Prometheus scraper without a token)',
+    )
+    parser.add_argument(
+        '--max-history-bytes',
+        type=int,
+        default=HISTORY_PAGE_MAX_BYTES,
+        help='largest history page answered, JSON or CSV; a larger one is refused with '
+        'reply_too_large (8 MiB)',
+    )
+    parser.add_argument(
+        '--access-log', action='store_true', help='a line per request (its token removed)'
+    )
+
+
+def settings_of(arguments: argparse.Namespace) -> Settings:
+    """The doors' settings from the command line; SystemExit (one line) for a token file that
+    cannot be read."""
+    return Settings(
+        tokens=door_tokens(PROGRAM, arguments.token_file),
+        host=arguments.host,
+        port=arguments.port,
+        token_file=arguments.token_file,
+        allowed_hosts=(*LOCAL_HOSTS, arguments.host, *arguments.allowed_host),
+        metrics_without_token=arguments.metrics_without_token,
+        max_history_bytes=arguments.max_history_bytes,
+        access_log=arguments.access_log,
+    )
+
+
+def create_app(fleet: Fleet, settings: Settings) -> FastAPI:
+    """The doors of `fleet` (started, or started by whoever runs them)."""
+
+    @asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        app.state.link = FleetLink(fleet, asyncio.get_running_loop())
+        try:
+            yield
+        finally:
+            app.state.link.close()
+            metrics.close()
+
+    app = FastAPI(
+        title='Task Manager fleet console',
+        summary="Every robot's tasks on an MQTT broker, and the fleet history.",
+        version='0.1.0',
+        lifespan=lifespan,
+        docs_url=None,
+        redoc_url=None,
+        swagger_ui_oauth2_redirect_url=None,
+    )
+    add_error_handlers(app)
+    access = Access(
+        settings.tokens, source=SOURCE, metrics_without_token=settings.metrics_without_token
+    )
+    app.state.access = access
+    metrics = ConsoleMetrics(fleet)
+    app.state.metrics = metrics
+    app.state.max_history_bytes = settings.max_history_bytes
+    # the last added is the outermost
+    app.add_middleware(
+        BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
+    )
+    app.add_middleware(
+        ReadBound, access=access, max_reads=settings.max_reads_per_client, paths=READ_PATHS
+    )
+    app.add_middleware(RequestMetrics, counts=metrics.request_counts)
+    app.add_middleware(FrontDoor, allowed_hosts=settings.allowed_hosts)
+    _add_routes(app)
+    add_robot_routes(app)
+    add_fleet_routes(app)
+    # the page's files (the folder may be absent: then / answers 404)
+    app.mount('/static', StaticFiles(directory=str(STATIC), check_dir=False), name='static')
+    return app
+
+
+def _add_routes(app: FastAPI) -> None:
+    @app.get('/', include_in_schema=False)
+    async def page() -> FileResponse:
+        index = STATIC / 'index.html'
+        if not index.is_file():
+            raise ApiError(404, 'not_found', 'this console has no page')
+        return FileResponse(str(index))
+
+    @app.get('/api/health', tags=['state'])
+    async def health(link: Link) -> dict[str, Any]:
+        """Whether the fleet history stores, how many robots are seen and ONLINE, how many
+        results wait to be stored (no token needed)."""
+        robots = link.fleet.robots.values()
+        return {
+            'database_up': link.fleet.database_up,
+            'robots': len(robots),
+            'online': sum(1 for robot in robots if robot.online),
+            'results_waiting': link.fleet.results_waiting(),
+            'event_streams': link.stream_count,
+        }
+
+    @app.get('/api/whoami', tags=['state'])
+    async def whoami(caller: Viewer) -> Identity:
+        """The role and name of the token sent: what the page may offer."""
+        return Identity.model_validate({'role': caller.role.label, 'name': caller.name})
+
+    @app.get(
+        '/metrics',
+        tags=['state'],
+        response_class=Response,
+        responses={200: {'content': {CONTENT_TYPE_LATEST: {}}}},
+    )
+    async def metrics(_: MetricsViewer, request: Request) -> Response:
+        """Prometheus metrics (text format): each robot's connection, active, queued and
+        paused tasks, results stored and bad messages; the tasks ended by robot and status;
+        the fleet history's; this console's requests. Needs a token unless
+        --metrics-without-token."""
+        console_metrics: ConsoleMetrics = request.app.state.metrics
+        return Response(generate_latest(console_metrics.registry), media_type=CONTENT_TYPE_LATEST)
+
+
+class _Server(uvicorn.Server):
+    """uvicorn's server, which ends the event streams when it begins to stop (else each would
+    hold the stop for its grace period, then be cancelled)."""
+
+    def __init__(self, app: FastAPI, settings: Settings) -> None:
+        super().__init__(server_config(app, settings.header_timeout_sec, settings.access_log))
+        self.console_app = app
+
+    async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
+        link: FleetLink | None = getattr(self.console_app.state, 'link', None)
+        if link is not None:
+            link.end_streams()
+        await super().shutdown(sockets)
+
+
+def serve(fleet: Fleet, settings: Settings, stop: threading.Event) -> None:
+    """Serve the doors of `fleet` until `stop` is set, or SIGINT or SIGTERM comes (then `stop`
+    is set too); prints the page's link (`dashboard: http://HOST:PORT/?token=TOKEN` with the
+    token made here, as the web gateway does) once it listens. SystemExit (one line) when it
+    cannot listen."""
+    listener = listen(PROGRAM, settings.host, settings.port)
+    app = create_app(fleet, settings)
+    server = _Server(app, settings)
+    host, port = listener.getsockname()[:2]
+    shown_host = f'[{host}]' if ':' in host else host
+    url = f'http://{shown_host}:{port}/'
+    print(dashboard_line(url, settings.tokens, settings.token_file), flush=True)
+
+    async def run() -> None:
+        loop = asyncio.get_running_loop()
+
+        def on_stop() -> None:
+            stop.wait()
+            with contextlib.suppress(RuntimeError):  # the loop ended first
+                loop.call_soon_threadsafe(setattr, server, 'should_exit', True)
+
+        threading.Thread(target=on_stop, name='console-stop', daemon=True).start()
+        await server.serve(sockets=[listener])
+
+    try:
+        asyncio.run(run())
+    finally:
+        stop.set()
+        listener.close()
