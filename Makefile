@@ -87,8 +87,9 @@ $(STAMPS)/task_manager_vda5050: task_manager_vda5050/pyproject.toml task_manager
 	@touch $@
 
 # The fleet console (a separate process and package, cloud-side: no rclpy; it reaches the robots
-# through the broker with the MQTT bridge's FleetClient). Its tests start a PostgreSQL server.
-$(STAMPS)/task_manager_console: task_manager_console/pyproject.toml task_manager_console/setup.py | $(STAMPS)/task_manager_mqtt $(STAMPS)/postgresql
+# through the broker with the MQTT bridge's FleetClient, its doors are the web gateway's code).
+# Its tests start a PostgreSQL server.
+$(STAMPS)/task_manager_console: task_manager_console/pyproject.toml task_manager_console/setup.py | $(STAMPS)/task_manager_mqtt $(STAMPS)/task_manager_web $(STAMPS)/postgresql
 	$(PIP) install --quiet -e 'task_manager_console[dev]' -c $(CONSTRAINTS)
 	@touch $@
 
