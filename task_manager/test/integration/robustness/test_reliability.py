@@ -236,6 +236,7 @@ def test_a_stop_cancels_every_goal_of_a_server_that_keeps_only_ten_requests(
     handles = [tm.send('drive', {'order': 1}, task_id=task_id) for task_id in ids]
     tm.wait_active(lambda tasks: sum(status == 'IN_PROGRESS' for _, status in tasks) == len(ids))
     server.wait_for_goals(len(ids), TIMEOUT_SEC)
+
     # the server's executor is busy for a moment as the stop's cancels arrive
     def keep_busy() -> None:
         release.wait(TIMEOUT_SEC)
