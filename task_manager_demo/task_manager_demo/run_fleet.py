@@ -1,11 +1,14 @@
 """Console script `task-manager-fleet` (`make fleet`): a fleet of simulated robots on a broker.
 
-Starts a local mosquitto (an account per robot and one for the cloud; each robot may write
-only its own outgoing topics), then for each robot, in a ROS domain of its own: the simulated
-robot, a Task Manager with the demo's tasks, and its MQTT bridge. Once all are ready it
-prints the broker URL, the file that holds the cloud's password (never the password: a
-banner ends up in logs and scrollback, a command line in `ps`) and the example to run, then
-streams their logs. Ctrl-C stops everything it started.
+Starts a local mosquitto (an account per robot, one for the cloud's scripts, one for the fleet
+console and a read-only `observer`: the broker ties a client id to its account, so one account
+holds one connection; each robot may write only its own outgoing topics), then for each robot,
+in a ROS domain of its own: the simulated robot, a Task Manager with the demo's tasks, and its
+MQTT bridge; and the fleet console, on SQLite or (`--database postgres`) a local PostgreSQL
+server started beside them. Once all are ready it prints the broker URL, the files that hold
+the passwords (never a password: a banner ends up in logs and scrollback, a command line in
+`ps`), the console's link, the database and the example to run, then streams their logs.
+Ctrl-C stops everything it started.
 """
 
 import argparse
@@ -15,11 +18,13 @@ import sys
 import textwrap
 from pathlib import Path
 
-from task_manager_mqtt.broker import CLOUD_USER, READY_LINE, MosquittoBroker
+from task_manager_console.store.local_postgres import READY_LINE as POSTGRES_READY_LINE
+from task_manager_console.store.local_postgres import PostgresServer
+from task_manager_mqtt.broker import CLOUD_USER, OBSERVER_USER, READY_LINE, MosquittoBroker
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 
 from task_manager.discovery import use_quick_discovery
-from task_manager_demo.children import Events
+from task_manager_demo.children import Child, Events
 from task_manager_demo.run_demo import (
     READY_TIMEOUT_SEC,
     ROBOT_EXECUTABLE,
@@ -35,6 +40,12 @@ from task_manager_demo.supervisor import Supervisor, supervise
 BRIDGE_EXECUTABLE = ('task-manager-mqtt', 'task_manager_mqtt')
 BRIDGE_READY = re.compile(r'connected to the broker')
 BROKER_READY = re.compile(READY_LINE)
+CONSOLE_EXECUTABLE = ('task-manager-console', 'task_manager_console')
+CONSOLE_USER = 'console'
+"""The console's broker account: its own, as the example scripts keep `cloud`."""
+CONSOLE_READY = re.compile(r'^dashboard: (?P<console>http://\S+\?token=\S+)$')
+POSTGRES_READY = re.compile(POSTGRES_READY_LINE)
+DATABASES = ('sqlite', 'postgres')
 DEFAULT_ROBOTS = 3
 DEFAULT_PORT = 0
 """Any free port: a system mosquitto (Debian starts one when installed) may hold 1883."""
@@ -42,7 +53,9 @@ DEFAULT_FIRST_DOMAIN = 1
 RULE = '=' * 78
 EXAMPLE = Path('examples') / 'fleet_mission.py'
 PASSWORD_FILE = 'mqtt_password'
-"""In the folder of each account (<folder>/<robot_id>/, <folder>/cloud/)."""
+"""In the folder of each account (<folder>/<robot_id>/, <folder>/cloud/, ...)."""
+CONSOLE_DATABASE = 'fleet'
+"""The console's database on the local PostgreSQL server."""
 
 
 class Fleet(Supervisor):
@@ -54,15 +67,53 @@ class Fleet(Supervisor):
         self.params_file = default_params_file()
         self.robot_args: list[str] = options.robot_arg or []
         self.broker = MosquittoBroker(
-            self.folder / 'broker', self.robot_ids, port=options.broker_port
+            self.folder / 'broker',
+            self.robot_ids,
+            port=options.broker_port,
+            clouds=(CLOUD_USER, CONSOLE_USER),
+            observers=(OBSERVER_USER,),
         )
         self.cloud_password_file = self.folder / CLOUD_USER / PASSWORD_FILE
+        self.observer_password_file = self.folder / OBSERVER_USER / PASSWORD_FILE
+        self.console_port: int = options.console_port
+        self.postgres = (
+            PostgresServer(self.folder / 'postgres') if options.database == 'postgres' else None
+        )
+        self.database_url = (
+            self.postgres.url(CONSOLE_DATABASE)
+            if self.postgres
+            else f'sqlite:///{(self.folder / CONSOLE_USER / "fleet.sqlite").absolute()}'
+        )
 
     def start(self) -> None:
         write_password(self.cloud_password_file, self.broker.passwords[CLOUD_USER])
-        self.start_child('broker', self.broker.command, BROKER_READY)
+        write_password(self.observer_password_file, self.broker.passwords[OBSERVER_USER])
+        broker = self.start_child('broker', self.broker.command, BROKER_READY)
+        needs = [broker]
+        if self.postgres is not None:
+            self.postgres.make_cluster(CONSOLE_DATABASE)
+            needs.append(self.start_child('postgres', self.postgres.command, POSTGRES_READY))
         for robot_id in self.robot_ids:
             self._start_robot(robot_id)
+        self._start_console(needs)
+
+    def _start_console(self, needs: list[Child]) -> None:
+        """Once the broker (and the database) answer: the console, with an account of its own."""
+        home = self.folder / CONSOLE_USER
+        password_file = home / PASSWORD_FILE
+        write_password(password_file, self.broker.passwords[CONSOLE_USER])
+        console = [
+            find_executable(*CONSOLE_EXECUTABLE),
+            '--broker-url',
+            f'mqtt://{CONSOLE_USER}@127.0.0.1:{self.broker.port}',
+            '--password-file',
+            str(password_file),
+            '--database',
+            self.database_url,
+            '--port',
+            str(self.console_port),
+        ]
+        self.start_when_ready('console', console, CONSOLE_READY, needs, {'ROS_HOME': str(home)})
 
     def _start_robot(self, robot_id: str) -> None:
         home = self.folder / robot_id
@@ -104,7 +155,9 @@ class Fleet(Supervisor):
                 'and its MQTT bridge',
                 f'  broker: {url}',
                 f"          the cloud's password is in {password_file}",
-                '          (each robot has an account of its own, see '
+                f'          a read-only account for watchers (mosquitto_sub): {OBSERVER_USER},',
+                f'          its password in {shown_path(self.observer_password_file)}',
+                '          (the console and each robot have an account of their own, see '
                 f'{shown_path(self.broker.folder / "acl")})',
                 textwrap.fill(
                     robots, width=len(RULE), initial_indent='  robots: ', subsequent_indent=' ' * 10
@@ -116,12 +169,15 @@ class Fleet(Supervisor):
                     initial_indent='  topics: ',
                     subsequent_indent=' ' * 10,
                 ),
+                f'  console: {ready["console"]}',
+                f'  database: {self.database_url}',
                 '',
                 'In a second terminal, send a mission to every robot and watch the fleet:',
                 f'  {python} {EXAMPLE} --broker-url {url} \\',
                 f'      --password-file {password_file}',
                 '',
-                'Ctrl-C stops the broker, the robots, their Task Managers and bridges.',
+                'Ctrl-C stops the broker, the robots, their Task Managers and bridges, the console'
+                + (' and its database.' if self.postgres else '.'),
                 RULE,
             ]
         )
@@ -160,6 +216,16 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
         action='append',
         metavar='NAME:=VALUE',
         help='a ROS parameter of every simulated robot (e.g. linear_speed:=4.0)',
+    )
+    parser.add_argument(
+        '--console-port', type=int, default=0, help="the console's port; default 0: any free one"
+    )
+    parser.add_argument(
+        '--database',
+        choices=DATABASES,
+        default='sqlite',
+        help="the console's fleet history: a SQLite file in the folder, or a PostgreSQL server "
+        "of its own started beside the broker (Debian's postgresql); %(default)s",
     )
     parser.add_argument('--ready-timeout', type=float, default=READY_TIMEOUT_SEC)
     options = parser.parse_args(argv)

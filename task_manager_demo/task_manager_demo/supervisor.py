@@ -10,7 +10,8 @@ import contextlib
 import queue
 import re
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 from task_manager_demo.children import (
     Child,
@@ -26,6 +27,17 @@ STOP_TIMEOUT_SEC = 10.0
 EXIT_FAILED = 1
 # Colour codes of ROS log lines, when the children log in colour (on a terminal).
 COLOUR_CODE = re.compile(r'\x1b\[[0-9;]*m')
+
+
+@dataclass(frozen=True)
+class _Later:
+    """A child to start once the children it needs are ready."""
+
+    name: str
+    command: list[str]
+    ready: re.Pattern[str]
+    env: dict[str, str] | None
+    needs: tuple[Child, ...]
 
 
 def say(text: str) -> None:
@@ -44,6 +56,7 @@ class Supervisor:
         self.streaming = False
         self._prefix_lines = prefix_lines
         self._ready: dict[Child, re.Pattern[str]] = {}
+        self._later: list[_Later] = []
 
     def start_child(
         self,
@@ -57,6 +70,18 @@ class Supervisor:
         self.children.append(child)
         self._ready[child] = ready
         return child
+
+    def start_when_ready(
+        self,
+        name: str,
+        command: list[str],
+        ready: re.Pattern[str],
+        needs: Sequence[Child],
+        env: dict[str, str] | None = None,
+    ) -> None:
+        """Start a child once each child of `needs` is ready (as `start_child` does then);
+        never, if one of them fails or a signal comes first."""
+        self._later.append(_Later(name, command, ready, env, tuple(needs)))
 
     def start(self) -> None:
         raise NotImplementedError
@@ -81,7 +106,8 @@ class Supervisor:
         deadline = time.monotonic() + timeout_sec
         waiting = dict(self._ready)
         details: dict[str, str] = {}
-        while waiting:
+        while waiting or self._later:
+            self._start_later(waiting)
             event = self._next(deadline)
             if event is None:
                 self._report(list(waiting), 'was not ready in time')
@@ -98,6 +124,13 @@ class Supervisor:
                 details.update(match.groupdict())
                 del waiting[event.child]
         return details
+
+    def _start_later(self, waiting: dict[Child, re.Pattern[str]]) -> None:
+        """Start the children whose needs are all ready (no longer `waiting`)."""
+        for later in [lat for lat in self._later if not waiting.keys() & set(lat.needs)]:
+            self._later.remove(later)
+            child = self.start_child(later.name, later.command, later.ready, later.env)
+            waiting[child] = later.ready
 
     def follow(self) -> int:
         """Stream the children's logs until a signal (0) or a child's exit (failure)."""

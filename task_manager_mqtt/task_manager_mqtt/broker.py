@@ -1,8 +1,9 @@
 """A local mosquitto of our own (Debian's `mosquitto`), for the tests, `make fleet` and the bench.
 
-On 127.0.0.1 only, with an account per robot and one for the cloud (or several), and an ACL
-that lets a robot read only its own requests and write only its own outgoing topics (reply,
-result, ...), and the cloud read those of every robot and write only their requests. The
+On 127.0.0.1 only, with an account per robot and one for the cloud (or several), maybe read-only
+observers, and an ACL that lets a robot read only its own requests and write only its own
+outgoing topics (reply, result, ...), the cloud read those of every robot and write only their
+requests, and an observer read every topic under the prefix and write none. The
 broker takes each client's id from its account (`use_username_as_clientid`), so that no
 account can connect as another's client and push it off. Its sessions and queued messages
 persist across a restart (stop() then start() again), as a production broker's should.
@@ -24,6 +25,8 @@ from task_manager_mqtt.settings import (
 from task_manager_mqtt.topics import ANY_ROBOT, OUTGOING, Topics
 
 CLOUD_USER = 'cloud'
+OBSERVER_USER = 'observer'
+"""The usual name of a read-only account (mosquitto_sub and other watchers)."""
 READY_LINE = r'mosquitto version \S+ running'
 MAX_QUEUED_MESSAGES = 100_000
 """Per client, while it is away (mosquitto's default, 1,000, would drop a long outage's)."""
@@ -50,9 +53,11 @@ class MosquittoBroker:
         tls: bool = False,
         clouds: Sequence[str] = (CLOUD_USER,),
         max_payload_bytes: int = DEFAULT_MAX_PAYLOAD_BYTES,
+        observers: Sequence[str] = (),
     ) -> None:
         """`tls`: listen with TLS only, with a certificate of a CA of its own (`ca_file`).
         `clouds`: the cloud's accounts (one per process of the cloud that connects).
+        `observers`: read-only accounts, which read every topic under the prefix.
         `max_payload_bytes`: the largest message it passes on (the bridges' limit)."""
         self.folder = folder
         self.prefix = prefix
@@ -62,7 +67,9 @@ class MosquittoBroker:
         self.ca_file: Path | None = None
         self.robots = list(robots)
         self.clouds = list(clouds)
-        self.passwords = {user: secrets.token_urlsafe(12) for user in (*clouds, *robots)}
+        self.observers = list(observers)
+        accounts = (*clouds, *observers, *robots)
+        self.passwords = {user: secrets.token_urlsafe(12) for user in accounts}
         self._write_files()
 
     def url(self, user: str = CLOUD_USER) -> str:
@@ -115,6 +122,10 @@ class MosquittoBroker:
         for user in self.clouds:
             lines += [f'user {user}', *(f'topic read {every_robot.topic(n)}' for n in OUTGOING)]
             lines += [f'topic write {every_robot.request}', '']
+        if self.observers:
+            lines += ['# an observer: reads every topic under the prefix, writes none']
+        for user in self.observers:
+            lines += [f'user {user}', f'topic read {self.prefix}/#', '']
         lines += ['# a robot (user name = robot id): reads its requests, writes what it sends']
         for robot_id in self.robots:
             own = Topics(self.prefix, robot_id)

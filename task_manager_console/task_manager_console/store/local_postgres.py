@@ -19,6 +19,8 @@ from task_manager_mqtt.broker import free_port
 START_TIMEOUT_SEC = 60
 SERVER_USER = 'postgres'
 """Who runs the server when root starts it."""
+READY_LINE = 'database system is ready to accept connections'
+"""What the server logs once it answers (on stderr, when it runs in the foreground)."""
 
 
 class PostgresError(RuntimeError):
@@ -67,6 +69,23 @@ class PostgresServer:
 
     def start(self) -> None:
         """Make the cluster if it is new, then start the server and wait until it answers."""
+        self.make_cluster()
+        self._run(
+            'pg_ctl',
+            'start',
+            '--pgdata',
+            str(self.data),
+            '--log',
+            str(self.log_file),
+            '--wait',
+            '--timeout',
+            str(START_TIMEOUT_SEC),
+            '-o',
+            self._server_options(),
+        )
+
+    def make_cluster(self, database: str = '') -> None:
+        """Make the cluster if it is new, with `database` too (if given), without starting it."""
         self.folder.mkdir(parents=True, exist_ok=True)
         if self._as_root:
             account = pwd.getpwnam(SERVER_USER)
@@ -85,20 +104,30 @@ class PostgresServer:
                 '--locale',
                 'C',
             )
-        options = f'-p {self.port} -k {self.folder} -c listen_addresses=127.0.0.1'
-        self._run(
-            'pg_ctl',
-            'start',
-            '--pgdata',
-            str(self.data),
-            '--log',
-            str(self.log_file),
-            '--wait',
-            '--timeout',
-            str(START_TIMEOUT_SEC),
-            '-o',
-            options,
-        )
+            if database:  # single-user mode: no server runs yet
+                self._run(
+                    'postgres',
+                    '--single',
+                    '-D',
+                    str(self.data),
+                    'postgres',
+                    stdin=f'CREATE DATABASE "{database}"\n',
+                )
+
+    @property
+    def command(self) -> list[str]:
+        """The server's command line in the foreground (its log on stderr, READY_LINE once it
+        answers; SIGINT: a fast shutdown), after `make_cluster`. As root, it runs as
+        SERVER_USER, switched to by an exec (the signals reach the server itself), and keeps
+        SIGTERM as its parent-death signal."""
+        server = [str(self.bin / 'postgres'), '-D', str(self.data), *self._server_options().split()]
+        if not self._as_root:
+            return server
+        switch = ['setpriv', '--reuid', SERVER_USER, '--regid', SERVER_USER, '--init-groups']
+        return [*switch, '--pdeathsig', 'TERM', *server]
+
+    def _server_options(self) -> str:
+        return f'-p {self.port} -k {self.folder} -c listen_addresses=127.0.0.1'
 
     def stop(self) -> None:
         """A fast shutdown (sessions ended, data kept); nothing if it is not running."""
@@ -112,12 +141,17 @@ class PostgresServer:
         )
         return self.url(name)
 
-    def _run(self, program: str, *args: str) -> None:
+    def _run(self, program: str, *args: str, stdin: str | None = None) -> None:
         command = [str(self.bin / program), *args]
         if self._as_root:
             command = ['runuser', '-u', SERVER_USER, '--', *command]
         done = subprocess.run(
-            command, capture_output=True, text=True, check=False, timeout=START_TIMEOUT_SEC + 30
+            command,
+            input=stdin,
+            capture_output=True,
+            text=True,
+            check=False,
+            timeout=START_TIMEOUT_SEC + 30,
         )
         if done.returncode != 0:
             output = (done.stderr or done.stdout).strip().splitlines()
