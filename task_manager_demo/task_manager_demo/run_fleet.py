@@ -19,7 +19,7 @@ import textwrap
 from pathlib import Path
 
 from task_manager_console.store.local_postgres import READY_LINE as POSTGRES_READY_LINE
-from task_manager_console.store.local_postgres import PostgresServer
+from task_manager_console.store.local_postgres import PostgresError, PostgresServer
 from task_manager_mqtt.broker import CLOUD_USER, OBSERVER_USER, READY_LINE, MosquittoBroker
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 
@@ -91,7 +91,10 @@ class Fleet(Supervisor):
         broker = self.start_child('broker', self.broker.command, BROKER_READY)
         needs = [broker]
         if self.postgres is not None:
-            self.postgres.make_cluster(CONSOLE_DATABASE)
+            try:
+                self.postgres.make_cluster(CONSOLE_DATABASE)
+            except PostgresError as error:  # e.g. a folder the server's user cannot reach
+                raise SystemExit(f'task-manager-fleet: {error}') from None
             needs.append(self.start_child('postgres', self.postgres.command, POSTGRES_READY))
         for robot_id in self.robot_ids:
             self._start_robot(robot_id)
