@@ -158,6 +158,8 @@ def create_app(fleet: Fleet, settings: Settings) -> FastAPI:
     add_fleet_routes(app)
     # the page's files (the folder may be absent: then / answers 404)
     app.mount('/static', StaticFiles(directory=str(STATIC), check_dir=False), name='static')
+    # the robot dashboard's helpers and style sheet, which the page shares
+    app.mount('/web-static', StaticFiles(packages=[('task_manager_web', 'static')]), name='web')
     return app
 
 
