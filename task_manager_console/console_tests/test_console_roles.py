@@ -28,6 +28,7 @@ ROUTE_ROLES: dict[tuple[str, str], str | None] = {
     ('GET', '/'): PUBLIC,
     ('GET', '/openapi.json'): PUBLIC,
     ('MOUNT', '/static'): PUBLIC,
+    ('MOUNT', '/web-static'): PUBLIC,
     ('GET', '/api/health'): PUBLIC,
     ('GET', '/api/whoami'): VIEWER,
     ('GET', '/metrics'): VIEWER,
