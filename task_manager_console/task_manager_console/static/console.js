@@ -8,7 +8,7 @@ import { $, element, say } from '/web-static/dom.js';
 import { renderConfirmations, tickConfirmations } from './confirmations.js';
 import { followEvents } from './events.js';
 import { addHistoryRow, loadHistory, wireHistory } from './history.js';
-import { renderRobots } from './robots.js';
+import { renderRobots, robotsRunning } from './robots.js';
 import { renderStartChoices, wireStartForm } from './start_form.js';
 import { state } from './state.js';
 
@@ -22,22 +22,39 @@ function showConnection(databaseUp = true) {
   banner.hidden = state.streamOpen && databaseUp;
 }
 
+// Robots changed since the page last showed them (null: every robot), shown at most every
+// RENDER_MS: a busy fleet's events are drawn in batches.
+const RENDER_MS = 100;
+let changed = new Set();
+let renderDue = false;
+
 function renderFleet() {
-  renderRobots();
+  renderDue = false;
+  renderRobots(changed);
+  changed = new Set();
   renderConfirmations();
   renderStartChoices();
+}
+
+function robotChanged(robotId) {
+  if (changed && robotId !== null) changed.add(robotId);
+  else changed = null;
+  if (!renderDue) {
+    renderDue = true;
+    setTimeout(renderFleet, RENDER_MS);
+  }
 }
 
 function onHello(hello) {
   state.robots = new Map(hello.robots.map((robot) => [robot.robot_id, robot]));
   showConnection(hello.database_up);
-  renderFleet();
+  robotChanged(null);
   loadHistory().catch((error) => say(`Could not read the fleet history: ${error.message}`, true));
 }
 
 function onRobot(robot) {
   state.robots.set(robot.robot_id, robot);
-  renderFleet();
+  robotChanged(robot.robot_id);
 }
 
 function answerChip(answer) {
@@ -73,7 +90,7 @@ function main() {
   $('#stop-all').addEventListener('click', stopAll);
   wireStartForm();
   wireHistory();
-  setInterval(() => { tickConfirmations(); renderRobots(); }, 1000);
+  setInterval(() => { tickConfirmations(); renderRobots(robotsRunning()); }, 1000);
   showConnection();
   loadRole();
   followEvents({

@@ -90,20 +90,30 @@ function cardContent(robot) {
   ];
 }
 
-export function renderRobots() {
+// Rebuild the cards of the robots in `changed` (every card when left out), in id order; the
+// count of robots online. At 200 robots a change rebuilds its own card only.
+export function renderRobots(changed = null) {
   const robots = sortedRobots();
   const container = $('#robots');
   const cards = new Map([...container.children].map((card) => [card.dataset.robotId, card]));
   const ordered = robots.map((robot) => {
-    const card = cards.get(robot.robot_id) || element('article', { 'data-robot-id': robot.robot_id });
+    let card = cards.get(robot.robot_id);
+    if (card && changed && !changed.has(robot.robot_id)) return card;
+    card = card || element('article', { 'data-robot-id': robot.robot_id });
     card.className = `robot ${robot.connection_state}`;
     card.dataset.state = robot.connection_state;
     card.dataset.taskManager = robot.task_manager_connected ? 'connected' : 'unreachable';
     card.replaceChildren(...cardContent(robot));
     return card;
   });
-  container.replaceChildren(...ordered);
+  const inPlace = ordered.length === container.children.length && ordered.every((card, index) => container.children[index] === card);
+  if (!inPlace) container.replaceChildren(...ordered);
   $('#robots-empty').hidden = robots.length > 0;
   const online = robots.filter((robot) => robot.connection_state === 'ONLINE').length;
   $('#fleet-count').textContent = `${online} of ${robots.length} robots online`;
+}
+
+// The robots whose card shows a running time (rebuilt each second).
+export function robotsRunning() {
+  return new Set(sortedRobots().filter((robot) => activeTask(robot)?.started).map((robot) => robot.robot_id));
 }
