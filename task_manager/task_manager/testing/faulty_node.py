@@ -1,6 +1,7 @@
 """The Task Manager with one fault injected, as a bug of ours would raise it, for tests.
 
-`python -m task_manager.testing.faulty_node STEP --ros-args --params-file F` runs the node as
+`python -m task_manager.testing.faulty_node STEP task-manager --ros-args --params-file F` (a
+wrapper of `task-manager`, as NodeProcess takes one) runs the node in this process as
 `task-manager` does, except that the first call of STEP raises InjectedFaultError. The steps are
 those the node takes once a task's goal is on its server (and the deadline timer's callback):
 a failure at any of them must neither free the goal from tracking nor stop the node.
@@ -54,7 +55,7 @@ def inject(step: str) -> None:
 
 
 def main() -> int:
-    step, args = sys.argv[1], [sys.argv[0], *sys.argv[2:]]
+    step, args = sys.argv[1], [sys.argv[0], *sys.argv[3:]]  # argv[2]: the node's executable
     from task_manager.ros.main import SHUTDOWN_SIGNALS
     from task_manager.ros.main import main as run_node
 

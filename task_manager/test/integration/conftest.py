@@ -23,7 +23,15 @@ def topic_prefix(request: pytest.FixtureRequest) -> str:
 
 
 @pytest.fixture
-def launch_task_manager(ros: RosHarness, tmp_path: Path) -> Iterator[LaunchTaskManager]:
+def node_wrapper() -> list[str] | None:
+    """A command that runs the node (see NodeProcess); a test module may give one."""
+    return None
+
+
+@pytest.fixture
+def launch_task_manager(
+    ros: RosHarness, tmp_path: Path, node_wrapper: list[str] | None
+) -> Iterator[LaunchTaskManager]:
     """Start `task-manager --ros-args --params-file F` with the given task entries."""
     processes: list[NodeProcess] = []
     probes: list[TaskManagerProbe] = []
@@ -39,7 +47,7 @@ def launch_task_manager(ros: RosHarness, tmp_path: Path) -> Iterator[LaunchTaskM
             **node_parameters,
         }
         params_file = write_params_file(tmp_path / f'params{len(processes)}.yaml', parameters)
-        process = NodeProcess(params_file)
+        process = NodeProcess(params_file, wrapper=node_wrapper)
         processes.append(process)
         process.wait_for_log(r'Task Manager ready', START_TIMEOUT_SEC)
         probe = TaskManagerProbe(ros)

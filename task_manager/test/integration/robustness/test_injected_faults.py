@@ -4,66 +4,33 @@ goes on serving (the node runs with one fault injected, see testing/faulty_node.
 
 import json
 import sys
-from collections.abc import Callable, Iterator
-from pathlib import Path
 
 import pytest
 from test_msgs.action import Fibonacci
 
 from task_manager.testing import faulty_node
 from task_manager.testing.harness import RosHarness
-from task_manager.testing.probe import TaskManagerProbe
-from task_manager.testing.process import NodeProcess, action_task, write_params_file
+from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import ScriptedActionServer
 
 pytestmark = pytest.mark.ros
 TIMEOUT_SEC = 15.0
 AFTER_THE_SEND = [step for step in faulty_node.STEPS if step != 'deadline_timer']
-
-StartFaultyNode = Callable[[str, dict[str, object]], TaskManagerProbe]
+WATCH = {'server_check_period': 0.2}
 
 
 @pytest.fixture
-def start_faulty_node(ros: RosHarness, tmp_path: Path) -> Iterator[StartFaultyNode]:
-    processes: list[NodeProcess] = []
-    probes: list[TaskManagerProbe] = []
-
-    def start(step: str, tasks: dict[str, object]) -> TaskManagerProbe:
-        params = write_params_file(
-            tmp_path / 'params.yaml',
-            {
-                'tasks': list(tasks),
-                **tasks,
-                'history_path': str(tmp_path / 'history.sqlite'),
-                'instance_check_timeout': 0,
-                'server_check_period': 0.2,
-            },
-        )
-        command = [sys.executable, '-m', 'task_manager.testing.faulty_node', step]
-        process = NodeProcess(None, command=[*command, '--ros-args', '--params-file', str(params)])
-        processes.append(process)
-        process.wait_for_log(r'Task Manager ready', TIMEOUT_SEC)
-        probe = TaskManagerProbe(ros)
-        probes.append(probe)
-        probe.wait_until_connected()
-        probe.process = process  # type: ignore[attr-defined]
-        return probe
-
-    yield start
-    for probe in probes:
-        probe.destroy()
-    for process in processes:
-        code = process.stop()
-        print('\n'.join(process.log_lines))
-        assert code == 0
+def node_wrapper(step: str) -> list[str]:
+    """The node runs with a fault injected at `step` (the test's parameter)."""
+    return [sys.executable, '-m', 'task_manager.testing.faulty_node', step]
 
 
 @pytest.mark.parametrize('step', AFTER_THE_SEND)
 def test_a_failure_after_the_send_cancels_the_goal_and_the_node_serves_on(
-    ros: RosHarness, start_faulty_node: StartFaultyNode, topic_prefix: str, step: str
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, step: str
 ) -> None:
     server = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/drive')
-    tm = start_faulty_node(step, {'drive': action_task('drive', f'{topic_prefix}/drive')})
+    tm = launch_task_manager({'drive': action_task('drive', f'{topic_prefix}/drive')}, **WATCH)
 
     first = tm.result_of(tm.send('drive', {'order': 1}, task_id='faulted')).result
 
@@ -81,12 +48,13 @@ def test_a_failure_after_the_send_cancels_the_goal_and_the_node_serves_on(
     assert tm.result_of(second).result.task_status == 'DONE'
 
 
+@pytest.mark.parametrize('step', ['deadline_timer'])
 def test_a_failure_in_the_deadline_timer_does_not_stop_the_node(
-    ros: RosHarness, start_faulty_node: StartFaultyNode, topic_prefix: str
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str, step: str
 ) -> None:
     server = ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/drive')
-    tm = start_faulty_node(
-        'deadline_timer', {'drive': action_task('drive', f'{topic_prefix}/drive', timeout_sec=0.5)}
+    tm = launch_task_manager(
+        {'drive': action_task('drive', f'{topic_prefix}/drive', timeout_sec=0.5)}, **WATCH
     )
 
     ended = tm.result_of(tm.send('drive', {'order': 1}, task_id='timed')).result
@@ -94,5 +62,5 @@ def test_a_failure_in_the_deadline_timer_does_not_stop_the_node(
     # the timer's next call found the deadline: the timeout still ends the task
     assert (ended.task_status, ended.error_code) == ('ERROR', 'timeout')
     assert server.wait_for_goals(1, TIMEOUT_SEC)[0].cancel_requested.is_set()
-    log = tm.process.wait_for_log(r'a callback failed and was dropped.*', TIMEOUT_SEC)  # type: ignore[attr-defined]
+    log = tm.process.wait_for_log(r'a callback failed and was dropped.*', TIMEOUT_SEC)
     assert 'injected at deadline_timer' in log
