@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import task_manager_web.access
 import uvicorn
 from fastapi import FastAPI, Request, Response
 from fastapi.responses import FileResponse
@@ -43,6 +44,10 @@ from task_manager_console.robot_routes import add_robot_routes
 
 PROGRAM = 'task-manager-console'
 STATIC = Path(__file__).with_name('static')
+# The robot dashboard's files the page shares, found beside a module of the web gateway (not
+# by the package's name: a worker started with `python -c` has its current folder first on
+# sys.path, where the colcon folder task_manager_web/ passes for a namespace package).
+WEB_STATIC = Path(task_manager_web.access.__file__).parent / 'static'
 SOURCE = 'CLOUD'
 """The door of what the console starts, as the bridges stamp it (`CLOUD:<token name>`)."""
 READ_PATHS = ('/api/robots', '/api/history')
@@ -159,7 +164,7 @@ def create_app(fleet: Fleet, settings: Settings) -> FastAPI:
     # the page's files (the folder may be absent: then / answers 404)
     app.mount('/static', StaticFiles(directory=str(STATIC), check_dir=False), name='static')
     # the robot dashboard's helpers and style sheet, which the page shares
-    app.mount('/web-static', StaticFiles(packages=[('task_manager_web', 'static')]), name='web')
+    app.mount('/web-static', StaticFiles(directory=str(WEB_STATIC)), name='web')
     return app
 
 
