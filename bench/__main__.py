@@ -3,7 +3,7 @@
 import os
 import sys
 
-from bench import config
+from bench.harness import config
 
 # Before rclpy loads: a domain of the bench's own, discovery kept on this machine.
 os.environ['ROS_DOMAIN_ID'] = os.environ.get('BENCH_ROS_DOMAIN_ID', config.DEFAULT_DOMAIN_ID)

@@ -14,10 +14,16 @@ from pathlib import Path
 
 import rclpy
 
-from bench import (
+from bench.gateways import mqtt, vda5050, web
+from bench.harness import config
+from bench.harness.client import BenchClient
+from bench.harness.context import BenchContext
+from bench.harness.processes import OtherLoad, start_node, start_servers
+from bench.harness.profiler import Profile, py_spy_executable
+from bench.harness.report import Row, machine_lines, table
+from bench.node import (
     admission,
     concurrency,
-    config,
     dispatch,
     events,
     feedback,
@@ -26,18 +32,10 @@ from bench import (
     leak,
     memory,
     mission,
-    mqtt,
     schedules,
     startup,
     throughput,
-    vda5050,
-    web,
 )
-from bench.client import BenchClient
-from bench.context import BenchContext
-from bench.processes import OtherLoad, start_node, start_servers
-from bench.profiler import Profile, py_spy_executable
-from bench.report import Row, machine_lines, table
 
 TOP_FUNCTIONS = 15
 

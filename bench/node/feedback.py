@@ -15,13 +15,13 @@ from dataclasses import dataclass
 
 from rclpy.task import Future
 
-from bench import config
-from bench.client import TaskEventsWatcher
-from bench.context import BenchContext, expect_done
-from bench.dispatch import interleaved
-from bench.replies import BenchError, wait_reply
-from bench.report import Row
-from bench.stats import Summary, ratio
+from bench.harness import config
+from bench.harness.client import TaskEventsWatcher
+from bench.harness.context import BenchContext, expect_done
+from bench.harness.replies import BenchError, wait_reply
+from bench.harness.report import Row
+from bench.harness.stats import Summary, ratio
+from bench.node.dispatch import interleaved
 
 TARGET = 1.10
 FIRST_FEEDBACK_TIMEOUT_SEC = 5.0

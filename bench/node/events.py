@@ -12,12 +12,12 @@ from typing import Any
 
 from test_msgs.srv import BasicTypes
 
-from bench import config
-from bench.context import BenchContext
-from bench.event_listener import EVENT_COUNTS_SERVICE
-from bench.node_settings import Setting, compare
-from bench.processes import start_event_listener
-from bench.replies import BenchError, wait_reply
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.event_listener import EVENT_COUNTS_SERVICE
+from bench.harness.processes import start_event_listener
+from bench.harness.replies import BenchError, wait_reply
+from bench.node.node_settings import Setting, compare
 from task_manager.rclpy_tools import qos
 
 TASK_EVENTS = ('RECEIVED', 'STARTED', 'ENDED')

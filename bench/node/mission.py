@@ -3,10 +3,10 @@
 import json
 import statistics
 
-from bench import config
-from bench.context import BenchContext
-from bench.report import Row
-from bench.stats import ratio
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.report import Row
+from bench.harness.stats import ratio
 
 MISSION_TIMEOUT_SEC = 60.0
 

@@ -21,13 +21,13 @@ from rclpy.serialization import serialize_message
 from rclpy.task import Future
 from test_msgs.action import Fibonacci
 
-from bench import config
-from bench.client import BENCH_SOURCE, ActiveTasksWatcher, Publication, task_status
-from bench.context import BenchContext, succeeded
-from bench.processes import ResourceSampler, cpu_percent
-from bench.replies import BenchError
-from bench.report import Row
-from bench.stats import Summary, last_reply_after, ratio
+from bench.harness import config
+from bench.harness.client import BENCH_SOURCE, ActiveTasksWatcher, Publication, task_status
+from bench.harness.context import BenchContext, succeeded
+from bench.harness.processes import ResourceSampler, cpu_percent
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import Summary, last_reply_after, ratio
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.futures import result_of
 from task_manager_msgs.msg import ActiveTask, ActiveTaskArray

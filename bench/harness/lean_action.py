@@ -23,7 +23,7 @@ from rclpy.qos import qos_profile_action_status_default
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
-from bench.replies import Reply, stamped
+from bench.harness.replies import Reply, stamped
 from task_manager.rclpy_tools.futures import result_of
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 

@@ -17,8 +17,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 from test_msgs.srv import BasicTypes
 
-from bench.client import event_and_task_id
-from bench.processes import spin_child
+from bench.harness.client import event_and_task_id
+from bench.harness.processes import spin_child
 from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager_msgs.msg import TaskEvent

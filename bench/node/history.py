@@ -15,12 +15,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from bench import config
-from bench.context import BenchContext
-from bench.node_settings import Setting, compare
-from bench.replies import BenchError, Reply, wait_reply
-from bench.report import Row
-from bench.stats import Summary, latency_ms, ratio
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError, Reply, wait_reply
+from bench.harness.report import Row
+from bench.harness.stats import Summary, latency_ms, ratio
+from bench.node.node_settings import Setting, compare
 from task_manager.core.history.store import HistoryQuery, TaskHistory
 from task_manager.core.names import QUERY_TASK_HISTORY_SERVICE
 from task_manager.core.status import TaskStatus

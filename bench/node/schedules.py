@@ -28,14 +28,14 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-from bench import config
-from bench.client import BenchClient, error_code, task_status
-from bench.context import BenchContext
-from bench.processes import cpu_percent, start_node
-from bench.replies import BenchError, wait_reply
-from bench.report import Row
-from bench.startup import READY_LINE
-from bench.stats import ratio, wait_all
+from bench.harness import config
+from bench.harness.client import BenchClient, error_code, task_status
+from bench.harness.context import BenchContext
+from bench.harness.processes import cpu_percent, start_node
+from bench.harness.replies import BenchError, wait_reply
+from bench.harness.report import Row
+from bench.harness.stats import ratio, wait_all
+from bench.node.startup import READY_LINE
 from task_manager.core.history.store import TaskHistory
 from task_manager.core.names import GET_TASK_STATES_SERVICE, RESULTS_TOPIC
 from task_manager.core.schedules.book import ScheduleState, run_task_id

@@ -11,13 +11,13 @@ from typing import Any
 from action_msgs.msg import GoalStatus
 from rclpy.task import Future
 
-from bench import config
-from bench.client import BenchClient, error_code, task_status
-from bench.processes import ChildProcess, start_node
-from bench.profiler import Profile, PySpyRecorder
-from bench.replies import BenchError, Reply, wait_reply
-from bench.report import Report
-from bench.stats import latency_ms
+from bench.harness import config
+from bench.harness.client import BenchClient, error_code, task_status
+from bench.harness.processes import ChildProcess, start_node
+from bench.harness.profiler import Profile, PySpyRecorder
+from bench.harness.replies import BenchError, Reply, wait_reply
+from bench.harness.report import Report
+from bench.harness.stats import latency_ms
 from task_manager.core.names import INSTANCES_TOPIC
 from task_manager.ros.instances import INSTANCES_SUBSCRIPTION_QOS
 from task_manager_msgs.msg import TaskManagerInstance

@@ -12,12 +12,12 @@ lets its ExecuteTask server drop the goals it keeps.
 import re
 import time
 
-from bench import config
-from bench.context import BenchContext
-from bench.processes import cpu_percent, start_node
-from bench.replies import BenchError
-from bench.report import Row
-from bench.stats import Summary
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.processes import cpu_percent, start_node
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import Summary
 
 STARTUP_TARGET_MS = 1500.0
 IDLE_CPU_TARGET_PERCENT = 0.5

@@ -20,11 +20,11 @@ import httpx
 import psutil
 from task_manager_web.testing import GatewayProcess
 
-from bench import config
-from bench.context import BenchContext
-from bench.replies import BenchError
-from bench.report import Row
-from bench.web import HTTP_TIMEOUT_SEC, TimedConnection, running_gateway
+from bench.gateways.web import HTTP_TIMEOUT_SEC, TimedConnection, running_gateway
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
 
 MIB = 1024 * 1024
 LONG_ID = 'm' * 240

@@ -8,12 +8,12 @@ import time
 
 import psutil
 
-from bench import config
-from bench.client import task_status
-from bench.context import BenchContext
-from bench.replies import BenchError
-from bench.report import Row
-from bench.stats import last_reply_after
+from bench.harness import config
+from bench.harness.client import task_status
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import last_reply_after
 from task_manager.rclpy_tools.futures import result_of
 
 MIB = 1024 * 1024

@@ -20,9 +20,9 @@ from rclpy.timer import Timer
 from std_srvs.srv import Trigger
 from test_msgs.action import Fibonacci
 
-from bench import config
-from bench.lean_action import InstantActionServer
-from bench.processes import spin_child
+from bench.harness import config
+from bench.harness.lean_action import InstantActionServer
+from bench.harness.processes import spin_child
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 
 SERVER_NODE_NAME = 'task_manager_bench_servers'

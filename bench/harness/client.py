@@ -15,9 +15,9 @@ from rclpy.task import Future
 from std_srvs.srv import Trigger
 from test_msgs.action import Fibonacci
 
-from bench import config
-from bench.lean_action import LeanActionClient
-from bench.replies import BenchError, Reply, stamped, wait_reply
+from bench.harness import config
+from bench.harness.lean_action import LeanActionClient
+from bench.harness.replies import BenchError, Reply, stamped, wait_reply
 from task_manager.core.names import ACTIVE_TASKS_TOPIC, EXECUTE_TASK_ACTION, TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness

@@ -3,10 +3,10 @@
 import statistics
 from collections.abc import Callable
 
-from bench import config
-from bench.context import BenchContext
-from bench.report import Row
-from bench.stats import Summary, ratio
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.report import Row
+from bench.harness.stats import Summary, ratio
 
 ACTION_TARGET = 2.3
 SERVICE_TARGET = 3.0  # issue 16: one hop each way is the floor of both

@@ -8,12 +8,12 @@ samples are taken half before and half after each disturbance, so drift hits bot
 
 from rclpy.task import Future
 
-from bench import config
-from bench.client import ActiveTasksWatcher, error_code, task_status
-from bench.context import BenchContext
-from bench.replies import BenchError, Reply, wait_reply
-from bench.report import Row
-from bench.stats import Summary, ratio
+from bench.harness import config
+from bench.harness.client import ActiveTasksWatcher, error_code, task_status
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError, Reply, wait_reply
+from bench.harness.report import Row
+from bench.harness.stats import Summary, ratio
 
 TARGET = 1.5
 STATE_TIMEOUT_SEC = 10.0

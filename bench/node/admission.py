@@ -26,14 +26,14 @@ from dataclasses import dataclass
 
 from rclpy.task import Future
 
-from bench import config
-from bench.client import SeenEvent, TaskEventsWatcher, error_code, task_status
-from bench.context import BenchContext
-from bench.lean_action import LeanActionClient
-from bench.replies import BenchError, Reply, wait_reply
-from bench.report import Row
-from bench.schedules import seconds, task_states
-from bench.stats import Summary, ratio, wait_all
+from bench.harness import config
+from bench.harness.client import SeenEvent, TaskEventsWatcher, error_code, task_status
+from bench.harness.context import BenchContext
+from bench.harness.lean_action import LeanActionClient
+from bench.harness.replies import BenchError, Reply, wait_reply
+from bench.harness.report import Row
+from bench.harness.stats import Summary, ratio, wait_all
+from bench.node.schedules import seconds, task_states
 from task_manager.core.names import START_TASK_ACTION
 from task_manager.testing.process import action_task
 from task_manager_msgs.action import StartTask

@@ -16,12 +16,12 @@ from typing import Any
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.testing import BridgeProcess, BrokerProcess
 
-from bench import config
-from bench.context import BenchContext
-from bench.dispatch import interleaved
-from bench.replies import BenchError
-from bench.report import Row
-from bench.stats import Summary
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import Summary
+from bench.node.dispatch import interleaved
 
 ADDED_TARGET_MS = 5.0
 DELIVERY_TARGET_SEC = 2.0

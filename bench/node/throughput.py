@@ -4,12 +4,12 @@ import statistics
 
 from test_msgs.action import Fibonacci
 
-from bench import config
-from bench.client import execute_task_goal, task_status
-from bench.context import BenchContext, succeeded
-from bench.replies import BenchError
-from bench.report import Row
-from bench.stats import burst, ratio
+from bench.harness import config
+from bench.harness.client import execute_task_goal, task_status
+from bench.harness.context import BenchContext, succeeded
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import burst, ratio
 
 TARGET_SHARE = 0.50
 

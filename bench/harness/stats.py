@@ -10,8 +10,8 @@ from typing import Any
 
 from rclpy.task import Future
 
-from bench import config
-from bench.replies import BenchError, Reply, wait_reply
+from bench.harness import config
+from bench.harness.replies import BenchError, Reply, wait_reply
 
 
 @dataclass(frozen=True)

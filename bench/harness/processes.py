@@ -19,7 +19,7 @@ from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.testing.process import task_manager_executable
 
 STOP_TIMEOUT_SEC = 10.0
-REPO_ROOT = Path(__file__).resolve().parent.parent
+REPO_ROOT = Path(__file__).resolve().parents[2]
 
 
 class ChildProcess:
@@ -54,11 +54,13 @@ def start_node(params_file: Path, log_dir: Path, name: str = 'task_manager') -> 
 
 
 def start_servers(log_dir: Path) -> ChildProcess:
-    return ChildProcess('servers', [sys.executable, '-m', 'bench.servers'], log_dir)
+    return ChildProcess('servers', [sys.executable, '-m', 'bench.harness.servers'], log_dir)
 
 
 def start_event_listener(log_dir: Path) -> ChildProcess:
-    return ChildProcess('event_listener', [sys.executable, '-m', 'bench.event_listener'], log_dir)
+    return ChildProcess(
+        'event_listener', [sys.executable, '-m', 'bench.harness.event_listener'], log_dir
+    )
 
 
 def spin_child(node_name: str, build: Callable[[Node], object]) -> None:

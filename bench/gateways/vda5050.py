@@ -27,12 +27,12 @@ from task_manager_vda5050.testing import (
 )
 from task_manager_vda5050.topics import timestamp
 
-from bench import config
-from bench.context import BenchContext
-from bench.dispatch import interleaved
-from bench.replies import BenchError
-from bench.report import Row
-from bench.stats import Summary
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import Summary
+from bench.node.dispatch import interleaved
 
 NODES = 10
 SAMPLES = 30

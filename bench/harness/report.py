@@ -63,7 +63,7 @@ def node_executor() -> str:
 
 def code_version() -> str:
     """The commit measured, and whether the node's code had uncommitted changes."""
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     try:
         commit = subprocess.run(
             ['git', 'rev-parse', '--short', 'HEAD'], cwd=root, capture_output=True, text=True

@@ -24,13 +24,13 @@ from urllib.parse import urlsplit
 import httpx
 from task_manager_web.testing import GatewayProcess
 
-from bench import config
-from bench.context import BenchContext
-from bench.dispatch import interleaved
-from bench.replies import BenchError
-from bench.report import Row
-from bench.stats import Summary
-from bench.stream_readers import EVENTS_PER_TASK
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import Summary
+from bench.harness.stream_readers import EVENTS_PER_TASK
+from bench.node.dispatch import interleaved
 
 ADDED_TARGET_MS = 3.0
 NO_DELAY = (socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)

@@ -19,11 +19,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from bench import config, throughput
-from bench.context import BenchContext
-from bench.dispatch import interleaved
-from bench.report import Row
-from bench.stats import Summary, ratio
+from bench.harness import config
+from bench.harness.context import BenchContext
+from bench.harness.report import Row
+from bench.harness.stats import Summary, ratio
+from bench.node import throughput
+from bench.node.dispatch import interleaved
 
 LATENCY_TARGET = 1.10
 THROUGHPUT_TARGET = 0.90

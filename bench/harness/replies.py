@@ -7,7 +7,7 @@ from typing import Any
 
 from rclpy.task import Future
 
-from bench import config
+from bench.harness import config
 from task_manager.testing.harness import WaitTimeoutError, wait_for_future
 
 

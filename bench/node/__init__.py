@@ -1,0 +1,1 @@
+"""Benchmarks of the node alone: dispatch, admission, history, memory, startup and more."""
