@@ -137,10 +137,15 @@ class ActionServicesClient:
             self._cancel.remove_pending_request(future)
 
     def forget_result_request(self, future: Future[Any]) -> None:
-        """Stop waiting for the response to a GetResult request (asked again, or answered)."""
-        self._get_result.remove_pending_request(future)
-        if self._windows is not None:
+        """Stop waiting for the response to a GetResult request (asked again, or answered).
+
+        The first ask goes to the client directly, asks again through the window: a window's
+        request is forgotten there, without rclpy's scan of every pending request; an answered
+        one is no longer pending anywhere."""
+        if self._windows is not None and self._windows[1].holds(future):
             self._windows[1].forget(future)
+        elif not future.done():
+            self._get_result.remove_pending_request(future)
 
     def forget(self, goal_id: bytes) -> None:
         """The goal has ended: drop its feedback callback."""

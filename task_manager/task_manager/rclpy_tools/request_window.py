@@ -56,6 +56,10 @@ class RequestWindow:
         self._pump()
         return future
 
+    def holds(self, future: Future[Any]) -> bool:
+        """Whether this future is of a request of this window (sent or waiting its turn)."""
+        return future in self._sent or any(mine is future for _, mine in self._waiting)
+
     def forget(self, future: Future[Any]) -> None:
         """The caller waits no more for this request's response (sent or not)."""
         sent = self._sent.pop(future, None)
