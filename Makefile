@@ -133,11 +133,12 @@ $(STAMPS)/postgresql: | $(PY)
 # folder task_manager/ would pass for the package.
 LINT_IMPORTS := cd $(BUILD) && $(VENV)/bin/lint-imports --config $(CURDIR)/.importlinter
 
-test: install
-	$(VENV)/bin/ruff check .
-	$(VENV)/bin/mypy
-	$(LINT_IMPORTS)
-	$(VENV)/bin/pytest -n 2 --dist loadfile --durations=10
+# Each part says how long it took (bash's `time`, on stderr): install, lint, the tests.
+TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; time
+test:
+	$(call TIMED,install) $(MAKE) --no-print-directory install
+	$(call TIMED,lint (ruff, mypy, import contracts)) { $(VENV)/bin/ruff check . && $(VENV)/bin/mypy && $(LINT_IMPORTS); }
+	$(call TIMED,pytest) $(VENV)/bin/pytest -n 2 --dist loadfile --durations=10
 
 lint: install
 	$(VENV)/bin/ruff check .
