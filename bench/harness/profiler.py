@@ -30,7 +30,7 @@ SPECIFIC_AREAS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ('building + publishing active_tasks', ('publish_active',)),
     ('building + publishing results', ('publish_result',)),
     ('task events: rate limit, build + publish', ('task_events.py', 'feedback_rate.py')),
-    ('JSON <-> message conversion', ('message_json.py',)),
+    ('JSON <-> message conversion', ('json_codec.py',)),
 )
 # otherwise: the area of the innermost frame that has one of these markers
 GENERIC_AREAS: tuple[tuple[str, tuple[str, ...]], ...] = (

@@ -24,8 +24,8 @@ from task_manager.client import (
 )
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.task_spec import PauseMode, parse_interface_name
+from task_manager.messages.goal_schema import task_data_schema
 from task_manager.protocol.models import ConfirmTask, DeclaredTask
-from task_manager.ros.goal_schema import task_data_schema
 
 LOG = logging.getLogger(__name__)
 

@@ -21,9 +21,9 @@ from task_manager.core.admission.decisions import DecisionKind, decisions_to_jso
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.core.task import TaskRecord, pauses_to_json
+from task_manager.messages.json_codec import dict_to_json
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_timer
-from task_manager.ros.message_json import dict_to_json
 
 NANOSECONDS = 1_000_000_000
 

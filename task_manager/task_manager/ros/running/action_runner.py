@@ -12,9 +12,9 @@ from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import ErrorCode, ServerOutcome, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, status_for_action_outcome
 from task_manager.core.task_spec import TaskSpec
+from task_manager.messages.json_codec import message_from_json, message_to_dict
 from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import first_completed, wait_for, wait_until_ready
-from task_manager.ros.message_json import message_from_json, message_to_dict
 from task_manager.ros.running.execution import RunnerTimeouts
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 

@@ -22,6 +22,7 @@ from task_manager.core.request_text import loggable, request_problem
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+from task_manager.messages.json_codec import TaskDataError
 from task_manager.rclpy_tools.futures import (
     all_completed,
     completed_future,
@@ -30,7 +31,6 @@ from task_manager.rclpy_tools.futures import (
     result_of,
     wait_for,
 )
-from task_manager.ros.message_json import TaskDataError
 from task_manager.ros.recording import task_log
 from task_manager.ros.recording.active_tasks import ActiveTasksPublication
 from task_manager.ros.recording.history_writer import HistoryWriter

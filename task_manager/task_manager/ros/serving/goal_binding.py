@@ -9,8 +9,8 @@ from rclpy.task import Future
 
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskRecord, TaskRequest
+from task_manager.messages.json_codec import TaskDataError, message_from_dict
 from task_manager.rclpy_tools.futures import first_completed, resolved, result_of
-from task_manager.ros.message_json import TaskDataError, message_from_dict
 from task_manager.ros.running.dispatcher import TaskDispatcher
 
 

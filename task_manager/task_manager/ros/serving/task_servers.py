@@ -13,8 +13,8 @@ from rclpy.node import Node
 from task_manager.core.names import TASK_SERVER_PREFIX
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
+from task_manager.messages.json_codec import TaskDataError, message_from_dict, message_to_json
 from task_manager.ros.interfaces import load_interface
-from task_manager.ros.message_json import TaskDataError, message_from_dict, message_to_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.serving.goal_binding import GoalTaskBinding
 

@@ -9,8 +9,8 @@ from task_manager.core.bounds import ids_problem
 from task_manager.core.status import CancelReason, TaskStatus
 from task_manager.core.system_tasks import CANCEL_TASK_ALIAS_SPEC, CANCEL_TASK_SPEC, STOP_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 

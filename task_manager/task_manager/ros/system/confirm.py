@@ -29,7 +29,7 @@ from task_manager.core.request_text import loggable
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import CONFIRM_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.message_json import TaskDataError, message_from_json
+from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.timed_execution import TimedExecution
 

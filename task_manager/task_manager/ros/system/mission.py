@@ -15,13 +15,13 @@ from task_manager.core.status import CancelReason, ErrorCode
 from task_manager.core.system_tasks import MISSION_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import PauseMode
-from task_manager.rclpy_tools.futures import resolved, wait_for
-from task_manager.ros.message_json import (
+from task_manager.messages.json_codec import (
     TaskDataError,
     message_from_dict,
     message_to_dict,
     parse_json_text,
 )
+from task_manager.rclpy_tools.futures import resolved, wait_for
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 

@@ -12,8 +12,8 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import PAUSE_SPEC, RESUME_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
+from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 

@@ -9,7 +9,7 @@ from task_manager.core.bounds import ids_problem
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import REPRIORITIZE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.message_json import TaskDataError, message_from_json
+from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 

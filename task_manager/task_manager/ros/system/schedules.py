@@ -22,8 +22,8 @@ from task_manager.core.schedules.schedule import (
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.rclpy_tools.task_options import options_of_message, task_options_msg
-from task_manager.ros.message_json import TaskDataError, message_from_json
 from task_manager.ros.recording.task_events import stamp
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.running.scheduler import TaskScheduler

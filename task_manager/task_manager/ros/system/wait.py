@@ -9,7 +9,7 @@ from task_manager.core.bounds import SECONDS
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import WAIT_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
-from task_manager.ros.message_json import TaskDataError, message_from_json
+from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.ros.system.timed_execution import TimedExecution
 
 UNTIL_CANCELLED = -1.0

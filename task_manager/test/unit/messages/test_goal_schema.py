@@ -8,8 +8,8 @@ from test_msgs.action import Fibonacci
 from test_msgs.msg import Arrays, BasicTypes, BoundedSequences, Nested, Strings
 
 from task_manager.core.errors import ConfigurationError
-from task_manager.ros.goal_schema import goal_schema, task_data_schema
-from task_manager.ros.message_json import TaskDataError, message_from_dict, message_to_dict
+from task_manager.messages.goal_schema import goal_schema, task_data_schema
+from task_manager.messages.json_codec import TaskDataError, message_from_dict, message_to_dict
 
 CLASSES = [BasicTypes, Arrays, BoundedSequences, Nested, Strings, Fibonacci.Goal]
 

@@ -24,7 +24,7 @@ from test_msgs.msg import (
     WStrings,
 )
 
-from task_manager.ros.message_json import (
+from task_manager.messages.json_codec import (
     TaskDataError,
     message_from_dict,
     message_from_json,

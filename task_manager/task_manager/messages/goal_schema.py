@@ -1,6 +1,6 @@
 """A JSON Schema (2020-12) of a ROS message class: what its task_data may hold.
 
-Generated from the class's own introspection, like message_json (whose rules it states):
+Generated from the class's own introspection, like json_codec (whose rules it states):
 field names, types and bounds, defaults, nested messages and arrays. Unknown keys are
 allowed (the node ignores them); the top-level object must name at least one field.
 """
@@ -11,7 +11,7 @@ from typing import Any
 from rosidl_parser import definition as idl
 
 from task_manager.core.task_spec import TaskKind, parse_interface_name
-from task_manager.ros.message_json import (
+from task_manager.messages.json_codec import (
     HIDDEN_MEMBER,
     TYPE_ALIASES,
     import_class,
