@@ -11,8 +11,8 @@ import httpx
 import pytest
 from starlette.routing import Mount, Route
 from task_manager_mqtt.testing import BrokerProcess
-from task_manager_web.task_roles import SYSTEM_TASK_ROLES
-from task_manager_web.tokens import generated_token
+from task_manager_web.doors.task_roles import SYSTEM_TASK_ROLES
+from task_manager_web.doors.tokens import generated_token
 
 from task_manager.core.names import SYSTEM_TASK_NAMES
 from task_manager_console.app import Settings, create_app

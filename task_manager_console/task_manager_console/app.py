@@ -20,20 +20,20 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import task_manager_web.access
+import task_manager_web.doors.access
 import uvicorn
 from fastapi import FastAPI, Request, Response
 from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
 from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
-from task_manager_web.access import Access, Identity, MetricsViewer, Viewer
-from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
+from task_manager_web.doors.access import Access, Identity, MetricsViewer, Viewer
+from task_manager_web.doors.body_door import BODY_TIMEOUT_SEC, BodyDoor
+from task_manager_web.doors.front_door import LOCAL_HOSTS, FrontDoor
+from task_manager_web.doors.read_bound import ReadBound
+from task_manager_web.doors.tokens import Token, dashboard_line, door_tokens
 from task_manager_web.errors import ApiError, add_error_handlers
-from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
-from task_manager_web.read_bound import ReadBound
 from task_manager_web.request_metrics import RequestMetrics
-from task_manager_web.tokens import Token, dashboard_line, door_tokens
 
 from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager_console.console_metrics import ConsoleMetrics
@@ -44,10 +44,11 @@ from task_manager_console.robot_routes import add_robot_routes
 
 PROGRAM = 'task-manager-console'
 STATIC = Path(__file__).with_name('static')
-# The robot dashboard's files the page shares, found beside a module of the web gateway (not
-# by the package's name: a worker started with `python -c` has its current folder first on
-# sys.path, where the colcon folder task_manager_web/ passes for a namespace package).
-WEB_STATIC = Path(task_manager_web.access.__file__).parent / 'static'
+# The robot dashboard's files the page shares, found from a module of the web gateway (its
+# doors/ is beside static/; not by the package's name: a worker started with `python -c` has
+# its current folder first on sys.path, where the colcon folder task_manager_web/ passes for a
+# namespace package).
+WEB_STATIC = Path(task_manager_web.doors.access.__file__).parents[1] / 'static'
 SOURCE = 'CLOUD'
 """The door of what the console starts, as the bridges stamp it (`CLOUD:<token name>`)."""
 READ_PATHS = ('/api/robots', '/api/history')

@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 from fastapi import FastAPI, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
-from task_manager_web.access import (
+from task_manager_web.doors.access import (
     Caller,
     Operator,
     StreamViewer,
@@ -16,11 +16,11 @@ from task_manager_web.access import (
     check_start_priority,
     runs,
 )
+from task_manager_web.doors.task_roles import needed_to_start
 from task_manager_web.errors import ApiError
 from task_manager_web.event_stream import event_lines
-from task_manager_web.history_csv import COLUMNS
-from task_manager_web.history_page import PageFormat, history_page
-from task_manager_web.task_roles import needed_to_start
+from task_manager_web.history.csv_export import COLUMNS
+from task_manager_web.history.page import PageFormat, history_page
 
 from task_manager.core.bounds import FLEET_HISTORY_ROWS_DEFAULT, FLEET_HISTORY_ROWS_MAX
 from task_manager.core.json_text import compact_json

@@ -13,9 +13,16 @@ from typing import Annotated, Any
 from fastapi import FastAPI
 from fastapi.responses import JSONResponse
 from task_manager_mqtt.fleet_types import StartOptions
-from task_manager_web.access import Caller, Operator, Viewer, check_need, check_start_priority, runs
+from task_manager_web.doors.access import (
+    Caller,
+    Operator,
+    Viewer,
+    check_need,
+    check_start_priority,
+    runs,
+)
+from task_manager_web.doors.task_roles import needed_by_steps, needed_to_start
 from task_manager_web.errors import ApiError
-from task_manager_web.task_roles import needed_by_steps, needed_to_start
 
 from task_manager.core.json_text import compact_json
 from task_manager.core.names import CANCEL_TASK, MISSION, PAUSE, REPRIORITIZE, RESUME, STOP

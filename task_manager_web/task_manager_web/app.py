@@ -27,7 +27,7 @@ from task_manager.core.names import CANCEL_TASK, MISSION, REPRIORITIZE, STOP
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
-from task_manager_web.access import (
+from task_manager_web.doors.access import (
     Access,
     Caller,
     Identity,
@@ -39,18 +39,18 @@ from task_manager_web.access import (
     check_start_priority,
     runs,
 )
-from task_manager_web.body_door import BODY_TIMEOUT_SEC, BodyDoor
+from task_manager_web.doors.body_door import BODY_TIMEOUT_SEC, BodyDoor
+from task_manager_web.doors.front_door import LOCAL_HOSTS, FrontDoor
+from task_manager_web.doors.read_bound import ReadBound
+from task_manager_web.doors.task_roles import needed_by_steps, needed_to_start
+from task_manager_web.doors.tokens import Token
 from task_manager_web.errors import ApiError, add_error_handlers
 from task_manager_web.event_stream import event_lines
-from task_manager_web.front_door import LOCAL_HOSTS, FrontDoor
-from task_manager_web.history_page import history_page
+from task_manager_web.history.page import history_page
 from task_manager_web.metrics import GatewayMetrics, node_snapshot
 from task_manager_web.node_link import Link, NodeLink
 from task_manager_web.operator_routes import add_operator_routes
-from task_manager_web.read_bound import ReadBound
 from task_manager_web.request_metrics import RequestMetrics
-from task_manager_web.task_roles import needed_by_steps, needed_to_start
-from task_manager_web.tokens import Token
 
 WAIT_DEFAULT_SEC = 30.0
 WAIT_MAX_SEC = 600.0

@@ -18,9 +18,9 @@ from task_manager.client import TaskManagerClient
 from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager.discovery import use_quick_discovery
 from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
-from task_manager_web.front_door import LOCAL_HOSTS
+from task_manager_web.doors.front_door import LOCAL_HOSTS
+from task_manager_web.doors.tokens import dashboard_line, door_tokens
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
-from task_manager_web.tokens import dashboard_line, door_tokens
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080

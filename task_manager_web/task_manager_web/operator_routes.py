@@ -21,15 +21,15 @@ from task_manager.gateway_json import (
     scheduled_json,
 )
 from task_manager.protocol import models
-from task_manager_web.access import Caller, Operator, Viewer, check_need, runs
-from task_manager_web.errors import ApiError
-from task_manager_web.node_link import Link
-from task_manager_web.task_roles import (
+from task_manager_web.doors.access import Caller, Operator, Viewer, check_need, runs
+from task_manager_web.doors.task_roles import (
     Need,
     needed_by_steps,
     needed_to_start,
     with_runs_priority,
 )
+from task_manager_web.errors import ApiError
+from task_manager_web.node_link import Link
 
 
 def add_operator_routes(app: FastAPI) -> None:

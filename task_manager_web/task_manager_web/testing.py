@@ -11,7 +11,7 @@ import httpx
 
 from task_manager.testing.gateway import TIMEOUT_SEC, wait_until
 from task_manager.testing.process import NodeProcess
-from task_manager_web.tokens import Role, read_token_file
+from task_manager_web.doors.tokens import Role, read_token_file
 
 if TYPE_CHECKING:  # the dashboard's tests only: the bench runs gateways without a browser
     from playwright.sync_api import APIResponse, Page, Route

@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from task_manager_web.history_csv import history_csv
+from task_manager_web.history.csv_export import history_csv
 
 
 def exported(**task: Any) -> dict[str, str]:

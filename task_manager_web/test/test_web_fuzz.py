@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 from task_manager.client import TaskManagerClient
 from task_manager.testing.gateway import check
 from task_manager_web.app import Settings, create_app
-from task_manager_web.tokens import Role, Token
+from task_manager_web.doors.tokens import Role, Token
 
 pytestmark = pytest.mark.ros
 

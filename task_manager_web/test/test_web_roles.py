@@ -18,19 +18,17 @@ from task_manager.client import TaskManagerClient
 from task_manager.core.names import SYSTEM_TASK_NAMES
 from task_manager.secret_file import exposure_warning
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
-from task_manager_web import task_roles
-from task_manager_web.access import Access, check_start_priority
 from task_manager_web.app import Settings, create_app
-from task_manager_web.errors import ApiError
-from task_manager_web.task_roles import (
+from task_manager_web.doors import task_roles
+from task_manager_web.doors.access import Access, check_start_priority
+from task_manager_web.doors.task_roles import (
     SYSTEM_TASK_ROLES,
     Need,
     UnreadableTaskDataError,
     needed_to_start,
     with_runs_priority,
 )
-from task_manager_web.testing import GATEWAY_EXECUTABLE, GatewayProcess
-from task_manager_web.tokens import (
+from task_manager_web.doors.tokens import (
     GENERATED_NAME,
     Role,
     Token,
@@ -38,6 +36,8 @@ from task_manager_web.tokens import (
     generated_token,
     parse_tokens,
 )
+from task_manager_web.errors import ApiError
+from task_manager_web.testing import GATEWAY_EXECUTABLE, GatewayProcess
 
 VIEWER, OPERATOR, ADMIN = 'viewer', 'operator', 'admin'
 PUBLIC = None

@@ -33,7 +33,7 @@ from task_manager.core.names import (
     WAIT,
 )
 from task_manager.protocol.strict_json import RefusedJsonError, load
-from task_manager_web.tokens import Role
+from task_manager_web.doors.tokens import Role
 
 SYSTEM_TASK_ROLES: Mapping[str, Role] = MappingProxyType(
     {

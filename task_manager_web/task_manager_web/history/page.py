@@ -13,7 +13,7 @@ from fastapi import Response
 
 from task_manager.core.json_text import compact_json
 from task_manager_web.errors import ApiError
-from task_manager_web.history_csv import COLUMNS, csv_lines
+from task_manager_web.history.csv_export import COLUMNS, csv_lines
 
 JSON_TYPE = 'application/json'
 CSV_NAME = 'task_history.csv'

@@ -13,7 +13,7 @@ from collections import Counter
 
 from starlette.types import ASGIApp, Receive, Scope, Send
 
-from task_manager_web.access import Access
+from task_manager_web.doors.access import Access
 from task_manager_web.errors import error_response
 
 READ_PATHS = ('/api/active', '/api/tasks', '/api/history')

@@ -30,9 +30,14 @@ from starlette.datastructures import Headers
 from starlette.types import Scope
 
 from task_manager.core.sources import door_source
+from task_manager_web.doors.task_roles import (
+    SYSTEM_TASK_ROLES,
+    TASK_ROLE,
+    Need,
+    UnreadableTaskDataError,
+)
+from task_manager_web.doors.tokens import Role, Token
 from task_manager_web.errors import ApiError
-from task_manager_web.task_roles import SYSTEM_TASK_ROLES, TASK_ROLE, Need, UnreadableTaskDataError
-from task_manager_web.tokens import Role, Token
 
 _BEARER = HTTPBearer(auto_error=False, description='A token of the gateway (its token file).')
 Credentials = Annotated[HTTPAuthorizationCredentials | None, Depends(_BEARER)]
