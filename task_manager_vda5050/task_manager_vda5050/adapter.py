@@ -19,15 +19,20 @@ from typing import Any
 
 from task_manager.client import TaskEvent, TaskManagerClient
 from task_manager.core.bounds import REASON_MAX_CHARACTERS, VDA5050_WAITING_MAX_BYTES, cut_text
-from task_manager_vda5050.factsheet import factsheet
-from task_manager_vda5050.fitting import shortened
 from task_manager_vda5050.inbound import read_inbound
-from task_manager_vda5050.instant_actions import InstantActions
 from task_manager_vda5050.link import Link
 from task_manager_vda5050.mapping import Mapping
-from task_manager_vda5050.order_plan import VALIDATION_ERROR, OrderRejectedError, Planner, Rejection
-from task_manager_vda5050.orders import Orders
-from task_manager_vda5050.vehicle_state import VehicleState
+from task_manager_vda5050.orders.instant_actions import InstantActions
+from task_manager_vda5050.orders.plan import (
+    VALIDATION_ERROR,
+    OrderRejectedError,
+    Planner,
+    Rejection,
+)
+from task_manager_vda5050.orders.running import Orders
+from task_manager_vda5050.state.factsheet import factsheet
+from task_manager_vda5050.state.fitting import shortened
+from task_manager_vda5050.state.vehicle_state import VehicleState
 
 LOG = logging.getLogger('task_manager_vda5050')
 STATE_PERIOD_SEC = 30.0

@@ -5,7 +5,7 @@ from typing import Any
 import pytest
 
 from task_manager_vda5050.mapping import read_mapping
-from task_manager_vda5050.order_plan import OrderRejectedError, Planner, check_update
+from task_manager_vda5050.orders.plan import OrderRejectedError, Planner, check_update
 from task_manager_vda5050.testing import DEMO_MAPPING, edge, node, order, photo
 
 PLANNER = Planner(read_mapping(DEMO_MAPPING), {'navigation/navigate_to_pose'}.__contains__)

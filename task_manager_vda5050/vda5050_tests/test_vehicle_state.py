@@ -8,11 +8,11 @@ from task_manager.core.bounds import (
     VDA5050_STATE_ACTIONS_MAX,
     VDA5050_STATE_ERRORS_MAX,
 )
-from task_manager_vda5050.fitting import shortened, size
-from task_manager_vda5050.order_plan import Rejection
+from task_manager_vda5050.orders.plan import Rejection
 from task_manager_vda5050.schemas import problems
+from task_manager_vda5050.state.fitting import shortened, size
+from task_manager_vda5050.state.vehicle_state import VehicleState
 from task_manager_vda5050.testing import node, order
-from task_manager_vda5050.vehicle_state import VehicleState
 
 HEADER = {'headerId': 1, 'timestamp': '2024-01-01T00:00:00.000Z', 'version': '2.0.0',
           'manufacturer': 'acme', 'serialNumber': 'robot1'}  # fmt: skip

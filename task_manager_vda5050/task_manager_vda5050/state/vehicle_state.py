@@ -22,7 +22,7 @@ from task_manager.core.bounds import (
     VDA5050_STATE_ERRORS_MAX,
     cut_text,
 )
-from task_manager_vda5050.order_plan import Rejection
+from task_manager_vda5050.orders.plan import Rejection
 
 ACTION_STATUS = {
     'RECEIVED': 'INITIALIZING',

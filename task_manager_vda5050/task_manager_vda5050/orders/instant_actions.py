@@ -9,9 +9,9 @@ from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient
 from task_manager.core.bounds import cut_text
 from task_manager.core.errors import TaskManagerError
 from task_manager_vda5050.mapping import Mapping, MissingValueError
-from task_manager_vda5050.order_plan import VALIDATION_ERROR, Rejection
-from task_manager_vda5050.orders import SOURCE, Orders, description
-from task_manager_vda5050.vehicle_state import ACTION_STATUS, VehicleState
+from task_manager_vda5050.orders.plan import VALIDATION_ERROR, Rejection
+from task_manager_vda5050.orders.running import SOURCE, Orders, description
+from task_manager_vda5050.state.vehicle_state import ACTION_STATUS, VehicleState
 
 LOG = logging.getLogger('task_manager_vda5050')
 INSTANT_ACTION_ERROR = 'instantActionError'

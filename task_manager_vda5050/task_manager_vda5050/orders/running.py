@@ -21,7 +21,7 @@ from task_manager.core.bounds import (
 from task_manager.core.errors import TaskManagerError
 from task_manager.core.status import TaskStatus
 from task_manager_vda5050.mapping import PositionSource
-from task_manager_vda5050.order_plan import (
+from task_manager_vda5050.orders.plan import (
     ORDER_UPDATE_ERROR,
     OrderRejectedError,
     PlannedTask,
@@ -31,7 +31,7 @@ from task_manager_vda5050.order_plan import (
     check_update,
     references,
 )
-from task_manager_vda5050.vehicle_state import ACTION_STATUS, Position, VehicleState
+from task_manager_vda5050.state.vehicle_state import ACTION_STATUS, Position, VehicleState
 
 LOG = logging.getLogger('task_manager_vda5050')
 SOURCE = 'VDA5050'

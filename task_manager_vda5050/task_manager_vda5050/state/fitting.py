@@ -12,7 +12,7 @@ errors and information). An information `stateShortened` says what was left out.
 import json
 from typing import Any
 
-from task_manager_vda5050.vehicle_state import ENDED
+from task_manager_vda5050.state.vehicle_state import ENDED
 
 SHORTENED = 'stateShortened'
 """The infoType of the information saying what a shortened state left out."""
