@@ -17,6 +17,7 @@ from typing import Any
 import httpx
 from task_manager_mqtt.broker import MosquittoBroker
 
+from task_manager.testing.output_reader import OutputReader
 from task_manager_console.main import READY_LINE
 from task_manager_console.testing import CONSOLE_USER, TIMEOUT_SEC
 
@@ -60,9 +61,6 @@ class ConsoleProcess:
             '--token-file', str(token_file),
             *args,
         ]  # fmt: skip
-        self.lines: list[str] = []
-        self._ended = False
-        self._changed = threading.Condition()
         self.process = subprocess.Popen(
             command,
             stdout=subprocess.PIPE,
@@ -70,8 +68,9 @@ class ConsoleProcess:
             text=True,
             env=dict(os.environ, PYTHONUNBUFFERED='1'),
         )
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
+        assert self.process.stdout is not None
+        self._output = OutputReader(self.process.stdout)
+        self.lines = self._output.lines
         try:
             self.wait_for_line(READY_LINE)
             match = re.search(DASHBOARD_LINE, self.wait_for_line(DASHBOARD_LINE))
@@ -81,30 +80,13 @@ class ConsoleProcess:
         assert match is not None
         self.url = match['url']
 
-    def _read(self) -> None:
-        assert self.process.stdout is not None
-        for line in self.process.stdout:
-            with self._changed:
-                self.lines.append(line.rstrip('\n'))
-                self._changed.notify_all()
-        with self._changed:
-            self._ended = True
-            self._changed.notify_all()
-
     def wait_for_line(self, pattern: str, timeout_sec: float = TIMEOUT_SEC) -> str:
         """Wait for an output line matching the regular expression `pattern`; the line."""
-        regex = re.compile(pattern)
-
-        def found() -> tuple[str | None] | None:
-            line = next((line for line in self.lines if regex.search(line)), None)
-            return (line,) if line is not None or self._ended else None
-
-        with self._changed:
-            outcome = self._changed.wait_for(found, timeout_sec)
-        if outcome is None or outcome[0] is None:
+        line = self._output.find(pattern, timeout_sec)
+        if line is None:
             output = '\n'.join(self.lines)
             raise AssertionError(f'no line matching {pattern!r}; output:\n{output}')
-        return outcome[0]
+        return line
 
     def stop(self, timeout_sec: float = TIMEOUT_SEC) -> int:
         """SIGINT (a clean stop), then its exit code; killed if it does not stop in time."""
@@ -116,7 +98,7 @@ class ConsoleProcess:
             self.process.kill()
             self.process.wait()
             raise
-        self._reader.join(timeout_sec)
+        self._output.join(timeout_sec)
         return code
 
     def client(self, role: str | None = ADMIN) -> httpx.Client:

@@ -1,12 +1,10 @@
 """Run the Task Manager as users do: a subprocess with a parameters file."""
 
 import os
-import re
 import shutil
 import signal
 import subprocess
 import sys
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -14,6 +12,7 @@ from typing import Any
 import yaml
 
 from task_manager.testing.harness import WaitTimeoutError
+from task_manager.testing.output_reader import OutputReader
 
 STOP_TIMEOUT_SEC = 10.0
 TASKCTL = str(Path(sys.executable).with_name('taskctl'))
@@ -73,10 +72,7 @@ class NodeProcess:
                 ros_args += ['--params-file', str(params_file)]
             if ros_args:
                 command += ['--ros-args', *ros_args]
-        self.log_lines: list[str] = []
         self.killed = False
-        self._output_ended = False
-        self._changed = threading.Condition()
         self.process = subprocess.Popen(
             command,
             stdout=subprocess.PIPE,
@@ -86,41 +82,24 @@ class NodeProcess:
                 os.environ, RCUTILS_LOGGING_BUFFERED_STREAM='0', PYTHONUNBUFFERED='1', **(env or {})
             ),
         )
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
         assert self.process.stdout is not None
-        for line in self.process.stdout:
-            with self._changed:
-                self.log_lines.append(line.rstrip('\n'))
-                self._changed.notify_all()
-        with self._changed:
-            self._output_ended = True
-            self._changed.notify_all()
+        self._output = OutputReader(self.process.stdout)
+        self.log_lines = self._output.lines
 
     def wait_for_log(self, pattern: str, timeout_sec: float) -> str:
         """Wait for a log line matching the regular expression `pattern`; return it."""
-        regex = re.compile(pattern)
-
-        def match() -> tuple[str | None] | None:
-            """(the line,) once found, (None,) once the output has ended without it, else None."""
-            found = next((line for line in self.log_lines if regex.search(line)), None)
-            return (found,) if found is not None or self._output_ended else None
-
-        with self._changed:
-            outcome = self._changed.wait_for(match, timeout_sec)
-        if outcome is None or outcome[0] is None:
-            ended = 'the process has exited' if outcome else f'{timeout_sec} s passed'
+        line = self._output.find(pattern, timeout_sec)
+        if line is None:
+            ended = 'the process has exited' if self._output.ended else f'{timeout_sec} s passed'
             raise WaitTimeoutError(
                 f'no log line matching {pattern!r} ({ended}); log so far:\n'
                 + '\n'.join(self.log_lines)
             )
-        return outcome[0]
+        return line
 
     def wait_exit(self, timeout_sec: float) -> int:
         code = self.process.wait(timeout_sec)
-        self._reader.join(timeout_sec)
+        self._output.join(timeout_sec)
         return code
 
     def kill(self, timeout_sec: float = STOP_TIMEOUT_SEC) -> int:
