@@ -5,7 +5,7 @@ tasks run (every stream must get every event).
 The gateway runs as users run it (`task-manager-web`, its own process, in the bench's ROS
 domain); the timed requests go through one kept-alive connection of the standard library's
 http.client (see TimedConnection), as a UI keeps one. The streams are
-read by another process (bench/stream_readers.py), as browsers would.
+read by another process (bench/harness/stream_readers.py), as browsers would.
 """
 
 import http.client
@@ -13,7 +13,6 @@ import json
 import socket
 import statistics
 import subprocess
-import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -29,7 +28,7 @@ from bench.harness.context import BenchContext
 from bench.harness.replies import BenchError
 from bench.harness.report import Row
 from bench.harness.stats import Summary
-from bench.harness.stream_readers import EVENTS_PER_TASK
+from bench.harness.stream_readers import EVENTS_PER_TASK, readers_command
 from bench.node.dispatch import interleaved
 
 ADDED_TARGET_MS = 3.0
@@ -143,7 +142,7 @@ def _streams(
 ) -> None:
     count = config.WEB_STREAMS
     readers = subprocess.Popen(
-        [sys.executable, '-m', 'bench.stream_readers', gateway.url, gateway.token, str(count)],
+        readers_command(gateway.url, gateway.token, count),
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,
         text=True,

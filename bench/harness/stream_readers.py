@@ -1,4 +1,4 @@
-"""`python -m bench.stream_readers URL TOKEN COUNT`: COUNT open /api/events streams.
+"""`python -m bench.harness.stream_readers URL TOKEN COUNT`: COUNT open /api/events streams.
 
 Prints `open` once every stream got its `hello`; then, for each line of task ids (a JSON
 list) read from stdin, waits until every stream got the RECEIVED, STARTED and ENDED events of
@@ -16,6 +16,11 @@ EVENTS_PER_TASK = ('RECEIVED', 'STARTED', 'ENDED')
 EVENTS_TIMEOUT_SEC = 60.0
 OPEN_TIMEOUT_SEC = 60.0
 CLOSE_TIMEOUT_SEC = 30.0
+
+
+def readers_command(url: str, token: str, count: int) -> list[str]:
+    """The command that opens `count` streams in a process of its own, as browsers would."""
+    return [sys.executable, '-m', __name__, url, token, str(count)]
 
 
 class EventStreams:
