@@ -1,0 +1,117 @@
+"""The deployment users run: the node with its web gateway (a dashboard page open on its event
+stream) and its MQTT bridge (connected to a local mosquitto, a cloud client following it)
+attached, against the node alone.
+
+The node is restarted for each phase, alone / attached / attached / alone (ABBA), as for a
+node setting (node_settings.compare): dispatch latency and burst throughput, each relative to
+the direct baseline measured beside it, then 1,000 held tasks until all are IN_PROGRESS
+against the same goals sent directly. The dashboard's stream is read by another process
+(bench/harness/stream_readers.py), as a browser would; the bridge runs as users start it
+(`task-manager-mqtt`), and the cloud's FleetClient (events on) follows the robot.
+"""
+
+import contextlib
+import statistics
+import subprocess
+import time
+from collections.abc import Iterator
+
+from bench.gateways.mqtt import running_bridge
+from bench.gateways.web import HTTP_TIMEOUT_SEC, running_gateway
+from bench.harness import config
+from bench.harness.client import ActiveTasksWatcher
+from bench.harness.context import BenchContext
+from bench.harness.replies import BenchError
+from bench.harness.report import Row
+from bench.harness.stats import ratio
+from bench.harness.stream_readers import readers_command
+from bench.node.concurrency import HoldRun, direct_hold, managed_hold
+from bench.node.node_settings import Beside, Setting, Targets, compare
+
+ALONE = Setting('alone', {})
+ATTACHED = Setting('gateways attached', {})
+TARGETS = Targets(latency=1.10, throughput=0.85)
+"""Issue 40: at most 10 % slower at dispatch, at most 15 % fewer tasks/s on the burst."""
+DASHBOARD_STREAMS = 1
+
+
+@contextlib.contextmanager
+def _dashboard(ctx: BenchContext) -> Iterator[None]:
+    """The web gateway, with one page open on its event stream (read by another process)."""
+    with running_gateway(ctx) as (gateway, _http):
+        readers = subprocess.Popen(
+            readers_command(gateway.url, gateway.token, DASHBOARD_STREAMS),
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert readers.stdin is not None and readers.stdout is not None
+        try:
+            if readers.stdout.readline().strip() != 'open':
+                raise BenchError('the dashboard event stream did not open')
+            yield
+        finally:
+            readers.stdin.close()
+            readers.wait(HTTP_TIMEOUT_SEC)
+
+
+def _beside(ctx: BenchContext) -> Beside:
+    """What runs beside the node in each phase: the gateways when attached, else nothing."""
+
+    def beside(setting: Setting) -> contextlib.AbstractContextManager[object]:
+        if setting is not ATTACHED:
+            return contextlib.nullcontext()
+        stack = contextlib.ExitStack()
+        with stack:
+            stack.enter_context(_dashboard(ctx))
+            stack.enter_context(running_bridge(ctx))
+            return stack.pop_all()
+
+    return beside
+
+
+class HeldRamps:
+    """Per setting, each phase's ramp to all IN_PROGRESS over the direct ramp beside it."""
+
+    def __init__(self, ctx: BenchContext) -> None:
+        self._ctx = ctx
+        self.shares: dict[str, list[float]] = {ALONE.name: [], ATTACHED.name: []}
+        self.ramps_ms: dict[str, list[float]] = {ALONE.name: [], ATTACHED.name: []}
+
+    def measure(self, setting: Setting, _index: int) -> None:
+        count = config.CONCURRENT_TASKS
+        self._ctx.settle()
+        direct = direct_hold(self._ctx, count)
+        watcher = ActiveTasksWatcher(self._ctx.client.harness)
+        try:
+            watcher.wait_until(bool, config.CONNECT_TIMEOUT_SEC, 'the current list')
+            managed: HoldRun = managed_hold(self._ctx, watcher, count)[0]
+        finally:
+            watcher.destroy()
+        self.shares[setting.name].append(ratio(managed.ramp_sec, direct.ramp_sec))
+        self.ramps_ms[setting.name].append(managed.ramp_sec * 1000)
+
+    def row(self) -> Row:
+        attached = statistics.median(self.shares[ATTACHED.name])
+        alone = statistics.median(self.shares[ALONE.name])
+        return Row(
+            benchmark=f'{ATTACHED.name} vs {ALONE.name}: {config.CONCURRENT_TASKS} held',
+            metric='ms until all IN_PROGRESS, med of 2 (each over direct beside it)',
+            measured=f'{statistics.median(self.ramps_ms[ATTACHED.name]):.0f}',
+            baseline=f'{statistics.median(self.ramps_ms[ALONE.name]):.0f} {ALONE.name}',
+            ratio=f'{ratio(attached, alone):.2f}x',
+            target='',
+            met=None,
+        )
+
+
+def run(ctx: BenchContext) -> None:
+    held = HeldRamps(ctx)
+    started = time.perf_counter()
+    compare(ctx, ALONE, ATTACHED, beside=_beside(ctx), in_phase=held.measure, targets=TARGETS)
+    ctx.report.add(held.row())
+    ctx.report.note(
+        f'attached: the web gateway with {DASHBOARD_STREAMS} event stream open and the MQTT '
+        f'bridge on a local mosquitto, a FleetClient following; 4 phases in '
+        f'{time.perf_counter() - started:.0f} s'
+    )
