@@ -4,9 +4,7 @@ Fleet), and `serve`, which runs them until the console stops.
 They follow the web gateway's conventions with its own code (task_manager_web: the token file
 and roles, who may do what by effect, the error documents, the security headers, the Host
 allow-list, the body's and the reads' bounds, the HTTP server). Before routing, a request
-passes the same doors (middlewares), outermost first: FrontDoor (Host allow-list; the
-security headers of every answer), RequestMetrics, ReadBound (reads in flight per client),
-BodyDoor (size, time and JSON of the body).
+passes the same doors (`task_manager_web.doors.settings.add_doors`).
 """
 
 import argparse
@@ -27,15 +25,11 @@ from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
 from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 from task_manager_web.doors.access import Access, Identity, MetricsViewer, Viewer
-from task_manager_web.doors.body_door import BODY_TIMEOUT_SEC, BodyDoor
-from task_manager_web.doors.front_door import LOCAL_HOSTS, FrontDoor
-from task_manager_web.doors.read_bound import ReadBound
-from task_manager_web.doors.tokens import Token, dashboard_line, door_tokens
-from task_manager_web.errors import ApiError, add_error_handlers
+from task_manager_web.doors.settings import DoorSettings, add_doors, allowed_hosts, door_app
+from task_manager_web.doors.tokens import dashboard_line, door_tokens
+from task_manager_web.errors import ApiError
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
-from task_manager_web.request_metrics import RequestMetrics
 
-from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager_console.console_metrics import ConsoleMetrics
 from task_manager_console.fleet import Fleet
 from task_manager_console.fleet_link import FleetLink, Link
@@ -53,57 +47,18 @@ SOURCE = 'CLOUD'
 """The door of what the console starts, as the bridges stamp it (`CLOUD:<token name>`)."""
 READ_PATHS = ('/api/robots', '/api/history')
 """The reads bounded per client (GET of each, and what is under it)."""
-MAX_READS_PER_CLIENT = 32
-MAX_BODY_BYTES = 1_048_576
 
 
 @dataclass(frozen=True)
-class Settings:
+class Settings(DoorSettings):
     """The doors' settings (the console's command line gives them)."""
 
-    tokens: tuple[Token, ...]
-    """Who may use the console, each token with its role (and maybe a name)."""
     host: str = '127.0.0.1'
     port: int = 0
     token_file: Path | None = None
     """Where the tokens come from (None: one made at the start, printed)."""
-    allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
-    """The names a request's Host header may give (its port is not compared)."""
-    metrics_without_token: bool = False
-    max_body_bytes: int = MAX_BODY_BYTES
-    body_timeout_sec: float = BODY_TIMEOUT_SEC
-    max_reads_per_client: int = MAX_READS_PER_CLIENT
-    max_history_bytes: int = HISTORY_PAGE_MAX_BYTES
-    """The largest history page answered (JSON or CSV); a larger one is refused."""
     header_timeout_sec: float = HEADER_TIMEOUT_SEC
     access_log: bool = False
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """The doors' options besides --host, --port and --token-file (the console's own)."""
-    parser.add_argument(
-        '--allowed-host',
-        action='append',
-        default=[],
-        metavar='NAME',
-        help='a name the Host header may give besides 127.0.0.1, localhost, ::1 and the --host '
-        "address (the console's name behind a reverse proxy); again for more",
-    )
-    parser.add_argument(
-        '--metrics-without-token',
-        action='store_true',
-        help='let anyone read GET /metrics (a Prometheus scraper without a token)',
-    )
-    parser.add_argument(
-        '--max-history-bytes',
-        type=int,
-        default=HISTORY_PAGE_MAX_BYTES,
-        help='largest history page answered, JSON or CSV; a larger one is refused with '
-        'reply_too_large (8 MiB)',
-    )
-    parser.add_argument(
-        '--access-log', action='store_true', help='a line per request (its token removed)'
-    )
 
 
 def settings_of(arguments: argparse.Namespace) -> Settings:
@@ -114,7 +69,7 @@ def settings_of(arguments: argparse.Namespace) -> Settings:
         host=arguments.host,
         port=arguments.port,
         token_file=arguments.token_file,
-        allowed_hosts=(*LOCAL_HOSTS, arguments.host, *arguments.allowed_host),
+        allowed_hosts=allowed_hosts(arguments),
         metrics_without_token=arguments.metrics_without_token,
         max_history_bytes=arguments.max_history_bytes,
         access_log=arguments.access_log,
@@ -133,32 +88,17 @@ def create_app(fleet: Fleet, settings: Settings) -> FastAPI:
             app.state.link.close()
             metrics.close()
 
-    app = FastAPI(
-        title='Task Manager fleet console',
-        summary="Every robot's tasks on an MQTT broker, and the fleet history.",
-        version='0.1.0',
-        lifespan=lifespan,
-        docs_url=None,
-        redoc_url=None,
-        swagger_ui_oauth2_redirect_url=None,
+    app = door_app(
+        'Task Manager fleet console',
+        "Every robot's tasks on an MQTT broker, and the fleet history.",
+        lifespan,
     )
-    add_error_handlers(app)
     access = Access(
         settings.tokens, source=SOURCE, metrics_without_token=settings.metrics_without_token
     )
-    app.state.access = access
     metrics = ConsoleMetrics(fleet)
     app.state.metrics = metrics
-    app.state.max_history_bytes = settings.max_history_bytes
-    # the last added is the outermost
-    app.add_middleware(
-        BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
-    )
-    app.add_middleware(
-        ReadBound, access=access, max_reads=settings.max_reads_per_client, paths=READ_PATHS
-    )
-    app.add_middleware(RequestMetrics, counts=metrics.request_counts)
-    app.add_middleware(FrontDoor, allowed_hosts=settings.allowed_hosts)
+    add_doors(app, settings, access, metrics.request_counts, READ_PATHS)
     _add_routes(app)
     add_robot_routes(app)
     add_fleet_routes(app)
@@ -221,7 +161,7 @@ class _Server(uvicorn.Server):
     async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
         link: FleetLink | None = getattr(self.console_app.state, 'link', None)
         if link is not None:
-            link.end_streams()
+            link.end_streams('the console stops')
         await super().shutdown(sockets)
 
 

@@ -23,6 +23,7 @@ from typing import Annotated, Any, TypeVar
 from fastapi import Depends, Request
 from pydantic import BaseModel, ValidationError
 from task_manager_mqtt.fleet_types import FleetError
+from task_manager_web.door_link import DoorLink
 from task_manager_web.errors import ApiError
 from task_manager_web.event_stream import STREAM_QUEUE_MAX, EventStream
 
@@ -34,10 +35,6 @@ from task_manager_console.store.fleet_history import DatabaseUnavailable
 
 T = TypeVar('T')
 M = TypeVar('M', bound=BaseModel)
-READ_THREADS = 4
-START_THREADS = 8
-CONTROL_THREADS = 4
-"""Control: each holds its thread until the robot's reply came (or its timeout)."""
 # key: an error code of a FleetError (the console's, the broker's or a robot's reply), value:
 # the HTTP status it is answered with; any other code: 502 (the robot refused it)
 STATUS_OF_CODE = {
@@ -81,16 +78,12 @@ def checked_robot_id(robot_id: str) -> str:
     return robot_id
 
 
-class FleetLink:
+class FleetLink(DoorLink):
     """The Fleet as the doors' handlers see it (use from the event loop)."""
 
     def __init__(self, fleet: Fleet, loop: asyncio.AbstractEventLoop) -> None:
+        super().__init__(loop, 'console')
         self.fleet = fleet
-        self._loop = loop
-        self._reads = ThreadPoolExecutor(READ_THREADS, 'console_read')
-        self._starts = ThreadPoolExecutor(START_THREADS, 'console_start')
-        self._control = ThreadPoolExecutor(CONTROL_THREADS, 'console_control')
-        self._streams: set[EventStream] = set()
         self._waiting_lock = threading.Lock()
         self._robots_changed: set[str] = set()
         """Ids of the robots changed since the streams were last offered their changes."""
@@ -102,8 +95,7 @@ class FleetLink:
 
     def close(self) -> None:
         self._remove()
-        for pool in (self._reads, self._starts, self._control):
-            pool.shutdown(wait=False, cancel_futures=True)
+        super().close()
 
     def robot(self, robot_id: str) -> RobotState:
         """The robot of a request's path: 422 for an id that can name none, 404 if unknown."""
@@ -134,27 +126,7 @@ class FleetLink:
         except FleetError as error:
             raise api_error(error) from None
 
-    async def _in(self, pool: ThreadPoolExecutor, call: Callable[[], T]) -> T:
-        return await self._loop.run_in_executor(pool, call)
-
     # ---- event streams ------------------------------------------------------------------------
-
-    def open_stream(self) -> EventStream:
-        stream = EventStream()
-        self._streams.add(stream)
-        return stream
-
-    def close_stream(self, stream: EventStream) -> None:
-        self._streams.discard(stream)
-
-    def end_streams(self) -> None:
-        """End every event stream (the console stops): none holds the server's stop."""
-        for stream in self._streams:
-            stream.end('the console stops')
-
-    @property
-    def stream_count(self) -> int:
-        return len(self._streams)
 
     def _on_change(self, change: Change) -> None:
         """On the Fleet's threads: note the change, wake the loop if it is not due already."""

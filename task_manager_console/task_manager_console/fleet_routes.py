@@ -7,6 +7,7 @@ from typing import Annotated, Any, Literal
 from fastapi import FastAPI, Query, Request, Response
 from fastapi.responses import StreamingResponse
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from task_manager_web.door_link import EVENT_STREAM_ROUTE
 from task_manager_web.doors.access import (
     Caller,
     Operator,
@@ -18,7 +19,6 @@ from task_manager_web.doors.access import (
 )
 from task_manager_web.doors.task_roles import needed_to_start
 from task_manager_web.errors import ApiError
-from task_manager_web.event_stream import event_lines
 from task_manager_web.history.csv_export import COLUMNS
 from task_manager_web.history.page import PageFormat, history_page
 
@@ -133,24 +133,15 @@ def add_fleet_routes(app: FastAPI) -> None:
             results, query.format == 'csv', request.app.state.max_history_bytes, PAGE
         )
 
-    @app.get(
-        '/api/events',
-        tags=['fleet'],
-        response_class=StreamingResponse,
-        responses={200: {'content': {'text/event-stream': {}}}},
-    )
+    @app.get('/api/events', tags=['fleet'], **EVENT_STREAM_ROUTE)
     async def events(_: StreamViewer, link: Link) -> StreamingResponse:
         """Server-Sent Events: `hello` (`{"robots": [...], "database_up": bool}`, every robot
         as GET /api/robots gives it), then a `result` event for each result stored (a fleet
         history document) and a `robot` event for each robot changed (its new state)."""
-        stream = link.open_stream()
-        hello = {'robots': robots_document(link), 'database_up': link.fleet.database_up}
-        return StreamingResponse(
-            event_lines(
-                stream, [('hello', compact_json(hello))], lambda: link.close_stream(stream)
-            ),
-            media_type='text/event-stream',
-            headers={'Cache-Control': 'no-store', 'X-Accel-Buffering': 'no'},
+        return link.event_response(
+            lambda: compact_json(
+                {'robots': robots_document(link), 'database_up': link.fleet.database_up}
+            )
         )
 
 

@@ -20,8 +20,9 @@ from pathlib import Path
 
 from task_manager_mqtt.fleet_types import FleetError
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, SettingsError
+from task_manager_web.doors.settings import add_door_arguments
 
-from task_manager_console.app import add_arguments, serve, settings_of
+from task_manager_console.app import serve, settings_of
 from task_manager_console.fleet import CONSOLE_CLIENT_ID, Fleet
 from task_manager_console.store.fleet_history import DatabaseUnavailable, FleetHistory
 from task_manager_console.store.location import default_database_url
@@ -64,13 +65,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     )
     parser.add_argument('--host', default='127.0.0.1', help='address of the doors (%(default)s)')
     parser.add_argument('--port', type=int, default=DEFAULT_PORT, help='their port (%(default)s)')
-    parser.add_argument(
-        '--token-file',
-        type=Path,
-        help="file of the doors' tokens, one 'ROLE TOKEN [NAME]' line each (ROLE: viewer, "
-        'operator, admin); default: a new admin token, printed',
-    )
-    add_arguments(parser)
+    add_door_arguments(parser, "the console's name")
     return parser.parse_args(argv)
 
 

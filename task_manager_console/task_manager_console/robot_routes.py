@@ -8,10 +8,12 @@ The source of what is started is the bridge's (`CLOUD`) followed by the token's 
 (`CLOUD:alice`): the history says who did it.
 """
 
-from typing import Annotated, Any
+from collections.abc import Callable
+from typing import Annotated, Any, TypeVar
 
 from fastapi import FastAPI
 from fastapi.responses import JSONResponse
+from pydantic import BaseModel
 from task_manager_mqtt.fleet_types import StartOptions
 from task_manager_web.doors.access import (
     Caller,
@@ -32,6 +34,7 @@ from task_manager_console.documents import RobotStarted, started
 from task_manager_console.fleet_link import FleetLink, Link, checked_answer
 from task_manager_console.robots import RobotState
 
+M = TypeVar('M', bound=BaseModel)
 OPTION_FIELDS = StartOptions.__optional_keys__
 """The options of a start, by the names of the request's fields."""
 
@@ -119,27 +122,21 @@ def add_robot_routes(app: FastAPI) -> None:
         link: Link,
     ) -> models.Task:
         """system/cancel_task on the robot: cancel these tasks; its result."""
-        link.robot(robot_id)
-        task = await link.control(link.fleet.cancel, robot_id, body.task_ids)
-        return checked_answer(models.Task, task, robot_id)
+        return await _control(link, models.Task, link.fleet.cancel, robot_id, body.task_ids)
 
     @app.post('/api/robots/{robot_id}/tasks/pause', tags=['robots'])
     async def pause(
         robot_id: str, body: models.PauseTasks, _: Annotated[Caller, runs(PAUSE)], link: Link
     ) -> models.Paused:
         """system/pause on the robot; the ids paused and why not the others."""
-        link.robot(robot_id)
-        paused = await link.control(link.fleet.pause, robot_id, body.task_ids)
-        return checked_answer(models.Paused, paused, robot_id)
+        return await _control(link, models.Paused, link.fleet.pause, robot_id, body.task_ids)
 
     @app.post('/api/robots/{robot_id}/tasks/resume', tags=['robots'])
     async def resume(
         robot_id: str, body: models.ResumeTasks, _: Annotated[Caller, runs(RESUME)], link: Link
     ) -> models.Resumed:
         """system/resume on the robot; the ids running again and why not the others."""
-        link.robot(robot_id)
-        resumed = await link.control(link.fleet.resume, robot_id, body.task_ids)
-        return checked_answer(models.Resumed, resumed, robot_id)
+        return await _control(link, models.Resumed, link.fleet.resume, robot_id, body.task_ids)
 
     @app.post('/api/robots/{robot_id}/tasks/reprioritize', tags=['robots'])
     async def reprioritize(
@@ -150,9 +147,9 @@ def add_robot_routes(app: FastAPI) -> None:
     ) -> models.Task:
         """system/reprioritize on the robot (an admin's); its result, with
         `successful_changes` and `errors`."""
-        link.robot(robot_id)
-        task = await link.control(link.fleet.reprioritize, robot_id, body.task_ids, body.priority)
-        return checked_answer(models.Task, task, robot_id)
+        return await _control(
+            link, models.Task, link.fleet.reprioritize, robot_id, body.task_ids, body.priority
+        )
 
     @app.post('/api/robots/{robot_id}/tasks/{task_id:path}/confirm', tags=['robots'])
     async def confirm(
@@ -171,9 +168,17 @@ def add_robot_routes(app: FastAPI) -> None:
     @app.post('/api/robots/{robot_id}/stop', tags=['robots'])
     async def stop(robot_id: str, _: Annotated[Caller, runs(STOP)], link: Link) -> models.Task:
         """system/stop on the robot: cancel its tasks declared cancel_on_stop; its result."""
-        link.robot(robot_id)
-        task = await link.control(link.fleet.stop, robot_id)
-        return checked_answer(models.Task, task, robot_id)
+        return await _control(link, models.Task, link.fleet.stop, robot_id)
+
+
+async def _control(
+    link: FleetLink, model: type[M], call: Callable[..., Any], robot_id: str, *args: Any
+) -> M:
+    """`call(robot_id, *args)`, a control of the robot (cancel, pause, stop, ...) that waits
+    for its reply, checked as `model`; 422 or 404 first for a robot_id that names no robot."""
+    link.robot(robot_id)
+    reply = await link.control(call, robot_id, *args)
+    return checked_answer(model, reply, robot_id)
 
 
 class CompactJson(JSONResponse):

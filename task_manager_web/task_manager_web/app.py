@@ -2,9 +2,9 @@
 
 Requests and answers are the documents of `task_manager.protocol` (its JSON Schema files);
 the OpenAPI description is at /openapi.json and browsable at /docs (Swagger UI, served here).
-Before routing, a request passes three doors (middlewares), outermost first: FrontDoor (Host
-allow-list; the security headers of every answer), ReadBound (reads in flight per client),
-BodyDoor (size, time and JSON of the body).
+Before routing, a request passes the doors (middlewares) of `doors/settings.py`, outermost
+first: FrontDoor (Host allow-list; the security headers of every answer), RequestMetrics,
+ReadBound (reads in flight per client), BodyDoor (size, time and JSON of the body).
 """
 
 import asyncio
@@ -22,11 +22,11 @@ from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
-from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager.core.names import CANCEL_TASK, MISSION, REPRIORITIZE, STOP
 from task_manager.core.request_text import text_problem
 from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
+from task_manager_web.door_link import EVENT_STREAM_ROUTE
 from task_manager_web.doors.access import (
     Access,
     Caller,
@@ -39,44 +39,25 @@ from task_manager_web.doors.access import (
     check_start_priority,
     runs,
 )
-from task_manager_web.doors.body_door import BODY_TIMEOUT_SEC, BodyDoor
-from task_manager_web.doors.front_door import LOCAL_HOSTS, FrontDoor
-from task_manager_web.doors.read_bound import ReadBound
+from task_manager_web.doors.settings import DoorSettings, add_doors, door_app
 from task_manager_web.doors.task_roles import needed_by_steps, needed_to_start
-from task_manager_web.doors.tokens import Token
-from task_manager_web.errors import ApiError, add_error_handlers
-from task_manager_web.event_stream import event_lines
+from task_manager_web.errors import ApiError
 from task_manager_web.history.page import history_page
 from task_manager_web.metrics import GatewayMetrics, node_snapshot
 from task_manager_web.node_link import Link, NodeLink
 from task_manager_web.operator_routes import add_operator_routes
-from task_manager_web.request_metrics import RequestMetrics
 
 WAIT_DEFAULT_SEC = 30.0
 WAIT_MAX_SEC = 600.0
 STATIC = Path(__file__).with_name('static')
-MAX_READS_PER_CLIENT = 32
-"""The default bound of a client's reads in flight (the dashboard makes 3 at once)."""
 
 
 @dataclass(frozen=True)
-class Settings:
-    tokens: tuple[Token, ...]
-    """Who may use the gateway, each token with its role (and maybe a name)."""
+class Settings(DoorSettings):
     read_without_token: bool = False
     source: str = 'WEB'
     """The source of every task started, cancelled or stopped here (a request cannot say),
     followed by `:<name>` for a token with a name."""
-    max_body_bytes: int = 1_048_576
-    body_timeout_sec: float = BODY_TIMEOUT_SEC
-    allowed_hosts: tuple[str, ...] = LOCAL_HOSTS
-    """The names a request's Host header may give (its port is not compared)."""
-    max_reads_per_client: int = MAX_READS_PER_CLIENT
-    """Reads in flight per client (a token's holder, or an address without it); more: 429."""
-    metrics_without_token: bool = False
-    """GET /metrics without a token (else it needs one, even with read_without_token)."""
-    max_history_bytes: int = HISTORY_PAGE_MAX_BYTES
-    """The largest history page answered (JSON or CSV); a larger one is refused."""
 
 
 def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient]) -> FastAPI:
@@ -94,33 +75,20 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
             app.state.link.close()
             await asyncio.to_thread(client.close)
 
-    app = FastAPI(
-        title='Task Manager web gateway',
-        summary='Start, watch and stop the tasks of a robot running the ROS 2 Task Manager.',
-        version='0.1.0',
-        lifespan=lifespan,
-        docs_url=None,
-        redoc_url=None,
-        swagger_ui_oauth2_redirect_url=None,
+    app = door_app(
+        'Task Manager web gateway',
+        'Start, watch and stop the tasks of a robot running the ROS 2 Task Manager.',
+        lifespan,
     )
-    add_error_handlers(app)
     access = Access(
         settings.tokens,
         settings.read_without_token,
         settings.source,
         settings.metrics_without_token,
     )
-    app.state.access = access
     metrics = GatewayMetrics()
     app.state.metrics = metrics
-    app.state.max_history_bytes = settings.max_history_bytes
-    # the last added is the outermost
-    app.add_middleware(
-        BodyDoor, max_bytes=settings.max_body_bytes, timeout_sec=settings.body_timeout_sec
-    )
-    app.add_middleware(ReadBound, access=access, max_reads=settings.max_reads_per_client)
-    app.add_middleware(RequestMetrics, counts=metrics.request_counts)
-    app.add_middleware(FrontDoor, allowed_hosts=settings.allowed_hosts)
+    add_doors(app, settings, access, metrics.request_counts)
     _add_routes(app)
     add_operator_routes(app)
     app.mount('/static', StaticFiles(directory=str(STATIC)), name='static')
@@ -317,25 +285,11 @@ def _add_routes(app: FastAPI) -> None:
         tasks = [task_json(s) for s in states]
         return history_page(tasks, query.format == 'csv', request.app.state.max_history_bytes)
 
-    @app.get(
-        '/api/events',
-        tags=['state'],
-        response_class=StreamingResponse,
-        responses={200: {'content': {'text/event-stream': {}}}},
-    )
+    @app.get('/api/events', tags=['state'], **EVENT_STREAM_ROUTE)
     async def events(_: StreamViewer, link: Link) -> StreamingResponse:
         """Server-Sent Events: `hello` and `connection` ({"connected": bool}), then a `task`
         event (a TaskEvent document) for every change of every task."""
-        stream = link.open_stream()
-        return StreamingResponse(
-            event_lines(
-                stream,
-                [('hello', json.dumps({'connected': link.connected}))],
-                lambda: link.close_stream(stream),
-            ),
-            media_type='text/event-stream',
-            headers={'Cache-Control': 'no-store', 'X-Accel-Buffering': 'no'},
-        )
+        return link.event_response(lambda: json.dumps({'connected': link.connected}))
 
 
 async def _started(

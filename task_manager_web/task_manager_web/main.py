@@ -10,15 +10,18 @@ import asyncio
 import contextlib
 import logging
 import sys
-from pathlib import Path
 
 import uvicorn
 
 from task_manager.client import TaskManagerClient
-from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
 from task_manager.discovery import use_quick_discovery
-from task_manager_web.app import MAX_READS_PER_CLIENT, Settings, create_app
-from task_manager_web.doors.front_door import LOCAL_HOSTS
+from task_manager_web.app import Settings, create_app
+from task_manager_web.doors.settings import (
+    MAX_BODY_BYTES,
+    MAX_READS_PER_CLIENT,
+    add_door_arguments,
+    allowed_hosts,
+)
 from task_manager_web.doors.tokens import dashboard_line, door_tokens
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
 
@@ -34,20 +37,9 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         '--port', type=int, default=DEFAULT_PORT, help=f'0: any free port ({DEFAULT_PORT})'
     )
     parser.add_argument(
-        '--token-file',
-        type=Path,
-        help="file of the tokens, one 'ROLE TOKEN [NAME]' line each (ROLE: viewer, operator, "
-        'admin); default: a new admin token, printed',
-    )
-    parser.add_argument(
         '--read-without-token',
         action='store_true',
         help='let anyone read, as a viewer; the rest still needs a token',
-    )
-    parser.add_argument(
-        '--metrics-without-token',
-        action='store_true',
-        help='let anyone read GET /metrics (a Prometheus scraper without the token)',
     )
     parser.add_argument(
         '--source',
@@ -56,14 +48,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         'token with a name; requests cannot set it (WEB)',
     )
     parser.add_argument(
-        '--max-body-bytes', type=int, default=1_048_576, help='largest request body (1 MiB)'
-    )
-    parser.add_argument(
-        '--max-history-bytes',
-        type=int,
-        default=HISTORY_PAGE_MAX_BYTES,
-        help='largest history page answered, JSON or CSV; a larger one is refused with '
-        'reply_too_large (8 MiB)',
+        '--max-body-bytes', type=int, default=MAX_BODY_BYTES, help='largest request body (1 MiB)'
     )
     parser.add_argument(
         '--max-reads-per-client',
@@ -73,25 +58,13 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         f'({MAX_READS_PER_CLIENT})',
     )
     parser.add_argument(
-        '--allowed-host',
-        action='append',
-        default=[],
-        metavar='NAME',
-        help='a name the Host header may give besides 127.0.0.1, localhost, ::1 and the --host '
-        "address (e.g. the robot's name behind a reverse proxy); again for more",
-    )
-    parser.add_argument(
         '--header-timeout-sec',
         type=float,
         default=HEADER_TIMEOUT_SEC,
         help="a request's head must arrive within this, else the connection is closed "
         f'({HEADER_TIMEOUT_SEC:g})',
     )
-    parser.add_argument(
-        '--access-log',
-        action='store_true',
-        help='print a line per request (its token parameter removed)',
-    )
+    add_door_arguments(parser, "e.g. the robot's name")
     return parser.parse_args(argv)
 
 
@@ -115,7 +88,7 @@ def main(argv: list[str] | None = None) -> None:
         max_body_bytes=arguments.max_body_bytes,
         max_reads_per_client=arguments.max_reads_per_client,
         max_history_bytes=arguments.max_history_bytes,
-        allowed_hosts=(*LOCAL_HOSTS, arguments.host, *arguments.allowed_host),
+        allowed_hosts=allowed_hosts(arguments),
     )
     app = create_app(
         settings, lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC)

@@ -26,30 +26,21 @@ from task_manager.client import TaskEvent, TaskHandle, TaskManagerClient, TaskRe
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
 from task_manager.gateway_json import event_json
-from task_manager_web.event_stream import EventStream
+from task_manager_web.door_link import DoorLink
 
 T = TypeVar('T')
-READ_THREADS = 4
-START_THREADS = 8
-CONTROL_THREADS = 4
-"""Control (stop, cancel, pause, ...): each holds its thread until its system task ended
-(milliseconds)."""
 NOT_CONNECTED = (
     'the Task Manager is not reachable: no /task_manager node answers in this ROS domain '
     '(is it running, with the same ROS_DOMAIN_ID?)'
 )
 
 
-class NodeLink:
+class NodeLink(DoorLink):
     """The Task Manager as the gateway's handlers see it (use from the event loop)."""
 
     def __init__(self, client: TaskManagerClient, loop: asyncio.AbstractEventLoop) -> None:
+        super().__init__(loop, 'web')
         self.client = client
-        self._loop = loop
-        self._reads = ThreadPoolExecutor(READ_THREADS, 'web_read')
-        self._starts = ThreadPoolExecutor(START_THREADS, 'web_start')
-        self._control = ThreadPoolExecutor(CONTROL_THREADS, 'web_control')
-        self._streams: set[EventStream] = set()
         # (kind, JSON text) from the client's threads, not yet offered to the streams
         self._waiting: list[tuple[str, str]] = []
         self._wake_due = False
@@ -62,8 +53,7 @@ class NodeLink:
     def close(self) -> None:
         for unsubscribe in self._unsubscribe:
             unsubscribe()
-        for pool in (self._reads, self._starts, self._control):
-            pool.shutdown(wait=False, cancel_futures=True)
+        super().close()
 
     @property
     def connected(self) -> bool:
@@ -105,9 +95,6 @@ class NodeLink:
 
         return await self._in(pool, when_available)
 
-    async def _in(self, pool: ThreadPoolExecutor, call: Callable[[], T]) -> T:
-        return await self._loop.run_in_executor(pool, call)
-
     async def result(self, handle: TaskHandle, timeout_sec: float) -> TaskResult | None:
         """The task's result once it ends; None if it has not within `timeout_sec`."""
         ended: asyncio.Future[None] = self._loop.create_future()
@@ -122,18 +109,6 @@ class NodeLink:
             except TimeoutError:
                 return None
         return handle.result_future.result()
-
-    def open_stream(self) -> EventStream:
-        stream = EventStream()
-        self._streams.add(stream)
-        return stream
-
-    def close_stream(self, stream: EventStream) -> None:
-        self._streams.discard(stream)
-
-    @property
-    def stream_count(self) -> int:
-        return len(self._streams)
 
     # ---- from the client's executor thread --------------------------------------------------
 

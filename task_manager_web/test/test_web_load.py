@@ -12,7 +12,7 @@ import psutil
 import pytest
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
-from task_manager_web.app import MAX_READS_PER_CLIENT
+from task_manager_web.doors.settings import MAX_READS_PER_CLIENT
 from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
