@@ -1,12 +1,12 @@
 // The fleet console's page: plain JavaScript modules, no build step, nothing from outside the
 // console. It shares the robot dashboard's helpers and look (/web-static/: the token, requests,
-// elements, the style sheet). Live state comes from /api/events: its `hello` gives every robot
+// elements, the event stream, the history table, the style sheet). Live state comes from /api/events: its `hello` gives every robot
 // on each (re)connection, then `robot` and `result` events; the history is read again then.
 
-import { api, askForToken, loadRole, takeToken } from '/web-static/api.js';
+import { api, loadRole, wireToken } from '/web-static/api.js';
 import { $, element, say } from '/web-static/dom.js';
+import { followEvents } from '/web-static/events.js';
 import { renderConfirmations, tickConfirmations } from './confirmations.js';
-import { followEvents } from './events.js';
 import { addHistoryRow, loadHistory, wireHistory } from './history.js';
 import { renderRobots, robotsRunning } from './robots.js';
 import { renderStartChoices, wireStartForm } from './start_form.js';
@@ -81,12 +81,7 @@ async function stopAll() {
 }
 
 function main() {
-  if (!takeToken()) askForToken();
-  $('#token-form').addEventListener('submit', (event) => {
-    event.preventDefault();
-    sessionStorage.setItem('task_manager_token', $('#token-input').value.trim());
-    window.location.reload();
-  });
+  wireToken();
   $('#stop-all').addEventListener('click', stopAll);
   wireStartForm();
   wireHistory();

@@ -3,17 +3,18 @@
 
 import { $ } from './dom.js';
 
+const TOKEN_KEY = 'task_manager_token';
 let token = '';
 
-export function takeToken() {
+function takeToken() {
   const url = new URL(window.location.href);
   const fromUrl = url.searchParams.get('token');
   if (fromUrl) {
-    sessionStorage.setItem('task_manager_token', fromUrl);
+    sessionStorage.setItem(TOKEN_KEY, fromUrl);
     url.searchParams.delete('token');
     history.replaceState(null, '', url.pathname + url.search + url.hash);
   }
-  token = sessionStorage.getItem('task_manager_token') || '';
+  token = sessionStorage.getItem(TOKEN_KEY) || '';
   return token;
 }
 
@@ -48,6 +49,17 @@ export async function api(path, options = {}) {
 
 export function askForToken() {
   $('#token-form').hidden = false;
+}
+
+// The token taken from the address, else asked for with the token form, whose token is kept
+// for the session and the page loaded again with it.
+export function wireToken() {
+  if (!takeToken()) askForToken();
+  $('#token-form').addEventListener('submit', (event) => {
+    event.preventDefault();
+    sessionStorage.setItem(TOKEN_KEY, $('#token-input').value.trim());
+    window.location.reload();
+  });
 }
 
 // The path of an id inside a route (`/api/schedules/{id}`): every character kept as it is.

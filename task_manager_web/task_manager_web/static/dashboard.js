@@ -2,7 +2,7 @@
 // the gateway. Live state comes from /api/events; on every (re)connection the active tasks,
 // the schedules and the history are read again.
 
-import { api, askForToken, loadRole, takeToken } from './api.js';
+import { api, loadRole, wireToken } from './api.js';
 import { renderConfirmations, tickConfirmations } from './confirmations.js';
 import { $, say } from './dom.js';
 import { followEvents } from './events.js';
@@ -71,12 +71,7 @@ async function stopAll() {
 }
 
 function main() {
-  if (!takeToken()) askForToken();
-  $('#token-form').addEventListener('submit', (event) => {
-    event.preventDefault();
-    sessionStorage.setItem('task_manager_token', $('#token-input').value.trim());
-    window.location.reload();
-  });
+  wireToken();
   $('#stop').addEventListener('click', stopAll);
   wireTasks();
   wireStartForm();
@@ -88,7 +83,8 @@ function main() {
   followEvents({
     opened: () => { state.streamOpen = true; },
     closed: () => { state.streamOpen = false; showConnection(); },
-    connection: onConnection,
+    hello: (hello) => onConnection(hello.connected),
+    connection: (change) => onConnection(change.connected),
     task: onTaskEvent,
   });
 }

@@ -1,12 +1,15 @@
 // The live stream, /api/events, read with fetch (so the token travels in a header) and
-// reopened with a growing delay when it drops.
+// reopened with a growing delay when it drops or the server ends it (`overflow`: this page fell
+// behind; `bye`: the server stops). Each event's JSON goes to the handler of its kind. Shared by
+// the robot dashboard and the fleet console's page (which loads it from /web-static/).
 
 import { askForToken, authorization } from './api.js';
 
 const RECONNECT_MIN_MS = 500;
 const RECONNECT_MAX_MS = 5000;
 
-// handlers: opened(), closed(), connection(connected), task(event)
+// handlers: opened(), closed(), and one per kind of event, given its document: the robot
+// dashboard's hello, connection and task; the console's hello, robot and result
 export async function followEvents(handlers) {
   let delay = RECONNECT_MIN_MS;
   for (;;) {
@@ -35,8 +38,9 @@ async function readEvents(reader, handlers) {
     buffer += decoder.decode(value, { stream: true });
     let end;
     while ((end = buffer.indexOf('\n\n')) >= 0) {
-      dispatch(buffer.slice(0, end), handlers);
+      const block = buffer.slice(0, end);
       buffer = buffer.slice(end + 2);
+      if (dispatch(block, handlers) === 'again') { reader.cancel(); return; }
     }
   }
 }
@@ -48,8 +52,9 @@ function dispatch(block, handlers) {
     if (line.startsWith('event: ')) kind = line.slice(7);
     else if (line.startsWith('data: ')) data += line.slice(6);
   }
-  if (!data) return;
-  const payload = JSON.parse(data);
-  if (kind === 'hello' || kind === 'connection') handlers.connection(payload.connected);
-  else if (kind === 'task') handlers.task(payload);
+  if (!data) return '';
+  if (kind === 'overflow' || kind === 'bye') return 'again';
+  const handler = handlers[kind];
+  if (handler) handler(JSON.parse(data));
+  return '';
 }
