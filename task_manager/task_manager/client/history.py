@@ -4,10 +4,8 @@ durable history, read page by page, with the statistics made from it."""
 from collections.abc import Sequence
 from datetime import UTC, datetime, timedelta
 
-from builtin_interfaces.msg import Time
 from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 
-from task_manager.client.message_values import stamp_of
 from task_manager.client.records import Decision, TaskResult, TaskState
 from task_manager.client.services import CallService
 from task_manager.core.errors import TaskManagerError
@@ -19,6 +17,7 @@ from task_manager.core.names import (
     QUERY_TASK_HISTORY_SERVICE,
 )
 from task_manager.core.status import TaskStatus
+from task_manager.messages.task_messages import stamp
 
 FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)
 
@@ -90,8 +89,8 @@ class History:
             status=str(status),
             source=source,
             mission_id=mission_id,
-            ended_after=Time() if since is None else stamp_of(since),
-            ended_before=Time() if until is None else stamp_of(until),
+            ended_after=stamp(None if since is None else since.timestamp()),
+            ended_before=stamp(None if until is None else until.timestamp()),
             after_sequence=after_sequence,
             limit=limit,
             oldest_first=oldest_first,

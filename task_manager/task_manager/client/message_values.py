@@ -4,8 +4,6 @@ import json
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
-from builtin_interfaces.msg import Time
-
 
 def datetime_of(stamp: Any) -> datetime | None:
     """A builtin_interfaces/Time as a timezone-aware (UTC) datetime; None for zero (not yet)."""
@@ -32,12 +30,6 @@ def _datetime(sec: int, nanosec: int) -> datetime | None:
 def datetime_of_epoch(seconds: float) -> datetime:
     """Epoch seconds as a timezone-aware (UTC) datetime."""
     return datetime.fromtimestamp(seconds, UTC)
-
-
-def stamp_of(moment: datetime) -> Time:
-    """A datetime as a builtin_interfaces/Time (a naive one is taken as local time)."""
-    nanoseconds = round(moment.timestamp() * 1e9)
-    return Time(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
 
 
 def json_object(text: str) -> dict[str, Any]:

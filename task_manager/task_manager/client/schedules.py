@@ -24,7 +24,7 @@ from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
 from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
 from task_manager.core.schedules.schedule import OverlapPolicy
 from task_manager.core.status import TaskStatus
-from task_manager.rclpy_tools.task_options import options_of_message
+from task_manager.messages.task_messages import options_of_message
 
 RUN_SOURCE_PREFIX = 'schedule:'
 """The source of a schedule's runs: this and the schedule id."""

@@ -42,10 +42,10 @@ from task_manager.core.names import (
     TASK_EVENTS_TOPIC,
 )
 from task_manager.core.status import ErrorCode, TaskStatus
+from task_manager.messages.task_messages import task_options_msg
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import result_of
-from task_manager.rclpy_tools.task_options import task_options_msg
 
 # How long a result that arrived before its task's ENDED event waits for it (for the stamps).
 # The event is published first, so it is normally there already; this bounds a lost one.

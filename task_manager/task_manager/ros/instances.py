@@ -13,16 +13,14 @@ import time
 import uuid
 from datetime import datetime
 
-from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from task_manager_msgs.msg import TaskManagerInstance
 
 from task_manager.core.names import INSTANCES_TOPIC
+from task_manager.messages.task_messages import stamp
 from task_manager.rclpy_tools.qos import subscription_without_qos_events, without_qos_events
-
-NANOSECONDS = 1_000_000_000
 
 # Each publisher keeps its one message for subscribers that join later.
 INSTANCES_QOS = QoSProfile(
@@ -45,9 +43,8 @@ INSTANCES_SUBSCRIPTION_QOS = QoSProfile(
 
 
 def this_instance() -> TaskManagerInstance:
-    now_ns = time.time_ns()
     return TaskManagerInstance(
-        started=Time(sec=now_ns // NANOSECONDS, nanosec=now_ns % NANOSECONDS),
+        started=stamp(time.time()),
         host=socket.gethostname(),
         pid=os.getpid(),
         instance_id=str(uuid.uuid4()),

@@ -32,20 +32,25 @@ from task_manager.core.names import (
 )
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
+from task_manager.messages.task_messages import (
+    active_task_msg,
+    history_query,
+    options_of_message,
+    result_fields,
+    result_msg,
+    result_msg_of_row,
+    schedule_msg,
+    task_state_msg,
+    task_state_of_row,
+)
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wait_until_ready
-from task_manager.rclpy_tools.task_options import options_of_message
 from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
-from task_manager.ros.recording.history_messages import (
-    done_result_msg,
-    history_query,
-    open_history,
-    task_state_from_row,
-)
-from task_manager.ros.recording.task_events import TaskEventStream, task_state_msg, to_json
+from task_manager.ros.recording.history_writer import open_history
+from task_manager.ros.recording.task_events import TaskEventStream
 from task_manager.ros.running.action_runner import ActionTaskRunner
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
@@ -56,7 +61,6 @@ from task_manager.ros.serving.goal_binding import GoalTaskBinding
 from task_manager.ros.serving.task_servers import create_task_servers
 from task_manager.ros.system import create_system_runners
 from task_manager.ros.system.confirm import ConfirmRunner
-from task_manager.ros.system.schedules import schedule_msg
 
 # Beyond the longest cancel_timeout of the active tasks, what a shutdown may take.
 SHUTDOWN_MARGIN_SEC = 1.0
@@ -69,19 +73,6 @@ RESTARTED_WHILE_RUNNING = (
     'the Task Manager stopped while this task ran (it was restarted); the task may or may not '
     'have finished on its server'
 )
-
-
-def active_task_msg(record: TaskRecord) -> ActiveTask:
-    return ActiveTask(
-        task_id=record.task_id,
-        task_name=record.task_name,
-        task_status=str(record.status),
-        source=record.source,
-    )
-
-
-def result_json(record: TaskRecord) -> str:
-    return to_json(record.result)
 
 
 class TaskManagerNode(Node):
@@ -213,7 +204,7 @@ class TaskManagerNode(Node):
             CLOSED_PUBLISH_WAIT_SEC,
         )
         for row in rows:
-            self._result_publisher.publish(done_result_msg(row))
+            self._result_publisher.publish(result_msg_of_row(row))
 
     async def shut_down(self, stopped: Future) -> None:
         """Cancel every active task on its server, publish the results, then complete `stopped`.
@@ -271,15 +262,7 @@ class TaskManagerNode(Node):
         self._active_publisher.publish(ActiveTaskArray(active_tasks=messages))
 
     def publish_result(self, record: TaskRecord) -> None:
-        message = TaskDoneResult(
-            task_id=record.task_id,
-            task_name=record.task_name,
-            task_status=str(record.status),
-            error_code=str(record.error_code),
-            source=record.source,
-            task_result=result_json(record),
-        )
-        self._result_publisher.publish(message)
+        self._result_publisher.publish(result_msg(record))
 
     def _get_task_results(
         self, request: GetTaskResults.Request, response: GetTaskResults.Response
@@ -288,7 +271,7 @@ class TaskManagerNode(Node):
         size = self.settings.results_history_size
         limit = min(request.max_results, size) if request.max_results else size
         rows = self.history.query(HistoryQuery(limit=limit))
-        response.results = [done_result_msg(row) for row in reversed(rows)]
+        response.results = [result_msg_of_row(row) for row in reversed(rows)]
         return response
 
     def _get_task_states(
@@ -303,14 +286,14 @@ class TaskManagerNode(Node):
             if task_id in by_id:
                 response.tasks.append(by_id[task_id])
             elif task_id and (stored := self.history.query(HistoryQuery(task_id=task_id, limit=1))):
-                response.tasks.append(task_state_from_row(stored[0]))
+                response.tasks.append(task_state_of_row(stored[0]))
         return response
 
     def _query_task_history(
         self, request: QueryTaskHistory.Request, response: QueryTaskHistory.Response
     ) -> QueryTaskHistory.Response:
         rows = self.history.query(history_query(request))
-        response.tasks = [task_state_from_row(row) for row in rows]
+        response.tasks = [task_state_of_row(row) for row in rows]
         return response
 
     def _get_schedules(
@@ -339,13 +322,3 @@ class TaskManagerNode(Node):
         )
         record = await self._goals.run(goal_handle, request)
         return StartTask.Result(**result_fields(record))
-
-
-def result_fields(record: TaskRecord) -> dict[str, str]:
-    """The fields of ExecuteTask's (and StartTask's) result."""
-    return dict(
-        task_id=record.task_id,
-        task_result=result_json(record),
-        task_status=str(record.status),
-        error_code=str(record.error_code),
-    )

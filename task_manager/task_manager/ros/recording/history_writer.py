@@ -8,21 +8,42 @@ logged at most once a minute, and the buffered changes are written again on the 
 (a retry is scheduled while nothing else changes).
 """
 
+import os
 import sqlite3
 import time
 from collections.abc import Callable
 
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
 
-from task_manager.core.history.store import TaskHistory
+from task_manager.core.errors import ConfigurationError
+from task_manager.core.history.store import HistoryError, HistoryInUseError, TaskHistory
 from task_manager.core.task import TaskRecord
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.ros.parking_executor import spawn_after_turn
 
 WRITE_ERROR_LOG_PERIOD_SEC = 60.0
 RETRY_AFTER_SEC = 5.0
+
+
+def open_history(path: str, logger: RcutilsLogger) -> TaskHistory:
+    """The history at `path`. A file that is not a usable history is moved aside (a robot
+    must start) with a warning naming where; a path that cannot be written is a
+    ConfigurationError (one line, exit code 2)."""
+    try:
+        try:
+            return TaskHistory(path)
+        except HistoryError as error:
+            aside = f'{path}.unusable-{time.strftime("%Y%m%d-%H%M%S")}'
+            for suffix in ('', '-wal', '-shm'):
+                if os.path.exists(path + suffix):
+                    os.replace(path + suffix, aside + suffix)
+            logger.warning(f'{error}: moved it to {aside} and started a new history')
+            return TaskHistory(path)
+    except (OSError, sqlite3.Error, HistoryInUseError) as error:
+        raise ConfigurationError(f'cannot open the task history {path}: {error}') from None
 
 
 class HistoryWriter:

@@ -9,60 +9,19 @@ task is IN_PROGRESS (a system task's first, made as it starts) goes out just aft
 """
 
 import time
-from typing import Any
 
-from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.timer import Timer
-from task_manager_msgs.msg import TaskEvent, TaskState
+from task_manager_msgs.msg import TaskEvent
 
-from task_manager.core.admission.decisions import DecisionKind, decisions_to_json
+from task_manager.core.admission.decisions import DecisionKind
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.names import TASK_EVENTS_TOPIC
-from task_manager.core.task import TaskRecord, pauses_to_json
-from task_manager.messages.json_codec import dict_to_json
+from task_manager.core.task import TaskRecord
+from task_manager.messages.task_messages import task_event_msg
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_timer
-
-NANOSECONDS = 1_000_000_000
-
-
-def stamp(seconds: float | None) -> Time:
-    """A wall-clock time as builtin_interfaces/Time; zero for None (not yet)."""
-    if seconds is None:
-        return Time()
-    total_ns = round(seconds * NANOSECONDS)
-    return Time(sec=total_ns // NANOSECONDS, nanosec=total_ns % NANOSECONDS)
-
-
-def to_json(value: dict[str, Any] | None) -> str:
-    """Compact JSON of a result or feedback ('' for None); NaN and infinities become null."""
-    return '' if value is None else dict_to_json(value)
-
-
-def task_state_msg(record: TaskRecord) -> TaskState:
-    return TaskState(
-        task_id=record.task_id,
-        task_name=record.task_name,
-        source=record.source,
-        task_status=str(record.status),
-        error_code=str(record.error_code),
-        mission_id=record.parent_id,
-        received=stamp(record.received_at),
-        started=stamp(record.started_at),
-        ended=stamp(record.ended_at),
-        feedback=to_json(record.latest_feedback),
-        task_result=to_json(record.result) if record.is_final else '',
-        sequence=record.sequence or 0,
-        paused_sec=record.paused_sec(),
-        pauses=pauses_to_json(record.pauses),
-        queue_position=record.queue_position,
-        priority=record.priority,
-        attempt=record.attempt,
-        decisions=decisions_to_json(record.decisions),
-    )
-
 
 _ENDING_DECISIONS = (DecisionKind.REFUSED, DecisionKind.PREEMPTED, DecisionKind.TIMEOUT)
 
@@ -166,8 +125,4 @@ class TaskEventStream:
         assert self._publisher is not None
         if not self._publisher.get_subscription_count():
             return  # nobody listens: building the message is the larger part of the cost
-        self._publisher.publish(
-            TaskEvent(
-                event=event, stamp=stamp(time.time()), task=task_state_msg(record), reason=reason
-            )
-        )
+        self._publisher.publish(task_event_msg(event, record, reason, time.time()))

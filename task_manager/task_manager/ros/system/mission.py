@@ -5,7 +5,6 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.action import Mission
-from task_manager_msgs.msg import SubtaskResult
 
 from task_manager.core.bounds import IDS_MAX
 from task_manager.core.json_text import compact_json
@@ -18,9 +17,9 @@ from task_manager.core.task_spec import PauseMode
 from task_manager.messages.json_codec import (
     TaskDataError,
     message_from_dict,
-    message_to_dict,
     parse_json_text,
 )
+from task_manager.messages.task_messages import mission_results
 from task_manager.rclpy_tools.futures import resolved, wait_for
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
@@ -209,17 +208,6 @@ def _invalid_mission(progress: MissionProgress, problems: dict[str, str]) -> Tas
 def subtask_request(row: SubtaskRow, mission_id: str) -> TaskRequest:
     """The request a mission makes for one of its subtasks (source `Mission`)."""
     return TaskRequest(row.task_id, row.task_name, MISSION_SOURCE, row.task_data, mission_id)
-
-
-def mission_results(progress: MissionProgress) -> dict[str, Any]:
-    """The mission's task_result: a row per subtask."""
-    rows = [
-        SubtaskResult(
-            task_id=r.task_id, task_name=r.task_name, task_status=str(r.status), skipped=r.skipped
-        )
-        for r in progress.rows
-    ]
-    return message_to_dict(Mission.Result(mission_results=rows))
 
 
 def _subtask_data_as_text(data: Any) -> Any:

@@ -7,12 +7,9 @@ import uuid
 from typing import Any
 
 from rclpy.node import Node
-from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import EnableSchedules, ScheduleTask, Unschedule
 
-from task_manager.core.admission.options import RequestOptions
 from task_manager.core.bounds import SCHEDULES_MAX
-from task_manager.core.schedules.book import ScheduleState
 from task_manager.core.schedules.request import parse_schedule_request
 from task_manager.core.schedules.schedule import (
     OverlapPolicy,
@@ -23,8 +20,7 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, UNSCHEDULE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
-from task_manager.rclpy_tools.task_options import options_of_message, task_options_msg
-from task_manager.ros.recording.task_events import stamp
+from task_manager.messages.task_messages import options_of_message, stamp
 from task_manager.ros.running.dispatcher import TaskDispatcher
 from task_manager.ros.running.scheduler import TaskScheduler
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
@@ -36,36 +32,6 @@ _RENAMED_FIELDS = {'window_start': 'start', 'window_end': 'end'}
 
 def new_schedule_id() -> str:
     return f'schedule-{uuid.uuid4().hex[:8]}'
-
-
-def schedule_msg(spec: ScheduleSpec, state: ScheduleState) -> Schedule:
-    """A schedule and its state as task_manager_msgs/Schedule."""
-    return Schedule(
-        schedule_id=spec.schedule_id,
-        task_name=spec.task_name,
-        task_data=spec.task_data,
-        created_by=spec.created_by,
-        description=spec.describe(),
-        at=stamp(spec.at),
-        period_sec=spec.period_sec,
-        cron=spec.cron,
-        time_zone=spec.time_zone,
-        window_start=stamp(spec.start),
-        window_end=stamp(spec.end),
-        max_runs=spec.max_runs,
-        overlap=str(spec.overlap),
-        misfire_grace_sec=spec.misfire_grace_sec,
-        enabled=state.enabled,
-        created=stamp(spec.created),
-        next_run=stamp(state.next_run if state.enabled else None),
-        last_run=stamp(state.last_run),
-        last_task_id=state.last_task_id,
-        last_status=state.last_status,
-        run_count=state.run_count,
-        missed_count=state.missed_count,
-        skipped_count=state.skipped_count,
-        options=task_options_msg(RequestOptions.from_dict(spec.options)),
-    )
 
 
 def _instant_end(body: TaskEnd) -> Any:
