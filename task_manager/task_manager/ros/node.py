@@ -50,12 +50,18 @@ from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
 from task_manager.ros.recording.history_writer import open_history
+from task_manager.ros.recording.task_changes import TaskChanges
 from task_manager.ros.recording.task_events import TaskEventStream
 from task_manager.ros.running.action_runner import ActionTaskRunner
+from task_manager.ros.running.admission_control import AdmissionControl
+from task_manager.ros.running.attempts import Attempts
+from task_manager.ros.running.deadline_timer import DeadlineTimer
 from task_manager.ros.running.dispatcher import TaskDispatcher
-from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
+from task_manager.ros.running.execution import RunnerTimeouts, TaskCatalog, TaskRunner
+from task_manager.ros.running.pause_control import PauseControl
 from task_manager.ros.running.scheduler import TaskScheduler
 from task_manager.ros.running.service_runner import ServiceTaskRunner
+from task_manager.ros.running.task_run import Runs
 from task_manager.ros.serving.action_services_server import ActionServicesServer
 from task_manager.ros.serving.goal_binding import GoalTaskBinding
 from task_manager.ros.serving.task_servers import create_task_servers
@@ -98,25 +104,36 @@ class TaskManagerNode(Node):
         self._events = TaskEventStream(
             self, self.settings.publish_task_events, self.settings.feedback_rate_hz
         )
-        self.dispatcher = TaskDispatcher(
-            self,
-            {},
-            self,
-            self._spawn,
-            self._events,
-            self.history,
-            max_queued=self.settings.max_queued,
-            source_priorities=self.settings.source_priorities,
+        # what runs the tasks, each part beside the others (docs/architecture.md)
+        self.catalog = TaskCatalog()
+        runs = Runs()
+        changes = TaskChanges(
+            self, self._events, self.history, self, lambda: [r.record for r in runs.listed()]
         )
+        timer = DeadlineTimer(self)
+        attempts = Attempts(self, self.catalog, changes, timer)
+        admission = AdmissionControl(
+            self,
+            runs,
+            changes,
+            attempts,
+            timer,
+            self.settings.max_queued,
+            self.settings.source_priorities,
+        )
+        self.dispatcher = TaskDispatcher(self, self.catalog, runs, changes, admission, attempts)
+        pauses = PauseControl(self, runs, changes, attempts)
         self.scheduler = TaskScheduler(self, self.dispatcher, self.history.schedule_store())
         self._confirmations = ConfirmRunner(self, self.dispatcher, self.history)
         self._runners = [
             *user_runners,
-            *create_system_runners(self, self.dispatcher, self.scheduler),
+            *create_system_runners(
+                self, self.dispatcher, pauses, admission, self.catalog, self.scheduler
+            ),
             self._confirmations,
         ]
-        self.dispatcher.runners_by_name.update({r.spec.task_name: r for r in self._runners})
-        self._goals = GoalTaskBinding(self.dispatcher)
+        self.catalog.add(self._runners)
+        self._goals = GoalTaskBinding(self, self.dispatcher)
         self._shutting_down = False
 
     def serve(self) -> None:
@@ -215,7 +232,7 @@ class TaskManagerNode(Node):
             return
         self._shutting_down = True
         self.scheduler.stop()
-        records = list(self.dispatcher.registry)
+        records = self.dispatcher.records()
         bound_sec = SHUTDOWN_MARGIN_SEC + max(
             (r.spec.cancel_timeout_sec for r in records), default=0.0
         )
@@ -277,7 +294,7 @@ class TaskManagerNode(Node):
     def _get_task_states(
         self, request: GetTaskStates.Request, response: GetTaskStates.Response
     ) -> GetTaskStates.Response:
-        active = [task_state_msg(record) for record in self.dispatcher.registry]
+        active = [task_state_msg(record) for record in self.dispatcher.records()]
         if not request.task_ids:
             response.tasks = active
             return response

@@ -71,6 +71,13 @@ def install() -> None:
     Future.__await__ = _await_noting_the_future  # type: ignore[method-assign]
 
 
+def spawn(node: Node, coroutine: Coroutine[Any, Any, Any]) -> None:
+    """Run `coroutine` as a task of the node's executor."""
+    executor = node.executor
+    assert executor is not None, 'the node must be added to an executor'
+    executor.create_task(coroutine)  # type: ignore[call-overload]
+
+
 def spawn_after_turn(node: Node, coroutine: Coroutine[Any, Any, Any]) -> None:
     """Run `coroutine` once the node's executor has handled what is ready now: on a
     ParkingExecutor just before it waits again, on another executor as a task."""

@@ -19,17 +19,9 @@ STEPS = {
     'server_watch': ('task_manager.ros.running.server_watch', 'ServerWatch', 'track'),
     'mark_started': ('task_manager.core.task', 'TaskRecord', 'mark_started'),
     'started_event': ('task_manager.ros.recording.task_events', 'TaskEventStream', 'started'),
-    'attach': ('task_manager.ros.running.dispatcher', 'TaskDispatcher', 'attach'),
-    'timeouts': (
-        'task_manager.ros.running.admission_control',
-        'AdmissionControl',
-        'attempt_started',
-    ),
-    'deadline_timer': (
-        'task_manager.ros.running.admission_control',
-        'AdmissionControl',
-        '_on_timer',
-    ),
+    'attach': ('task_manager.ros.running.attempts', 'Attempts', 'attach'),
+    'timeouts': ('task_manager.ros.running.attempts', 'Attempts', 'arm_timeouts'),
+    'deadline_timer': ('task_manager.ros.running.deadline_timer', 'DeadlineTimer', '_on_timer'),
 }
 READY_LINE = 'fault injected at '
 

@@ -9,11 +9,11 @@ a change does not grow with the number of tasks. Each change still goes out on i
 /task_manager/task_events.
 """
 
+from collections.abc import Callable
 from typing import Protocol
 
 from rclpy.node import Node
 
-from task_manager.core.registry import TaskRegistry
 from task_manager.core.task import TaskRecord
 from task_manager.ros.recording.turn_publication import TurnPublication
 
@@ -34,10 +34,11 @@ class ActiveTasksPublication:
     def __init__(
         self,
         node: Node,
-        registry: TaskRegistry,
+        listed: Callable[[], list[TaskRecord]],
         sink: ActiveTasksSink,
     ) -> None:
-        self._registry = registry
+        """`listed`: the tasks the list shows now (queued, running or paused)."""
+        self._listed = listed
         self._sink = sink
         self._ended_unpublished: list[TaskRecord] = []
         self._publication = TurnPublication(node, self._publish, self._is_large, LARGE_LIST_RATE_HZ)
@@ -52,10 +53,10 @@ class ActiveTasksPublication:
         self._publication.changed()
 
     def _is_large(self) -> bool:
-        return len(self._registry.listed()) + len(self._ended_unpublished) > LARGE_LIST
+        return len(self._listed()) + len(self._ended_unpublished) > LARGE_LIST
 
     def _publish(self) -> None:
-        started = self._registry.listed()
+        started = self._listed()
         if self._ended_unpublished:
             self._sink.publish_active(started + self._ended_unpublished)
             self._ended_unpublished = []

@@ -15,7 +15,7 @@ from task_manager.core.task_spec import TaskSpec
 from task_manager.messages.json_codec import message_from_json, message_to_dict
 from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import first_completed, wait_for, wait_until_ready
-from task_manager.ros.running.execution import RunnerTimeouts
+from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
 # key: terminal GoalStatus value, value: how the server ended the goal
@@ -131,7 +131,7 @@ class ActionExecution:
         return await wait_for(self._node, self.outcome, remaining_sec())
 
 
-class ActionTaskRunner:
+class ActionTaskRunner(TaskRunner):
     """Starts goals of one declared action task and watches its server while they run."""
 
     def __init__(

@@ -1,5 +1,7 @@
-"""The seams between the dispatcher and whatever runs a task (action, service, system)."""
+"""The seams between the dispatcher and whatever runs a task (action, service, system), and
+the catalog of the declared tasks' runners."""
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -40,7 +42,7 @@ class Execution(Protocol):
 
 
 class TaskRunner(Protocol):
-    """Starts tasks of one declared task type."""
+    """Starts tasks of one declared task type; a runner subclasses it for `claimed_resources`."""
 
     spec: TaskSpec
 
@@ -51,3 +53,28 @@ class TaskRunner(Protocol):
     async def start(self, message: Any, record: TaskRecord) -> Execution:
         """Start the task; raises TaskRequestError(TASK_START_FAILED) if it cannot."""
         ...
+
+    def claimed_resources(self, message: Any) -> frozenset[str]:
+        """Resources a task holds beside its declaration's, while it runs (a mission: its
+        subtasks'); none by default."""
+        return frozenset()
+
+
+class TaskCatalog:
+    """The runner of every declared task, by task name: the user's tasks and the built-in ones."""
+
+    def __init__(self) -> None:
+        # key: task name, value: the runner of its tasks
+        self._runners: dict[str, TaskRunner] = {}
+
+    def add(self, runners: Iterable[TaskRunner]) -> None:
+        for runner in runners:
+            self._runners[runner.spec.task_name] = runner
+
+    def get(self, task_name: str) -> TaskRunner | None:
+        return self._runners.get(task_name)
+
+    def unknown_task_reason(self, task_name: str) -> str:
+        """Why a task name is refused, with the names that would be accepted."""
+        known = ', '.join(sorted(self._runners))
+        return f'unknown task {task_name!r}; declared tasks: {known}'

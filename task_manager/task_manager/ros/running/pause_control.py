@@ -9,17 +9,19 @@ How a task pauses is declared per task (`pause:` in its entry, see core/task_spe
 A paused task stays active with status PAUSED; cancels, stops and conflicts end it CANCELED.
 """
 
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
+
+from rclpy.node import Node
 
 from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskEnd
 from task_manager.core.task_spec import PauseMode
 from task_manager.rclpy_tools.futures import result_of
-from task_manager.ros.running.task_run import TaskRun
-
-if TYPE_CHECKING:
-    from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.parking_executor import spawn
+from task_manager.ros.recording.task_changes import TaskChange, TaskChanges
+from task_manager.ros.running.attempts import Attempts
+from task_manager.ros.running.task_run import Runs, TaskRun
 
 
 @runtime_checkable
@@ -36,15 +38,18 @@ def _label(run: TaskRun) -> str:
 
 
 class PauseControl:
-    """Pauses and resumes the dispatcher's tasks; each call answers '' or why it could not."""
+    """Pauses and resumes active tasks; each call answers '' or why it could not."""
 
-    def __init__(self, dispatcher: 'TaskDispatcher') -> None:
-        self._dispatcher = dispatcher
-        self._log = dispatcher.node.get_logger()
+    def __init__(self, node: Node, runs: Runs, changes: TaskChanges, attempts: Attempts) -> None:
+        self._node = node
+        self._runs = runs
+        self._changes = changes
+        self._attempts = attempts
+        self._log = node.get_logger()
 
     async def pause(self, task_id: str, source: str) -> str:
         """Pause an active task for `source`; '' once it is paused (or already was)."""
-        run = self._dispatcher.runs_by_id.get(task_id)
+        run = self._runs.get(task_id)
         if run is None:
             return f'no active task {task_id!r} to pause'
         status, mode = run.record.status, run.record.spec.pause
@@ -84,7 +89,9 @@ class PauseControl:
             )
         end: TaskEnd = result_of(execution.outcome)
         if run.record.cancel_reason is not None or end.status is not TaskStatus.CANCELED:
-            run.settle(TaskEnd(TaskStatus.CANCELED) if run.record.cancel_reason else end)
+            self._attempts.end(
+                run, TaskEnd(TaskStatus.CANCELED) if run.record.cancel_reason else end
+            )
             return f'{_label(run)} ended before it could be paused'
         run.execution = None
         self._changed(run, TaskStatus.PAUSED, source)
@@ -92,7 +99,7 @@ class PauseControl:
 
     async def resume(self, task_id: str, source: str) -> str:
         """Resume a paused task for `source`; '' once it runs again."""
-        run = self._dispatcher.runs_by_id.get(task_id)
+        run = self._runs.get(task_id)
         if run is None:
             return f'no active task {task_id!r} to resume'
         if run.record.status is not TaskStatus.PAUSED:
@@ -107,30 +114,29 @@ class PauseControl:
         if run.starting:
             return f'{_label(run)} is already resuming'
         try:
-            execution = await self._dispatcher.start_on_server(run)
+            execution = await self._attempts.start_on_server(run)
         except TaskRequestError as error:
-            run.settle(TaskEnd(TaskStatus.ERROR, {'error': str(error)}, error.error_code))
+            end = TaskEnd(TaskStatus.ERROR, {'error': str(error)}, error.error_code)
+            self._attempts.end(run, end)
             return f'{_label(run)} could not be resumed and ended ERROR: {error}'
         if run.finished.done():  # ended (by force, at shutdown) while its goal was sent again
-            self._dispatcher.spawn(execution.cancel(run.record.spec.cancel_timeout_sec))
+            spawn(self._node, execution.cancel(run.record.spec.cancel_timeout_sec))
             return f'{_label(run)} ended while it resumed'
 
         def resumed() -> None:
             self._changed(run, TaskStatus.IN_PROGRESS, source)
-            self._dispatcher.attach(run, execution)
+            self._attempts.attach(run, execution)
 
-        self._dispatcher.track(run, execution, resumed)
+        self._attempts.track(run, execution, resumed)
         return ''
 
     def _changed(self, run: TaskRun, status: TaskStatus, source: str) -> None:
         record = run.record
         if status is TaskStatus.PAUSED:
             record.mark_paused(source)
-            self._dispatcher.events.paused(record)
+            self._changes.changed(record, TaskChange.PAUSED)
         else:
             record.mark_resumed(source)
-            self._dispatcher.events.resumed(record)
-        self._dispatcher.history.changed(record)
-        self._dispatcher.publish_active_soon()
+            self._changes.changed(record, TaskChange.RESUMED)
         verb = 'paused' if status is TaskStatus.PAUSED else 'resumed'
         self._log.info(f'{_label(run)} {verb} by {source!r}')

@@ -10,6 +10,7 @@ MAX_TIMER_SEC at the latest, so that a wall clock that jumps forward is noticed 
 import sqlite3
 import time
 from collections.abc import Iterable
+from typing import Protocol
 
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -30,20 +31,25 @@ from task_manager.core.schedules.store import ScheduleStore
 from task_manager.core.status import CancelReason
 from task_manager.core.task import TaskRequest
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.parking_executor import spawn
+from task_manager.ros.running.protocols import TaskCancelling, TaskRunning
 
 # The longest the timer waits before it looks at the wall clock again (see the module doc).
 MAX_TIMER_SEC = 300.0
 MIN_TIMER_SEC = 0.001
 
 
+class ScheduledTasks(TaskRunning, TaskCancelling, Protocol):
+    """What the runs of schedules need: a run is a request, and CANCEL_OTHER cancels runs."""
+
+
 class TaskScheduler:
     """The node's schedules: add, remove, enable, read, and start their runs when due."""
 
-    def __init__(self, node: Node, dispatcher: TaskDispatcher, store: ScheduleStore) -> None:
+    def __init__(self, node: Node, tasks: ScheduledTasks, store: ScheduleStore) -> None:
         self.book = ScheduleBook()
         self._node = node
-        self._dispatcher = dispatcher
+        self._tasks = tasks
         self._store = store
         self._log = node.get_logger().get_child('schedules')
         # key: schedule id, value: the task ids of its runs that have not ended
@@ -164,7 +170,7 @@ class TaskScheduler:
         elif action is RunAction.BUFFER:
             self._buffered.add(schedule_id)
         elif action is RunAction.CANCEL_AND_START:
-            self._dispatcher.spawn(self._replace_runs(schedule_id, list(active)))
+            spawn(self._node, self._replace_runs(schedule_id, list(active)))
         else:
             self.book.run_skipped(schedule_id)
             self._log.info(
@@ -174,7 +180,7 @@ class TaskScheduler:
 
     async def _replace_runs(self, schedule_id: str, task_ids: list[str]) -> None:
         """CANCEL_OTHER: cancel the runs still active, then start the new one."""
-        cancels = [self._dispatcher.cancel(t, CancelReason.SCHEDULE) for t in task_ids]
+        cancels = [self._tasks.cancel(t, CancelReason.SCHEDULE) for t in task_ids]
         await resolved(self._node, all_completed(cancels))
         if schedule_id in self.book and not self._stopped:
             self._start_run(schedule_id, time.time())
@@ -194,10 +200,10 @@ class TaskScheduler:
             spec.task_data,
             options=RequestOptions.from_dict(spec.options),
         )
-        self._dispatcher.spawn(self._run(schedule_id, request))
+        spawn(self._node, self._run(schedule_id, request))
 
     async def _run(self, schedule_id: str, request: TaskRequest) -> None:
-        record = await self._dispatcher.run(request)
+        record = await self._tasks.run(request)
         active = self._active_runs.get(schedule_id, set())
         active.discard(record.task_id)
         if not active:
@@ -217,7 +223,7 @@ class TaskScheduler:
         self._dirty.update(schedule_ids)
         if self._dirty and not self._save_pending:
             self._save_pending = True
-            self._dispatcher.spawn(self._flush())
+            spawn(self._node, self._flush())
 
     async def _flush(self) -> None:
         self._save_pending = False

@@ -14,7 +14,7 @@ from task_manager.messages.json_codec import message_from_json, message_to_dict
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.futures import wait_for, wait_until_ready
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
-from task_manager.ros.running.execution import RunnerTimeouts
+from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
 
@@ -64,7 +64,7 @@ class ServiceExecution:
         return await wait_for(self._node, self.outcome, timeout_sec)
 
 
-class ServiceTaskRunner:
+class ServiceTaskRunner(TaskRunner):
     """Calls one declared service task and watches the service while calls are in flight."""
 
     def __init__(

@@ -1,13 +1,16 @@
-"""One admitted task's run state, held by the dispatcher from admission until the task ends."""
+"""One admitted task's run state, held in the table of runs from admission until the task ends."""
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeAlias
 
 from rclpy.task import Future
 
 from task_manager.core.admission.arbiter import Preemption
 from task_manager.core.admission.options import RequestOptions
+from task_manager.core.registry import TaskRegistry
+from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.core.task_spec import TaskSpec
 from task_manager.ros.running.execution import Execution
 
 
@@ -23,7 +26,9 @@ class TaskRun:
     message: Any
     """The parsed goal/request: sent again when a `pause: restart` task resumes."""
     finished: Future[TaskEnd] = field(default_factory=Future)
-    """Completes with the task's end (the first writer wins)."""
+    """Completes with the task's end (the first writer wins: see Attempts.end)."""
+    next_attempt: Future[None] = field(default_factory=Future)
+    """Completes once the attempt running now has ended ERROR and its retry's backoff passed."""
     started: Future[None] = field(default_factory=Future)
     """Completes once the current start on the server has succeeded or failed."""
     execution: Execution | None = None
@@ -51,7 +56,14 @@ class TaskRun:
     def task_id(self) -> str:
         return self.record.task_id
 
-    def settle(self, end: TaskEnd) -> None:
-        """End the task with `end`, unless it has already ended."""
-        if not self.finished.done():
-            self.finished.set_result(end)
+    @property
+    def spec(self) -> TaskSpec:
+        return self.record.spec
+
+    @property
+    def status(self) -> TaskStatus:
+        return self.record.status
+
+
+Runs: TypeAlias = TaskRegistry[TaskRun]
+"""The one table of the admitted tasks: each one's run, by id, in the order they came."""

@@ -2,16 +2,21 @@
 
 import contextlib
 import dataclasses
-from typing import Any
+from typing import Any, Protocol
 
 from rclpy.action import CancelResponse
+from rclpy.node import Node
 from rclpy.task import Future
 
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.messages.json_codec import TaskDataError, message_from_dict
 from task_manager.rclpy_tools.futures import first_completed, resolved, result_of
-from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.protocols import ActiveRecords, TaskCancelling, TaskRunning
+
+
+class GoalTasks(TaskRunning, TaskCancelling, ActiveRecords, Protocol):
+    """What a goal needs of its task: run it, cancel it, read it."""
 
 
 @dataclasses.dataclass
@@ -25,8 +30,9 @@ class _BoundGoal:
 class GoalTaskBinding:
     """Runs an action goal's task and lets the goal's client cancel it."""
 
-    def __init__(self, dispatcher: TaskDispatcher) -> None:
-        self._dispatcher = dispatcher
+    def __init__(self, node: Node, tasks: GoalTasks) -> None:
+        self._node = node
+        self._tasks = tasks
         # key: goal id (bytes), value: the goal's task, once admitted
         self._bound_goals: dict[bytes, _BoundGoal] = {}
 
@@ -54,11 +60,11 @@ class GoalTaskBinding:
             if goal_handle.is_cancel_requested:  # cancelled before its task was admitted
                 self._cancel_task(bound)
 
-        node = self._dispatcher.node
+        node = self._node
         assert node.executor is not None
         # rclpy runs coroutines too, but types create_task for callables only
         task: Future[TaskRecord] = node.executor.create_task(  # type: ignore[call-overload]
-            self._dispatcher.run(request, on_admitted=bind)
+            self._tasks.run(request, on_admitted=bind)
         )
         try:
             await resolved(node, first_completed([task, bound.cancel_failed]))
@@ -83,11 +89,11 @@ class GoalTaskBinding:
         return CancelResponse.ACCEPT
 
     def _cancel_task(self, bound: _BoundGoal) -> None:
-        cancelled = self._dispatcher.cancel(bound.task_id, CancelReason.CLIENT)
+        cancelled = self._tasks.cancel(bound.task_id, CancelReason.CLIENT)
         cancelled.add_done_callback(lambda done: self._on_cancel_done(bound, done))
 
     def _on_cancel_done(self, bound: _BoundGoal, cancelled: Future) -> None:
-        record = self._dispatcher.registry.get(bound.task_id)
+        record = self._tasks.record(bound.task_id)
         if cancelled.result() or record is None or bound.cancel_failed.done():
             return
         timeout_sec = record.spec.cancel_timeout_sec

@@ -15,8 +15,8 @@ from task_manager.core.task import TaskRecord, TaskRequest
 from task_manager.core.task_spec import TaskKind, TaskSpec
 from task_manager.messages.json_codec import TaskDataError, message_from_dict, message_to_json
 from task_manager.ros.interfaces import load_interface
-from task_manager.ros.running.dispatcher import TaskDispatcher
-from task_manager.ros.serving.goal_binding import GoalTaskBinding
+from task_manager.ros.running.protocols import TaskRunning
+from task_manager.ros.serving.goal_binding import GoalTaskBinding, GoalTasks
 
 TASK_SERVER_SOURCE = 'task_server'
 
@@ -41,9 +41,9 @@ def _request(spec: TaskSpec, message: Any) -> TaskRequest:
     return TaskRequest('', spec.task_name, TASK_SERVER_SOURCE, message_to_json(message))
 
 
-def create_task_servers(node: Node, dispatcher: TaskDispatcher, specs: list[TaskSpec]) -> list[Any]:
+def create_task_servers(node: Node, tasks: GoalTasks, specs: list[TaskSpec]) -> list[Any]:
     """Create an action server or service per declared task; return them."""
-    binding = GoalTaskBinding(dispatcher)
+    binding = GoalTaskBinding(node, tasks)
     servers = []
     for spec in specs:
         interface_class = load_interface(spec)
@@ -51,7 +51,7 @@ def create_task_servers(node: Node, dispatcher: TaskDispatcher, specs: list[Task
         if spec.kind is TaskKind.ACTION:
             servers.append(_action_server(node, binding, spec, interface_class, name))
         else:
-            servers.append(_service(node, dispatcher, spec, interface_class, name))
+            servers.append(_service(node, tasks, spec, interface_class, name))
     return servers
 
 
@@ -75,11 +75,9 @@ def _action_server(
     )
 
 
-def _service(
-    node: Node, dispatcher: TaskDispatcher, spec: TaskSpec, service_type: Any, name: str
-) -> Any:
+def _service(node: Node, tasks: TaskRunning, spec: TaskSpec, service_type: Any, name: str) -> Any:
     async def call(request: Any, _response: Any) -> Any:
-        record = await dispatcher.run(_request(spec, request))
+        record = await tasks.run(_request(spec, request))
         return _message_of_result(service_type.Response, record)
 
     # A pending coroutine holds a mutually exclusive group, which would block the replies

@@ -2,13 +2,15 @@
 resume, schedule, unschedule and enable_schedule; system/confirm (confirm.py) is made by the
 node, which also serves its answers."""
 
+from typing import Protocol
+
 from rclpy.node import Node
 
-from task_manager.ros.running.dispatcher import TaskDispatcher
-from task_manager.ros.running.execution import TaskRunner
+from task_manager.ros.running.execution import TaskCatalog, TaskRunner
+from task_manager.ros.running.protocols import TaskPausing, TaskReprioritizing
 from task_manager.ros.running.scheduler import TaskScheduler
-from task_manager.ros.system.cancel import CancelTasksRunner, StopTasksRunner
-from task_manager.ros.system.mission import MissionRunner
+from task_manager.ros.system.cancel import CancelledTasks, CancelTasksRunner, StopTasksRunner
+from task_manager.ros.system.mission import MissionRunner, Subtasks
 from task_manager.ros.system.pause import PauseTasksRunner, ResumeTasksRunner
 from task_manager.ros.system.reprioritize import ReprioritizeTasksRunner
 from task_manager.ros.system.schedules import (
@@ -18,23 +20,32 @@ from task_manager.ros.system.schedules import (
 )
 from task_manager.ros.system.wait import WaitRunner
 
-__all__ = ['create_system_runners']
+__all__ = ['SystemTasks', 'create_system_runners']
+
+
+class SystemTasks(Subtasks, CancelledTasks, Protocol):
+    """What the system tasks need of the active tasks (the dispatcher)."""
 
 
 def create_system_runners(
-    node: Node, dispatcher: TaskDispatcher, scheduler: TaskScheduler
+    node: Node,
+    tasks: SystemTasks,
+    pauses: TaskPausing,
+    priorities: TaskReprioritizing,
+    catalog: TaskCatalog,
+    scheduler: TaskScheduler,
 ) -> list[TaskRunner]:
     """One runner per system task name (system/cancel_tasks is an alias of cancel_task)."""
     return [
-        MissionRunner(node, dispatcher),
-        CancelTasksRunner(node, dispatcher, alias=False),
-        CancelTasksRunner(node, dispatcher, alias=True),
-        StopTasksRunner(node, dispatcher),
+        MissionRunner(node, tasks, pauses, catalog),
+        CancelTasksRunner(node, tasks, alias=False),
+        CancelTasksRunner(node, tasks, alias=True),
+        StopTasksRunner(node, tasks),
         WaitRunner(node),
-        PauseTasksRunner(node, dispatcher),
-        ResumeTasksRunner(node, dispatcher),
-        ReprioritizeTasksRunner(node, dispatcher),
-        ScheduleTaskRunner(node, dispatcher, scheduler),
+        PauseTasksRunner(node, pauses),
+        ResumeTasksRunner(node, pauses),
+        ReprioritizeTasksRunner(node, priorities),
+        ScheduleTaskRunner(node, catalog, scheduler),
         UnscheduleRunner(node, scheduler),
         EnableSchedulesRunner(node, scheduler),
     ]

@@ -30,7 +30,8 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import CONFIRM_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
-from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.execution import TaskRunner
+from task_manager.ros.running.protocols import ActiveRecords
 from task_manager.ros.system.timed_execution import TimedExecution
 
 ANSWERS_KEPT = 1000
@@ -62,14 +63,14 @@ class ConfirmExecution(TimedExecution):
         return True
 
 
-class ConfirmRunner:
+class ConfirmRunner(TaskRunner):
     """Starts confirmations and takes their answers; several may wait at once."""
 
     spec = CONFIRM_SPEC
 
-    def __init__(self, node: Node, dispatcher: TaskDispatcher, history: TaskHistory) -> None:
+    def __init__(self, node: Node, active: ActiveRecords, history: TaskHistory) -> None:
         self._node = node
-        self._dispatcher = dispatcher
+        self._active = active
         self._history = history
         # key: task id, value: its confirmation, while it waits
         self._waiting: dict[str, ConfirmExecution] = {}
@@ -127,7 +128,7 @@ class ConfirmRunner:
         if (execution := self._waiting.get(task_id)) is not None and execution.waiting:
             problem = answer_problem(answer)
             return None if problem is None else (AnswerRefusal.INVALID_REQUEST, problem)
-        if (record := self._dispatcher.registry.get(task_id)) is not None:
+        if (record := self._active.record(task_id)) is not None:
             reason = not_waiting_reason(task_id, record.task_name, record.status)
             return AnswerRefusal.NOT_WAITING, reason
         stored = self._stored(task_id)

@@ -1,6 +1,6 @@
 """system/mission: subtasks run in order, each an independent task with source `Mission`."""
 
-from typing import Any
+from typing import Any, Protocol
 
 from rclpy.node import Node
 from rclpy.task import Future
@@ -21,8 +21,21 @@ from task_manager.messages.json_codec import (
 )
 from task_manager.messages.task_messages import mission_results
 from task_manager.rclpy_tools.futures import resolved, wait_for
-from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.parking_executor import spawn
+from task_manager.ros.running.execution import TaskCatalog, TaskRunner
+from task_manager.ros.running.protocols import (
+    ActiveRecords,
+    TaskCancelling,
+    TaskPausing,
+    TaskRunning,
+)
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
+
+
+class Subtasks(TaskRunning, TaskCancelling, ActiveRecords, Protocol):
+    """What a mission needs for its subtasks: run, refuse, cancel and read them."""
+
+    def refuse(self, request: TaskRequest, code: ErrorCode, reason: str) -> TaskRecord: ...
 
 
 class MissionExecution(CoroutineExecution):
@@ -35,11 +48,13 @@ class MissionExecution(CoroutineExecution):
     def __init__(
         self,
         node: Node,
-        dispatcher: TaskDispatcher,
+        subtasks: Subtasks,
+        pauses: TaskPausing,
         progress: MissionProgress,
         mission: TaskRecord,
     ) -> None:
-        self._dispatcher = dispatcher
+        self._subtasks = subtasks
+        self._pauses = pauses
         self._progress = progress
         self._mission = mission
         self._running_id = ''
@@ -58,11 +73,9 @@ class MissionExecution(CoroutineExecution):
             self._running_id = row.task_id
             request = subtask_request(row, self._mission.task_id)
             if row.refusal is not None:  # invalid and skippable: it fails without starting
-                subtask = self._dispatcher.refuse(
-                    request, row.refusal.error_code, row.refusal.reason
-                )
+                subtask = self._subtasks.refuse(request, row.refusal.error_code, row.refusal.reason)
             else:
-                subtask = await self._dispatcher.run(request, on_admitted=self._on_subtask_turn)
+                subtask = await self._subtasks.run(request, on_admitted=self._on_subtask_turn)
             self._progress.subtask_ended(subtask.status, subtask.cancel_reason)
             self._mission.record_feedback(self._progress.feedback(running=False))
         self._running_id = ''
@@ -74,15 +87,15 @@ class MissionExecution(CoroutineExecution):
     def pause(self, source: str) -> None:
         if self._resumed is None:
             self._resumed = Future()
-        running = self._dispatcher.registry.get(self._running_id) if self._running_id else None
+        running = self._subtasks.record(self._running_id) if self._running_id else None
         if running is not None and running.spec.pause is PauseMode.RESTART:
-            self._dispatcher.spawn(self._pause_subtask(running.task_id, source))
+            spawn(self._node, self._pause_subtask(running.task_id, source))
 
     async def _pause_subtask(self, task_id: str, source: str) -> None:
-        if await self._dispatcher.pauses.pause(task_id, source):
+        if await self._pauses.pause(task_id, source):
             return  # it could not pause (it ended meanwhile): nothing to resume
         if self._resumed is None:  # the mission was resumed while its subtask paused
-            await self._dispatcher.pauses.resume(task_id, source)
+            await self._pauses.resume(task_id, source)
         else:
             self._paused_subtask_id = task_id
 
@@ -90,7 +103,7 @@ class MissionExecution(CoroutineExecution):
         self._wake()
         if self._paused_subtask_id:
             task_id, self._paused_subtask_id = self._paused_subtask_id, ''
-            self._dispatcher.spawn(self._dispatcher.pauses.resume(task_id, source))
+            spawn(self._node, self._pauses.resume(task_id, source))
 
     def _wake(self) -> None:
         resumed, self._resumed = self._resumed, None
@@ -101,11 +114,11 @@ class MissionExecution(CoroutineExecution):
         self._progress.cancel(CancelReason.MISSION)
         self._wake()
         if self._running_id:
-            self._dispatcher.cancel(self._running_id, CancelReason.MISSION)
+            self._subtasks.cancel(self._running_id, CancelReason.MISSION)
         return await wait_for(self._node, self.outcome, timeout_sec)
 
 
-class MissionRunner:
+class MissionRunner(TaskRunner):
     """Starts missions, checking every subtask's name and data before the first one runs.
 
     An invalid subtask (unknown task, bad data, a nested mission) that may be skipped fails
@@ -116,9 +129,13 @@ class MissionRunner:
 
     spec = MISSION_SPEC
 
-    def __init__(self, node: Node, dispatcher: TaskDispatcher) -> None:
+    def __init__(
+        self, node: Node, subtasks: Subtasks, pauses: TaskPausing, catalog: TaskCatalog
+    ) -> None:
         self._node = node
-        self._dispatcher = dispatcher
+        self._subtasks = subtasks
+        self._pauses = pauses
+        self._catalog = catalog
 
     def parse(self, task_data: str, task_id: str) -> MissionProgress:
         progress, problems = self._plan(task_data)
@@ -160,10 +177,10 @@ class MissionRunner:
 
     def _check(self, index: int, row: SubtaskRow) -> tuple[str, SubtaskRefusal | None]:
         """The field that is wrong and why the subtask cannot run; ('', None) if it can."""
-        runner = self._dispatcher.runners_by_name.get(row.task_name)
+        runner = self._catalog.get(row.task_name)
         name_field = f'subtasks[{index}].task_name'
         if runner is None:
-            reason = self._dispatcher.unknown_task_reason(row.task_name)
+            reason = self._catalog.unknown_task_reason(row.task_name)
             return name_field, SubtaskRefusal(ErrorCode.UNKNOWN_TASK, reason)
         if runner.spec.task_name == MISSION:
             reason = 'a mission cannot contain a mission'
@@ -179,21 +196,20 @@ class MissionRunner:
         """Fail the mission before it starts; each unskippable invalid subtask gets its result."""
         for row in progress.unskippable_refusals():
             assert row.refusal is not None
-            self._dispatcher.refuse(
+            self._subtasks.refuse(
                 subtask_request(row, mission_id), row.refusal.error_code, row.refusal.reason
             )
         progress.fail_before_start()
 
     async def start(self, message: MissionProgress, record: TaskRecord) -> MissionExecution:
-        return MissionExecution(self._node, self._dispatcher, message, record)
+        return MissionExecution(self._node, self._subtasks, self._pauses, message, record)
 
     def claimed_resources(self, message: MissionProgress) -> frozenset[str]:
         """A mission holds its subtasks' declared resources as one unit while it runs."""
-        runners = self._dispatcher.runners_by_name
         return frozenset(
             resource
             for row in message.rows
-            if (runner := runners.get(row.task_name)) is not None
+            if (runner := self._catalog.get(row.task_name)) is not None
             for resource in runner.spec.resources
         )
 

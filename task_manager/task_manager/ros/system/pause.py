@@ -14,23 +14,24 @@ from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
 from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.rclpy_tools.futures import all_completed, resolved
-from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.execution import TaskRunner
+from task_manager.ros.running.protocols import TaskPausing
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
 # One pause or resume of one task for a source: '' when done, else why not.
 TaskStep = Callable[[str, str], Coroutine[Any, Any, str]]
 
 
-class _PauseStepRunner:
+class _PauseStepRunner(TaskRunner):
     """Applies one step (pause or resume) to every listed id at once."""
 
     spec: TaskSpec
     _request_type: Any
     _done_field: str
 
-    def __init__(self, node: Node, dispatcher: TaskDispatcher) -> None:
+    def __init__(self, node: Node, pauses: TaskPausing) -> None:
         self._node = node
-        self._dispatcher = dispatcher
+        self._pauses = pauses
 
     def _step(self) -> TaskStep:
         raise NotImplementedError
@@ -71,7 +72,7 @@ class PauseTasksRunner(_PauseStepRunner):
     _done_field = 'successful_pauses'
 
     def _step(self) -> TaskStep:
-        return self._dispatcher.pauses.pause
+        return self._pauses.pause
 
 
 class ResumeTasksRunner(_PauseStepRunner):
@@ -82,4 +83,4 @@ class ResumeTasksRunner(_PauseStepRunner):
     _done_field = 'successful_resumes'
 
     def _step(self) -> TaskStep:
-        return self._dispatcher.pauses.resume
+        return self._pauses.resume

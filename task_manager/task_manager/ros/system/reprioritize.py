@@ -10,18 +10,19 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import REPRIORITIZE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
-from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.execution import TaskRunner
+from task_manager.ros.running.protocols import TaskReprioritizing
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 
 
-class ReprioritizeTasksRunner:
+class ReprioritizeTasksRunner(TaskRunner):
     """Changes the priority of every listed id; an id that is not active is an error."""
 
     spec = REPRIORITIZE_SPEC
 
-    def __init__(self, node: Node, dispatcher: TaskDispatcher) -> None:
+    def __init__(self, node: Node, priorities: TaskReprioritizing) -> None:
         self._node = node
-        self._dispatcher = dispatcher
+        self._priorities = priorities
 
     def parse(self, task_data: str, task_id: str) -> Any:
         request = message_from_json(ReprioritizeTasks.Request, task_data)
@@ -35,9 +36,7 @@ class ReprioritizeTasksRunner:
     async def _apply(self, message: Any, record: TaskRecord) -> TaskEnd:
         changed, errors = [], []
         for task_id in message.task_ids:
-            problem = self._dispatcher.admission.reprioritize(
-                task_id, message.priority, record.source
-            )
+            problem = self._priorities.reprioritize(task_id, message.priority, record.source)
             if problem:
                 errors.append(problem)
                 self._node.get_logger().warning(

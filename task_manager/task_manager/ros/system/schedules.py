@@ -21,7 +21,7 @@ from task_manager.core.system_tasks import ENABLE_SCHEDULE_SPEC, SCHEDULE_SPEC, 
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.messages.task_messages import options_of_message, stamp
-from task_manager.ros.running.dispatcher import TaskDispatcher
+from task_manager.ros.running.execution import TaskCatalog, TaskRunner
 from task_manager.ros.running.scheduler import TaskScheduler
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
 from task_manager.ros.system.mission import MissionRunner
@@ -41,14 +41,14 @@ def _instant_end(body: TaskEnd) -> Any:
     return end()
 
 
-class ScheduleTaskRunner:
+class ScheduleTaskRunner(TaskRunner):
     """system/schedule: checks the schedule and its task's data now; runs come later."""
 
     spec = SCHEDULE_SPEC
 
-    def __init__(self, node: Node, dispatcher: TaskDispatcher, scheduler: TaskScheduler) -> None:
+    def __init__(self, node: Node, catalog: TaskCatalog, scheduler: TaskScheduler) -> None:
         self._node = node
-        self._dispatcher = dispatcher
+        self._catalog = catalog
         self._scheduler = scheduler
 
     def parse(self, task_data: str, task_id: str) -> ScheduleSpec:
@@ -80,9 +80,9 @@ class ScheduleTaskRunner:
                 f'schedule {spec.schedule_id!r} exists; remove it first (system/unschedule) '
                 'or give another id',
             )
-        runner = self._dispatcher.runners_by_name.get(spec.task_name)
+        runner = self._catalog.get(spec.task_name)
         if runner is None:
-            raise TaskDataError('task_name', self._dispatcher.unknown_task_reason(spec.task_name))
+            raise TaskDataError('task_name', self._catalog.unknown_task_reason(spec.task_name))
         try:
             if isinstance(runner, MissionRunner):
                 runner.validate(spec.task_data)
@@ -127,7 +127,7 @@ def _schedule_result(
     }
 
 
-class _ScheduleIdsRunner:
+class _ScheduleIdsRunner(TaskRunner):
     """Applies a change to schedules by id; unknown ids fail with a line each."""
 
     spec: Any

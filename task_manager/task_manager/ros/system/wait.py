@@ -10,6 +10,7 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import WAIT_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
+from task_manager.ros.running.execution import TaskRunner
 from task_manager.ros.system.timed_execution import TimedExecution
 
 UNTIL_CANCELLED = -1.0
@@ -40,7 +41,7 @@ class WaitExecution(TimedExecution):
         return True
 
 
-class WaitRunner:
+class WaitRunner(TaskRunner):
     """Starts waits; blocking and cancel_on_stop, like a task that holds the robot."""
 
     spec = WAIT_SPEC

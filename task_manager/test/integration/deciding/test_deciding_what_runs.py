@@ -209,6 +209,26 @@ def test_a_declared_retry_runs_the_task_again_until_it_succeeds(
     )
 
 
+def test_a_task_cancelled_while_its_retry_starts_ends_canceled_as_on_its_first_attempt(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    retry = {'max_attempts': 3, 'initial_delay_sec': 0.1}
+    tm = launch_task_manager({'flaky': action_task('flaky', f'{topic_prefix}/flaky', retry=retry)})
+    server = ScriptedActionServer(
+        ros.node, Fibonacci, f'{topic_prefix}/flaky', hold_goal_requests=True
+    )
+
+    handle = tm.send('flaky', {'order': 1}, task_id='flaky-1')
+    server.wait_for_held(1, TIMEOUT_SEC)[0].reject()
+    second = server.wait_for_held(2, TIMEOUT_SEC)[1]  # the retry is starting on its server
+    tm.cancel(handle)
+    second.reject()
+
+    ended = tm.result_of(handle).result
+    assert (ended.task_status, ended.error_code) == ('CANCELED', '')
+    assert 'rejected the goal' in json.loads(ended.task_result)['error']
+
+
 def test_a_queued_task_moves_up_when_its_priority_is_raised(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:

@@ -23,6 +23,7 @@ CLAIMS_AND_CONTRACTS = [
     ('it loads no rclpy and reaches the robots only through the broker', 'console'),
     ('which `python -m task_manager.protocol` writes', 'protocol'),
     ('reaches the node through TaskManagerClient too', 'vda5050'),
+    ('Within `ros/running/` arrows point one way', 'running'),
 ]
 
 
