@@ -12,15 +12,10 @@ from task_manager_mqtt.broker import CLOUD_USER
 from task_manager_mqtt.testing import BrokerProcess
 
 from task_manager_console.fleet import Fleet
+from task_manager_console.simulation.robot import SimulatedRobot
 from task_manager_console.store.fleet_history import FleetHistory
 from task_manager_console.store.local_postgres import PostgresServer
-from task_manager_console.testing import (
-    CONSOLE_USER,
-    ROBOTS,
-    TIMEOUT_SEC,
-    SimulatedRobot,
-    postgres_server,
-)
+from task_manager_console.testing import CONSOLE_USER, ROBOTS, TIMEOUT_SEC, postgres_server
 
 DATABASES = ('sqlite', 'postgresql')
 _numbers = itertools.count(1)

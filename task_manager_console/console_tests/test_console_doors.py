@@ -24,7 +24,7 @@ from task_manager_console.doors_testing import (
     EventReader,
     wait_for,
 )
-from task_manager_console.testing import SimulatedRobot
+from task_manager_console.simulation.robot import SimulatedRobot
 
 Document = dict[str, Any]
 # key: (sample name, its labels as sorted pairs), value: the sample's value

@@ -28,7 +28,7 @@ from task_manager_console.doors_testing import (
     EventReader,
     wait_for,
 )
-from task_manager_console.testing import SimulatedRobot
+from task_manager_console.simulation.robot import SimulatedRobot
 from task_manager_demo.run_demo import ROBOT_READY, TASK_MANAGER_READY, default_params_file
 from task_manager_demo.testing import robot_command
 

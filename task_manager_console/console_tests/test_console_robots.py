@@ -11,8 +11,9 @@ from task_manager.client import TaskManagerClient
 from task_manager.testing.gateway import Robot
 from task_manager_console.fleet import Fleet
 from task_manager_console.robots import ConnectionState
+from task_manager_console.simulation.robot import SimulatedRobot
 from task_manager_console.store.fleet_history import HistoryFilter
-from task_manager_console.testing import TIMEOUT_SEC, Results, SimulatedRobot
+from task_manager_console.testing import TIMEOUT_SEC, Results
 
 pytestmark = pytest.mark.ros
 

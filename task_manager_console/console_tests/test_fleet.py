@@ -12,9 +12,10 @@ from task_manager_mqtt.fleet_types import FleetError
 
 from task_manager_console.fleet import Fleet
 from task_manager_console.robots import ConnectionState, RobotState
+from task_manager_console.simulation.robot import SimulatedRobot
 from task_manager_console.store.fleet_history import HistoryFilter
 from task_manager_console.store.local_postgres import PostgresServer
-from task_manager_console.testing import ROBOTS, TIMEOUT_SEC, Results, SimulatedRobot
+from task_manager_console.testing import ROBOTS, TIMEOUT_SEC, Results
 
 StartConsole = Callable[..., Fleet]
 StartRobot = Callable[..., SimulatedRobot]
@@ -172,7 +173,7 @@ def test_actions_need_a_known_robot_online_and_usable_names(
     )
     refusals = {
         'robot_offline': lambda: fleet.start_task('robot1', 'fib'),
-        'unknown_robot': lambda: fleet.cancel('robot9', ['t1']),
+        'unknown_robot': lambda: fleet.client.cancel('robot9', ['t1']),
         'invalid_request': lambda: fleet.start_task('robot\x071', 'fib'),
     }
     for code, act in refusals.items():
@@ -182,9 +183,9 @@ def test_actions_need_a_known_robot_online_and_usable_names(
     with pytest.raises(FleetError, match=r'task_name contains the character U\+000A'):
         fleet.start_task('robot1', 'fib\nx')
     with pytest.raises(FleetError, match="task_ids names 't1' more than once"):
-        fleet.pause('robot1', ['t1', 't1'])
+        fleet.client.pause('robot1', ['t1', 't1'])
     with pytest.raises(FleetError, match='robot robot1 is OFFLINE since '):
-        fleet.stop('robot1')
+        fleet.client.stop('robot1')
     answers = fleet.stop_all(timeout_sec=1.0)  # not asked: it is OFFLINE
     assert list(answers) == ['robot1']
     assert answers['robot1']['ok'] is False

@@ -17,7 +17,8 @@ from task_manager_mqtt.testing import BRIDGE_EXECUTABLE, CONNECTED_LINE, BrokerP
 
 from task_manager.testing.process import NodeProcess
 from task_manager_console.doors_testing import OPERATOR, TOKENS, VIEWER, ConsoleProcess, wait_for
-from task_manager_console.testing import TIMEOUT_SEC, SimulatedRobot
+from task_manager_console.simulation.robot import SimulatedRobot
+from task_manager_console.testing import TIMEOUT_SEC
 from task_manager_demo.run_demo import ROBOT_READY, TASK_MANAGER_READY, default_params_file
 from task_manager_demo.testing import robot_command
 

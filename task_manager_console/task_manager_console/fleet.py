@@ -2,9 +2,14 @@
 
 It follows every robot under the prefix through one FleetClient (a persistent session: the
 broker keeps what robots send while the console is away) and stores each robot's results in
-the FleetHistory exactly once, in order: a result is acknowledged to the broker only once it
-is stored (or refused for good), so that one received while the database is away stays with
-the broker, and one received twice is stored once (its robot and sequence are its key).
+the FleetHistory exactly once, in order (store/ingest.py): a result is acknowledged to the
+broker only once it is stored (or refused for good), so that one received while the database
+is away stays with the broker, and one received twice is stored once (its robot and sequence
+are its key).
+
+Requests to robots go through `client` (the FleetClient's calls: cancel, pause, resume,
+reprioritize, confirm, stop, ...), each checked first: a robot id and task ids that can name
+something, a robot known and ONLINE. Starts and STOP ALL are the Fleet's own.
 
 Threads: the MQTT client's (documents in, never waiting), one that stores results (in batches,
 retrying while the database is away) and a small pool for reads of the database (a robot's
@@ -12,15 +17,13 @@ last stored result). Callbacks of `on_change` run on those threads and must not 
 """
 
 import logging
-import queue
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass, replace
-from datetime import UTC, datetime
-from typing import Unpack
+from typing import Any, Unpack
 
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.fleet_types import TIMEOUT_SEC, FleetError, StartOptions
@@ -36,16 +39,12 @@ from task_manager_console.robots import (
     robot_id_problem,
 )
 from task_manager_console.store.fleet_history import DatabaseUnavailable, FleetHistory
-from task_manager_console.store.rows import BadResultError, Document, document_of, row_of, utc
+from task_manager_console.store.ingest import Ingest
+from task_manager_console.store.rows import Document, document_of
 
 LOG = logging.getLogger('task_manager_console.fleet')
 CONSOLE_CLIENT_ID = 'task-manager-console'
 """The console's MQTT client id; a broker that ties ids to accounts uses the account's name."""
-STORE_BATCH_MAX = 500
-"""Results stored in one transaction, at most."""
-RETRY_MIN_SEC = 0.5
-RETRY_MAX_SEC = 5.0
-"""While the database is away, a store is tried again after 0.5 s, doubling up to 5 s."""
 READERS = 2
 """Threads of the reads of the database (last results)."""
 
@@ -57,15 +56,6 @@ class Change:
     robot: RobotState
     result: Document | None = None
     """A result newly stored (a fleet history document), when that is the change."""
-
-
-@dataclass(frozen=True)
-class _Held:
-    """A result received and not yet acknowledged to the broker."""
-
-    robot_id: str
-    task: Document
-    acknowledge: Callable[[], None]
 
 
 class Fleet:
@@ -98,14 +88,11 @@ class Fleet:
             hold_results=True,
             receive_maximum=FLEET_RESULTS_HELD_MAX,
             max_message_bytes=max_message_bytes,
+            check_request=self._check,
         )
         self.bad_messages = BadMessages(LOG)
         self.results_stored = 0
         """Results stored since the start (each once)."""
-        self.duplicates = 0
-        """Results received again and not stored again."""
-        self.database_up = True
-        """False while stores fail (results wait with the broker meanwhile)."""
         self.results_received = 0
         """Deliveries of results since the start (duplicates and bad ones too)."""
         self._robots: dict[str, RobotState] = {}
@@ -114,9 +101,12 @@ class Fleet:
         self._progress = threading.Condition(self._lock)
         """Notified at each change: of a robot, a result received or stored, the database."""
         self._callbacks: list[Callable[[Change], None]] = []
-        self._held: queue.Queue[_Held | None] = queue.Queue()
-        self._stopping = threading.Event()
-        self._storer = threading.Thread(target=self._store_results, name='fleet-history')
+        self._ingest = Ingest(
+            history,
+            on_stored=self._on_stored,
+            on_bad=lambda robot_id, why: self._on_bad_message(robot_id, 'result', why),
+            on_database=self._on_database,
+        )
         self._readers = ThreadPoolExecutor(READERS, thread_name_prefix='fleet-reads')
         self.client.on_held_result(self._on_result)
         self.client.on_state(self._on_state)
@@ -132,26 +122,20 @@ class Fleet:
     def start(self, timeout_sec: float = TIMEOUT_SEC) -> None:
         """Start storing, connect and follow (once per Fleet); FleetError if the broker is not
         reached in time."""
-        self._storer.start()
+        self._ingest.start()
         try:
             self.client.connect(timeout_sec)
         except FleetError:
-            self._stop_storing()
+            self._ingest.stop()
             self._readers.shutdown(wait=False)
             raise
 
     def close(self) -> None:
         """Disconnect (the broker keeps the session), then stop storing: results not stored
         yet are not acknowledged, so the broker delivers them again at the next start."""
-        self._stop_storing()  # the batch being stored is acknowledged before disconnecting
+        self._ingest.stop()  # the batch being stored is acknowledged before disconnecting
         self.client.close()
         self._readers.shutdown(wait=True, cancel_futures=True)  # reads of the database: short
-
-    def _stop_storing(self) -> None:
-        self._stopping.set()
-        self._held.put(None)
-        if self._storer.is_alive():
-            self._storer.join()
 
     # ---- what is known ------------------------------------------------------------------------
 
@@ -184,9 +168,19 @@ class Fleet:
         """`callback(robot_id, event)` for every TaskEvent document (with `events=True`)."""
         self.client.on_event(callback)
 
+    @property
+    def duplicates(self) -> int:
+        """Results received again and not stored again."""
+        return self._ingest.duplicates
+
+    @property
+    def database_up(self) -> bool:
+        """False while stores fail (results wait with the broker meanwhile)."""
+        return self._ingest.database_up
+
     def results_waiting(self) -> int:
         """Results received and not yet stored (nor acknowledged)."""
-        return self._held.qsize()
+        return self._ingest.waiting()
 
     def wait_for(
         self, condition: Callable[[dict[str, RobotState]], bool], timeout_sec: float
@@ -216,7 +210,6 @@ class Fleet:
         """Start a task on an ONLINE robot; the robot's reply (task_id, duplicate, task), within
         `reply_timeout_sec` (`options`: FleetClient.start_task's, `timeout_sec` the task's).
         FleetError: `invalid_request`, `unknown_robot`, `robot_offline`, or the robot's own."""
-        self._check(robot_id, task_id=task_id, task_name=task_name, source=source)
         started = self.client.start_task(
             robot_id, task_name, task_data, task_id=task_id, source=source, **options
         )
@@ -234,70 +227,21 @@ class Fleet:
     ) -> Document:
         """Start a mission on an ONLINE robot (`subtasks` as FleetClient.start_mission's); the
         robot's reply (task_id, subtask_ids, duplicate, task)."""
-        self._check(robot_id, task_id=task_id, source=source)
         started = self.client.start_mission(
             robot_id, subtasks, task_id=task_id, source=source, **options
         )
         return started.accepted(reply_timeout_sec)
-
-    def cancel(
-        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
-    ) -> Document:
-        """system/cancel_task on the robot; its ended Task document."""
-        self._check(robot_id, task_ids=task_ids)
-        return self.client.cancel(robot_id, task_ids, timeout_sec)
-
-    def pause(
-        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
-    ) -> Document:
-        """system/pause on the robot; its Paused document."""
-        self._check(robot_id, task_ids=task_ids)
-        return self.client.pause(robot_id, task_ids, timeout_sec)
-
-    def resume(
-        self, robot_id: str, task_ids: list[str], timeout_sec: float = TIMEOUT_SEC
-    ) -> Document:
-        """system/resume on the robot; its Resumed document."""
-        self._check(robot_id, task_ids=task_ids)
-        return self.client.resume(robot_id, task_ids, timeout_sec)
-
-    def reprioritize(
-        self, robot_id: str, task_ids: list[str], priority: int, timeout_sec: float = TIMEOUT_SEC
-    ) -> Document:
-        """system/reprioritize on the robot; its ended Task document."""
-        self._check(robot_id, task_ids=task_ids)
-        return self.client.reprioritize(robot_id, task_ids, priority, timeout_sec)
-
-    def confirm(
-        self,
-        robot_id: str,
-        task_id: str,
-        *,
-        reject: bool = False,
-        comment: str = '',
-        timeout_sec: float = TIMEOUT_SEC,
-    ) -> Document:
-        """Answer a waiting system/confirm on the robot; its Confirmed document."""
-        self._check(robot_id, task_id=task_id)
-        return self.client.confirm(
-            robot_id, task_id, reject=reject, comment=comment, timeout_sec=timeout_sec
-        )
-
-    def stop(self, robot_id: str, timeout_sec: float = TIMEOUT_SEC) -> Document:
-        """system/stop on the robot; its ended Task document."""
-        self._check(robot_id)
-        return self.client.stop(robot_id, timeout_sec)
 
     def stop_all(self, timeout_sec: float = TIMEOUT_SEC) -> dict[str, Document]:
         """system/stop on every robot at once; each robot's reply document (`ok`, and `task`
         or `error`), an OFFLINE robot's being `robot_offline` (it was not asked)."""
         answers: dict[str, Document] = {}
         asked: dict[str, Future[Document]] = {}
-        for robot_id, robot in sorted(self.robots.items()):
-            if robot.online:
+        for robot_id in sorted(self.robots):
+            try:
                 asked[robot_id] = self.client.request(robot_id, 'stop')
-            else:
-                answers[robot_id] = _error(_offline(robot))
+            except FleetError as refused:  # not ONLINE: not asked
+                answers[robot_id] = _error(refused)
         deadline = time.monotonic() + timeout_sec
         for robot_id, reply in asked.items():
             try:
@@ -316,11 +260,12 @@ class Fleet:
         reply.add_done_callback(lambda done: self._on_schedules(robot_id, done))
         return reply
 
-    def _check(self, robot_id: str, *, task_ids: list[str] | None = None, **texts: str) -> None:
-        """FleetError unless the robot is ONLINE and the request's texts and ids are usable."""
-        problem = robot_id_problem(robot_id) or request_problem(
-            texts.get('task_id', ''), texts.get('task_name', ''), texts.get('source', '')
-        )
+    def _check(self, robot_id: str, _: str, fields: dict[str, Any]) -> None:
+        """The FleetClient's check of each request: FleetError unless the robot is ONLINE and
+        the request's texts and ids are usable."""
+        texts = [fields.get(name) or '' for name in ('task_id', 'task_name', 'source')]
+        problem = robot_id_problem(robot_id) or request_problem(*texts)
+        task_ids = fields.get('task_ids')
         if not problem and task_ids is not None:
             problem = ids_problem('task_ids', task_ids) or next(
                 (p for i in task_ids if (p := request_problem(i, '', '') or '')), ''
@@ -336,7 +281,7 @@ class Fleet:
     # ---- on the MQTT client's thread: never wait ----------------------------------------------
 
     def _on_result(self, robot_id: str, task: Document, acknowledge: Callable[[], None]) -> None:
-        self._held.put(_Held(robot_id, task, acknowledge))
+        self._ingest.put(robot_id, task, acknowledge)
         with self._progress:
             self.results_received += 1
             self._progress.notify_all()
@@ -379,99 +324,23 @@ class Fleet:
                 self._robots[robot_id] = replace(robot, bad_messages=count)
             self._progress.notify_all()
 
-    # ---- storing results ----------------------------------------------------------------------
+    # ---- on the storing thread ---------------------------------------------------------------
 
-    def _store_results(self) -> None:
-        """The storing thread: batches of results, in the order they came, until stopped."""
-        while True:
-            first = self._held.get()
-            if first is None or self._stopping.is_set():
-                return
-            batch = [first]
-            while len(batch) < STORE_BATCH_MAX:
-                try:
-                    item = self._held.get_nowait()
-                except queue.Empty:
-                    break
-                if item is None:
-                    self._held.put(None)  # the end, once this batch is stored
-                    break
-                batch.append(item)
-            try:
-                self._store_batch(batch)
-            except Exception:  # a bug of ours: logged, the thread goes on (not acknowledged)
-                LOG.exception('storing %d results failed', len(batch))
-
-    def _store_batch(self, batch: list[_Held]) -> None:
-        """Store a batch (retrying while the database is away), then acknowledge it all."""
-        stored_at = utc(datetime.now(UTC))
-        rows: list[Document] = []
-        for held in batch:
-            try:
-                rows.append(row_of(held.robot_id, held.task, stored_at))
-            except BadResultError as error:  # never storable: acknowledged, counted
-                self._on_bad_message(held.robot_id, 'result', str(error))
-        new = self._stored(rows)
-        if new is None:  # stopping: the broker keeps them
-            return
-        for row, is_new in zip(rows, new, strict=True):
-            if is_new:
-                self._on_stored(row)
-            else:
-                self.duplicates += 1
-        for held in batch:
-            held.acknowledge()
-
-    def _stored(self, rows: list[Document]) -> list[bool] | None:
-        """Whether each row is new, once stored; None if the console stopped first."""
-        delay = RETRY_MIN_SEC
-        while not self._stopping.is_set():
-            try:
-                new = self._store_rows(rows)
-            except DatabaseUnavailable as error:
-                if self.database_up:
-                    self._set_database_up(False)
-                    LOG.error(
-                        '%s; the results wait with the broker (not acknowledged), '
-                        'trying again every %.0f s at most',
-                        error,
-                        RETRY_MAX_SEC,
-                    )
-                self._stopping.wait(delay)
-                delay = min(delay * 2, RETRY_MAX_SEC)
-                continue
-            if not self.database_up:
-                self._set_database_up(True)
-                LOG.info('the fleet history at %s is back: storing again', self.history.url)
-            return new
-        return None
-
-    def _set_database_up(self, up: bool) -> None:
+    def _on_database(self, _: bool) -> None:
         with self._progress:
-            self.database_up = up
             self._progress.notify_all()
 
-    def _store_rows(self, rows: list[Document]) -> list[bool]:
-        """history.store_rows; a batch the database refuses is stored row by row, and a row
-        it refuses alone is counted as bad (never stored)."""
-        try:
-            return self.history.store_rows(rows)
-        except BadResultError as error:
-            if len(rows) == 1:
-                self._on_bad_message(rows[0]['robot_id'], 'result', str(error))
-                return [False]
-        return [new for row in rows for new in self._store_rows([row])]
-
-    def _on_stored(self, row: Document) -> None:
-        document = document_of(row)
-        robot_id = row['robot_id']
-        with self._lock:
-            self.results_stored += 1
-            robot = self._robots.get(robot_id) or RobotState(robot_id)
-            robot = self._robots[robot_id] = replace(
-                robot, last_result=document, results_stored=robot.results_stored + 1
-            )
-        self._notify(Change(robot, document))
+    def _on_stored(self, rows: list[Document]) -> None:
+        for row in rows:
+            document = document_of(row)
+            robot_id = row['robot_id']
+            with self._lock:
+                self.results_stored += 1
+                robot = self._robots.get(robot_id) or RobotState(robot_id)
+                robot = self._robots[robot_id] = replace(
+                    robot, last_result=document, results_stored=robot.results_stored + 1
+                )
+            self._notify(Change(robot, document))
 
     # ---- slower reads, on the readers' threads ------------------------------------------------
 

@@ -122,21 +122,23 @@ def add_robot_routes(app: FastAPI) -> None:
         link: Link,
     ) -> models.Task:
         """system/cancel_task on the robot: cancel these tasks; its result."""
-        return await _control(link, models.Task, link.fleet.cancel, robot_id, body.task_ids)
+        return await _control(link, models.Task, link.fleet.client.cancel, robot_id, body.task_ids)
 
     @app.post('/api/robots/{robot_id}/tasks/pause', tags=['robots'])
     async def pause(
         robot_id: str, body: models.PauseTasks, _: Annotated[Caller, runs(PAUSE)], link: Link
     ) -> models.Paused:
         """system/pause on the robot; the ids paused and why not the others."""
-        return await _control(link, models.Paused, link.fleet.pause, robot_id, body.task_ids)
+        return await _control(link, models.Paused, link.fleet.client.pause, robot_id, body.task_ids)
 
     @app.post('/api/robots/{robot_id}/tasks/resume', tags=['robots'])
     async def resume(
         robot_id: str, body: models.ResumeTasks, _: Annotated[Caller, runs(RESUME)], link: Link
     ) -> models.Resumed:
         """system/resume on the robot; the ids running again and why not the others."""
-        return await _control(link, models.Resumed, link.fleet.resume, robot_id, body.task_ids)
+        return await _control(
+            link, models.Resumed, link.fleet.client.resume, robot_id, body.task_ids
+        )
 
     @app.post('/api/robots/{robot_id}/tasks/reprioritize', tags=['robots'])
     async def reprioritize(
@@ -148,7 +150,12 @@ def add_robot_routes(app: FastAPI) -> None:
         """system/reprioritize on the robot (an admin's); its result, with
         `successful_changes` and `errors`."""
         return await _control(
-            link, models.Task, link.fleet.reprioritize, robot_id, body.task_ids, body.priority
+            link,
+            models.Task,
+            link.fleet.client.reprioritize,
+            robot_id,
+            body.task_ids,
+            body.priority,
         )
 
     @app.post('/api/robots/{robot_id}/tasks/{task_id:path}/confirm', tags=['robots'])
@@ -161,14 +168,18 @@ def add_robot_routes(app: FastAPI) -> None:
         if problem := text_problem('task_id', task_id):
             raise ApiError(422, 'invalid_request', problem, 'task_id')
         confirmed = await link.control(
-            link.fleet.confirm, robot_id, task_id, reject=body.reject, comment=body.comment
+            link.fleet.client.confirm,
+            robot_id,
+            task_id,
+            reject=body.reject,
+            comment=body.comment,
         )
         return checked_answer(models.Confirmed, confirmed, robot_id)
 
     @app.post('/api/robots/{robot_id}/stop', tags=['robots'])
     async def stop(robot_id: str, _: Annotated[Caller, runs(STOP)], link: Link) -> models.Task:
         """system/stop on the robot: cancel its tasks declared cancel_on_stop; its result."""
-        return await _control(link, models.Task, link.fleet.stop, robot_id)
+        return await _control(link, models.Task, link.fleet.client.stop, robot_id)
 
 
 async def _control(

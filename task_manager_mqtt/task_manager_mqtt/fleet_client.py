@@ -25,7 +25,7 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
 from task_manager_mqtt.connection import connect, largest_payload, new_client
-from task_manager_mqtt.decoding import load_json
+from task_manager_mqtt.fleet.receiving import FleetReceiver, HeldCallback
 from task_manager_mqtt.fleet_types import (
     TIMEOUT_SEC,
     Document,
@@ -41,6 +41,8 @@ from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, Tls
 from task_manager_mqtt.topics import ANY_ROBOT, Topics
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
+RequestCheck = Callable[[str, str, Document], None]
+"""check_request(robot_id, op, fields): raises FleetError to refuse a request before it is sent."""
 SESSION_EXPIRY_SEC = 24 * 3600
 RECONNECT_MAX_SEC = 2
 FINAL_STATUSES = ('DONE', 'ERROR', 'CANCELED')
@@ -66,6 +68,7 @@ class FleetClient:
         hold_results: bool = False,
         receive_maximum: int = 0,
         max_message_bytes: int = 0,
+        check_request: RequestCheck | None = None,
     ) -> None:
         """`client_id`: a stable one keeps this client's session (and the results sent while
         it is away) on the broker for SESSION_EXPIRY_SEC; empty: a new id, no session kept.
@@ -83,34 +86,23 @@ class FleetClient:
         acknowledgements (MQTT 5's Receive Maximum; 0: the broker's choice).
         `max_message_bytes`: a robot's message larger than this is not read, but reported to
         `on_bad_message` (0: any size the broker passes on).
+
+        `check_request(robot_id, op, fields)`: called before each request is sent; a FleetError
+        it raises refuses the request (raised by the call that would have sent it).
         """
         broker = Broker.from_url(broker_url, Tls(ca_file=ca_file) if ca_file else None)
         self.broker = replace(broker, password=password) if password else broker
         self.prefix = prefix
         self.source = source
-        self.robots: dict[str, RobotView] = {}
-        self._all = Topics(prefix, ANY_ROBOT)
         self._lock = threading.Lock()
-        self._changed = threading.Condition(self._lock)
-        self._replies: dict[str, Future[Document]] = {}
         # key: message id of a request not acknowledged yet, value: its request id
         self._unacknowledged: dict[int, str] = {}
         # key: message id, value: the broker's answer, come before publish() returned
         self._early_acks: dict[int, ReasonCode] = {}
         self._largest_payload: int | None = None
         """The largest request the broker takes (MQTT 5's Maximum Packet Size); None: any."""
-        # key: (robot id, task id), value: its result, once it comes
-        self._results: dict[tuple[str, str], Future[Document]] = {}
-        self._result_callbacks: list[Callable[[str, Document], None]] = []
-        self._robot_callbacks: list[Callable[[RobotView], None]] = []
-        self._event_callbacks: list[Callable[[str, Document], None]] = []
-        self._dead_letter_callbacks: list[Callable[[str, Document], None]] = []
-        self._held_callbacks: list[Callable[[str, Document, Callable[[], None]], None]] = []
-        self._state_callbacks: list[Callable[[str, str, Document | None], None]] = []
-        self._bad_message_callbacks: list[Callable[[str, str, str], None]] = []
-        self._hold_results = hold_results
         self._receive_maximum = receive_maximum
-        self._max_message_bytes = max_message_bytes
+        self._check_request = check_request
         self._followed = (*FOLLOWED, 'event') if events else FOLLOWED
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
@@ -122,16 +114,20 @@ class FleetClient:
             1000,
             manual_ack=hold_results,
         )
+        self._hold_results = hold_results
+        self._receiver = FleetReceiver(
+            prefix,
+            self._mqtt.ack,
+            hold_results=hold_results,
+            max_message_bytes=max_message_bytes,
+        )
+        self.robots: dict[str, RobotView] = self._receiver.robots
+        """What is known of each robot, by id (kept up to date as their documents come)."""
+        self._all = Topics(prefix, ANY_ROBOT)
         self._mqtt.on_connect = self._on_connect
         self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
         self._mqtt.on_message = self._on_message
         self._mqtt.on_publish = self._on_publish
-        self._handlers = {
-            'reply': self._on_reply,
-            'result': self._on_result,
-            'event': self._on_event,
-            'dead_letter': self._on_dead_letter,
-        }
 
     def __enter__(self) -> 'FleetClient':
         self.connect()
@@ -315,7 +311,10 @@ class FleetClient:
         self, robot_id: str, op: str, *, request_id: str = '', **fields: Any
     ) -> Future[Document]:
         """Send any request; the future completes with the robot's Reply document, or fails
-        with FleetError if the broker refuses it or takes no message that large."""
+        with FleetError if the broker refuses it or takes no message that large. A FleetError
+        of `check_request` is raised here, and nothing is sent."""
+        if self._check_request is not None:
+            self._check_request(robot_id, op, fields)
         request_id = request_id or f'{uuid.uuid4().hex[:12]}-{next(self._request_numbers)}'
         reply: Future[Document] = Future()
         document = {'request_id': request_id, 'op': op, **fields}
@@ -325,8 +324,7 @@ class FleetClient:
             message = f'the request is {len(payload)} bytes; the broker takes at most {limit}'
             reply.set_exception(FleetError(message, 'payload_too_large'))
             return reply
-        with self._lock:
-            self._replies[request_id] = reply
+        self._receiver.expect_reply(request_id, reply)
         topic = Topics(self.prefix, robot_id).request
         # not under self._lock: paho calls on_publish holding a lock publish() takes too
         info = self._mqtt.publish(topic, payload, qos=1)
@@ -348,17 +346,21 @@ class FleetClient:
     ) -> FleetTask:
         task_id = task_id or str(uuid.uuid4())
         result: Future[Document] = Future()
-        with self._lock:
-            self._results[(robot_id, task_id)] = result
-        reply = self.request(robot_id, op, task_id=task_id, source=source or self.source, **fields)
+        self._receiver.expect_result(robot_id, task_id, result)
+        try:
+            reply = self.request(
+                robot_id, op, task_id=task_id, source=source or self.source, **fields
+            )
+        except FleetError:  # refused by check_request
+            self._receiver.take_result(robot_id, task_id)
+            raise
         reply.add_done_callback(lambda done: self._on_start_reply(robot_id, task_id, done))
         return FleetTask(robot_id, task_id, reply, result)
 
     def _on_start_reply(self, robot_id: str, task_id: str, reply: Future[Document]) -> None:
         """A refused start fails its result; a duplicate of an ended task has it already."""
         if (failure := reply.exception()) is not None:  # not sent, or refused by the broker
-            with self._lock:
-                result = self._results.pop((robot_id, task_id), None)
+            result = self._receiver.take_result(robot_id, task_id)
             if result is not None and not result.done():
                 result.set_exception(failure)
             return
@@ -367,8 +369,7 @@ class FleetClient:
         ended = document.get('duplicate') and known.get('status') in FINAL_STATUSES
         if document.get('ok') and not ended:
             return
-        with self._lock:
-            result = self._results.pop((robot_id, task_id), None)
+        result = self._receiver.take_result(robot_id, task_id)
         if result is None or result.done():
             return
         if ended:
@@ -381,44 +382,43 @@ class FleetClient:
 
     def on_result(self, callback: Callable[[str, Document], None]) -> None:
         """`callback(robot_id, task)` for every result of every robot (once per sequence)."""
-        self._result_callbacks.append(callback)
+        self._receiver.result_callbacks.append(callback)
 
     def on_event(self, callback: Callable[[str, Document], None]) -> None:
         """`callback(robot_id, event)` for every TaskEvent document (with `events=True`)."""
-        self._event_callbacks.append(callback)
+        self._receiver.event_callbacks.append(callback)
 
     def on_dead_letter(self, callback: Callable[[str, Document], None]) -> None:
         """`callback(robot_id, dead_letter)` for every request message a robot could not
         answer, having no usable request_id (a DeadLetter document: the reason, an excerpt)."""
-        self._dead_letter_callbacks.append(callback)
+        self._receiver.dead_letter_callbacks.append(callback)
 
-    def on_held_result(self, callback: Callable[[str, Document, Callable[[], None]], None]) -> None:
+    def on_held_result(self, callback: HeldCallback) -> None:
         """With `hold_results`: `callback(robot_id, task, acknowledge)` for every delivery of
         every result, again after a reconnection too (the callback tells them apart by robot
         and sequence); the broker keeps the result until `acknowledge()` is called (from any
         thread), once it is kept. The callback must not wait: it is on the MQTT thread."""
-        self._held_callbacks.append(callback)
+        self._receiver.held_callbacks.append(callback)
 
     def on_state(self, callback: Callable[[str, str, Document | None], None]) -> None:
         """`callback(robot_id, name, document)` for every retained state document as it comes
         (`name`: connection, tasks or active_tasks; None: the retained one was cleared)."""
-        self._state_callbacks.append(callback)
+        self._receiver.state_callbacks.append(callback)
 
     def on_bad_message(self, callback: Callable[[str, str, str], None]) -> None:
         """`callback(robot_id, name, why)` for every message of a robot that is not read (too
         large, not JSON, not an object); with one, this client logs none of them itself."""
-        self._bad_message_callbacks.append(callback)
+        self._receiver.bad_message_callbacks.append(callback)
 
     def on_robot_change(self, callback: Callable[[RobotView], None]) -> None:
         """`callback(robot)` when a robot's connection, active or declared tasks change."""
-        self._robot_callbacks.append(callback)
+        self._receiver.robot_callbacks.append(callback)
 
     def wait_for(
         self, condition: Callable[[dict[str, RobotView]], bool], timeout_sec: float = TIMEOUT_SEC
     ) -> bool:
         """Wait until `condition(robots)` holds (checked at each change); whether it did."""
-        with self._changed:
-            return self._changed.wait_for(lambda: condition(self.robots), timeout_sec)
+        return self._receiver.wait_for(condition, timeout_sec)
 
     def wait_online(self, robot_ids: list[str], timeout_sec: float = TIMEOUT_SEC) -> bool:
         """Wait until these robots are ONLINE and reach their Task Manager."""
@@ -456,8 +456,7 @@ class FleetClient:
     def _refused(self, request_id: str, reason: ReasonCode) -> None:
         if not reason.is_failure:
             return
-        with self._lock:
-            reply = self._replies.pop(request_id, None)
+        reply = self._receiver.take_reply(request_id)
         if reply is not None and not reply.done():
             message = f'the broker refused the request: {reason} (too large for it, or not allowed)'
             reply.set_exception(FleetError(message, 'refused_by_broker'))
@@ -475,93 +474,4 @@ class FleetClient:
 
     def _dispatch(self, topic: str, payload: bytes, mid: int = 0, qos: int = 0) -> bool:
         """Pass the message on; whether a held result's acknowledgement was handed over."""
-        name = topic.rsplit('/', 1)[-1]
-        robot_id = self._all.robot_of(topic)
-        limit = self._max_message_bytes
-        if limit and len(payload) > limit:
-            self._bad_message(robot_id, name, f'{len(payload)} bytes; at most {limit} are read')
-            return False
-        try:
-            document = load_json(payload) if payload else None
-        except ValueError as error:  # the robot's documents are checked as its requests are
-            self._bad_message(robot_id, name, f'not JSON ({str(error)[:200]})')
-            return False
-        if not isinstance(document, dict | None):
-            self._bad_message(robot_id, name, 'not a JSON object')
-        elif name == 'result' and self._hold_results and self._held_callbacks:
-            if document is not None:
-                self._on_held(robot_id, document, mid, qos)
-                return True
-        elif name in self._handlers:
-            if document is not None:
-                self._handlers[name](robot_id, document)
-        else:
-            self._on_robot_state(robot_id, name, document)
-        return False
-
-    def _bad_message(self, robot_id: str, name: str, why: str) -> None:
-        if not self._bad_message_callbacks:
-            LOG.warning('%s/%s/%s: %s, ignored', self.prefix, robot_id, name, why)
-        for callback in self._bad_message_callbacks:
-            callback(robot_id, name, why)
-
-    def _on_held(self, robot_id: str, task: Document, mid: int, qos: int) -> None:
-        """Every delivery to the held callbacks (then, once per sequence, to on_result's)."""
-
-        def acknowledge() -> None:
-            self._mqtt.ack(mid, qos)
-
-        for callback in self._held_callbacks:
-            callback(robot_id, task, acknowledge)
-        self._on_result(robot_id, task)
-
-    def _on_event(self, robot_id: str, document: Document) -> None:
-        for callback in self._event_callbacks:
-            callback(robot_id, document)
-
-    def _on_dead_letter(self, robot_id: str, document: Document) -> None:
-        for callback in self._dead_letter_callbacks:
-            callback(robot_id, document)
-
-    def _on_reply(self, _: str, document: Document) -> None:
-        with self._lock:
-            reply = self._replies.pop(document.get('request_id', ''), None)
-        if reply is not None:
-            reply.set_result(document)
-
-    def _on_result(self, robot_id: str, task: Document) -> None:
-        sequence = int(task.get('sequence') or 0)
-        with self._lock:
-            robot = self._robot(robot_id)
-            if sequence and sequence <= robot.last_sequence:
-                robot.duplicates += 1  # delivered again after a reconnection
-                return
-            robot.last_sequence = max(robot.last_sequence, sequence)
-            result = self._results.pop((robot_id, task.get('task_id', '')), None)
-        if result is not None and not result.done():
-            result.set_result(task)
-        for callback in self._result_callbacks:
-            callback(robot_id, task)
-
-    def _on_robot_state(self, robot_id: str, name: str, document: Document | None) -> None:
-        with self._changed:
-            robot = self._robot(robot_id)
-            if name == 'connection':
-                robot.connection = document
-            elif name == 'active_tasks':
-                robot.active_tasks = (document or {}).get('tasks', [])
-                omitted = (document or {}).get('omitted')
-                robot.active_tasks_omitted = omitted if isinstance(omitted, int) else 0
-            elif name == 'tasks':
-                robot.tasks = (document or {}).get('tasks', [])
-            self._changed.notify_all()
-        for state_callback in self._state_callbacks:
-            state_callback(robot_id, name, document)
-        for callback in self._robot_callbacks:
-            callback(robot)
-
-    def _robot(self, robot_id: str) -> RobotView:
-        robot = self.robots.get(robot_id)
-        if robot is None:
-            robot = self.robots[robot_id] = RobotView(robot_id)
-        return robot
+        return self._receiver.receive(topic, payload, mid, qos)
