@@ -50,3 +50,32 @@ def test_only_the_requested_robots_and_none_when_none_can() -> None:
     assert choice.reason == 'no ONLINE robot declares photo'
     assert choice.others == {'z': 'no such robot on the broker', 'b': 'CONNECTIONBROKEN'}
     assert choose_robot('dance', fleet).others['a'] == 'does not declare dance'
+
+
+def test_the_declared_resources_are_those_the_robots_task_manager_would_say() -> None:
+    """`dock` and `drive` share `base`; `scan` is blocking and `photo` holds the camera: a robot
+    docking has `base` busy, one scanning (blocking) has the camera free."""
+    tasks = [
+        {'task_name': 'drive', 'resources': ['base']},
+        {'task_name': 'dock', 'resources': ['base', 'charger']},
+        {'task_name': 'scan', 'blocking': True, 'reentrant': True},
+        {'task_name': 'photo', 'resources': ['camera'], 'reentrant': True},
+    ]
+
+    def running(robot_id: str, task_name: str) -> RobotState:
+        task = {'task_id': f'{robot_id}-1', 'task_name': task_name, 'status': 'IN_PROGRESS'}
+        return RobotState(
+            robot_id,
+            connection_state=ConnectionState.ONLINE,
+            task_manager_connected=True,
+            tasks=tasks,
+            active=[task],
+        )
+
+    docking, scanning = running('a-docking', 'dock'), running('b-scanning', 'scan')
+    drive = choose_robot('drive', [docking, scanning])
+    photo = choose_robot('photo', [docking, scanning])
+    assert drive.robot_id == 'b-scanning'
+    assert drive.others == {'a-docking': 'its resources for drive are busy'}
+    assert photo.robot_id == 'a-docking'  # both free, one active task each: the first by id
+    assert photo.others == {'b-scanning': 'as able as a-docking, which comes first by id'}

@@ -190,6 +190,7 @@ def test_cancel_pause_resume_reprioritize_confirm_and_stop_come_back_as_the_robo
     assert (unknown.status_code, unknown.json()['error']['code']) == (404, 'unknown_task_id')
     assert confirmed.status_code == 200, confirmed.text
     assert (confirmed.json()['outcome'], confirmed.json()['comment']) == ('confirmed', 'loaded')
+    assert confirmed.json()['by'] == 'CLOUD:alice'  # the token's name, as the web gateway's
     assert cancelled.status_code == 200, cancelled.text
     assert cancelled.json()['task_name'] == 'system/cancel_task'
     assert (long_end['status'], long_end['priority']) == ('CANCELED', 7)

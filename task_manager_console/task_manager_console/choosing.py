@@ -1,13 +1,16 @@
 """Which robot runs a task asked of "any robot": pure, from the robots' states.
 
 A candidate must be ONLINE (reaching its Task Manager) and declare the task; among those, one
-whose active tasks leave the task's resources free comes first (a robot running a blocking task
-holds them all), then the least loaded (fewest active tasks), then the first by id.
+whose running tasks leave the task's resources free comes first, then the least loaded (fewest
+active tasks), then the first by id. What a task holds is what its robot's Task Manager would
+say (core/admission/claims.py), read from the robot's declared tasks: its declared `resources`,
+the blocking slot if it is blocking, its one goal slot if it is not reentrant.
 """
 
 from dataclasses import dataclass, field
 
-from task_manager_console.robots import RobotState
+from task_manager.core.admission.claims import implied_resources, task_slot
+from task_manager_console.robots import Document, RobotState
 
 HOLDING = ('IN_PROGRESS', 'PAUSED')
 """Statuses of active tasks that hold what they use (not QUEUED)."""
@@ -56,14 +59,26 @@ def choose_robot(
 
 def _free(robot: RobotState, task_name: str) -> bool:
     """Whether the task's resources are free on the robot: none of its active tasks that hold
-    what they use is blocking, or the same task (a task's one goal slot)."""
-    blocking = {t.get('task_name') for t in robot.tasks if t.get('blocking')}
-    for task in robot.active:
-        if task.get('status') in HOLDING and (
-            task.get('task_name') in blocking or task.get('task_name') == task_name
-        ):
-            return False
-    return True
+    what they use holds one of them."""
+    wanted = _held(robot, task_name)
+    return not any(
+        task.get('status') in HOLDING and wanted & _held(robot, str(task.get('task_name')))
+        for task in robot.active
+    )
+
+
+def _held(robot: RobotState, task_name: str) -> frozenset[str]:
+    """What a task of the robot holds while it runs, by its declaration (only its one goal
+    slot if the robot declares no such task)."""
+    declared: Document | None = next((t for t in robot.tasks if t.get('task_name') == task_name), None)
+    if declared is None:
+        return frozenset({task_slot(task_name)})
+    return implied_resources(
+        task_name,
+        declared.get('resources') or [],
+        bool(declared.get('blocking')),
+        bool(declared.get('reentrant')),
+    )
 
 
 def _reason(robot: RobotState, task_name: str) -> str:

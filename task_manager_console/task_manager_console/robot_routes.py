@@ -160,10 +160,11 @@ def add_robot_routes(app: FastAPI) -> None:
 
     @app.post('/api/robots/{robot_id}/tasks/{task_id:path}/confirm', tags=['robots'])
     async def confirm(
-        robot_id: str, task_id: str, body: models.ConfirmTask, _: Operator, link: Link
+        robot_id: str, task_id: str, body: models.ConfirmTask, caller: Operator, link: Link
     ) -> models.Confirmed:
         """Answer a waiting system/confirm of the robot (confirm, or reject); its result names
-        the bridge's source as `by`. 404 `unknown_task_id`, 409 `not_waiting`."""
+        the bridge's source and the caller as `by` (`CLOUD:alice`). 404 `unknown_task_id`, 409
+        `not_waiting`."""
         link.robot(robot_id)
         if problem := text_problem('task_id', task_id):
             raise ApiError(422, 'invalid_request', problem, 'task_id')
@@ -173,6 +174,7 @@ def add_robot_routes(app: FastAPI) -> None:
             task_id,
             reject=body.reject,
             comment=body.comment,
+            source=caller.name,
         )
         return checked_answer(models.Confirmed, confirmed, robot_id)
 

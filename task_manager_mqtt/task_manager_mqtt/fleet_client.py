@@ -299,12 +299,16 @@ class FleetClient:
         *,
         reject: bool = False,
         comment: str = '',
+        source: str = '',
         timeout_sec: float = TIMEOUT_SEC,
     ) -> Document:
         """Answer a waiting system/confirm on the robot: confirmed, it ends DONE; rejected,
-        ERROR `rejected`; its result's `by` is the bridge's source. The Confirmed document;
-        FleetError `unknown_task_id`, or `not_waiting` for a task that is no waiting one."""
+        ERROR `rejected`. Its result's `by` is the bridge's source, followed by the name
+        `source` gives (`CLOUD:alice`), as a start's. The Confirmed document; FleetError
+        `unknown_task_id`, or `not_waiting` for a task that is no waiting one."""
         fields = {'task_id': task_id, 'reject': reject, 'comment': comment}
+        if source:
+            fields['source'] = source
         return self._answer(robot_id, 'confirm', timeout_sec, **fields)['confirmed']
 
     def request(

@@ -7,10 +7,11 @@ one without is a dead letter (see Answer). No Task Manager is `task_manager_unav
 A start whose task id the Task Manager already knows starts nothing: the reply is that
 task, with `duplicate: true`; `why` of a task it does not know is `unknown_task_id`, and
 `unschedule` or `enable_schedules` of a schedule it does not have `unknown_schedule_id`, and
-`confirm` of a task that is no waiting confirmation `not_waiting`. What a start starts has
-the bridge's source, followed by the name the request's `source` gives (`CLOUD:alice`); one
-that claims another door's source (`WEB:boss`) is `invalid_request`. Pause, resume, the
-schedules and confirm go through the same calls as the web gateway's routes
+`confirm` of a task that is no waiting confirmation `not_waiting`. What a start starts, and
+the answer of a confirm, have the bridge's source followed by the name the request's `source`
+gives (`CLOUD:alice`); one that claims another door's source (`WEB:boss`) is
+`invalid_request`. Pause, resume, the schedules and confirm go through the same calls as the
+web gateway's routes
 (`gateway_requests`). Whatever happens, `answer` returns one Answer.
 """
 
@@ -179,9 +180,10 @@ class RequestHandler:
         raise AssertionError(f'unhandled request {request!r}')
 
     def _confirm(self, request: mqtt.ConfirmRequest) -> dict[str, Any]:
-        answer = gateway_requests.confirm(self.client, request.task_id, request, source=self.source)
+        source = self._source_of(request)
+        answer = gateway_requests.confirm(self.client, request.task_id, request, source=source)
         if answer.taken:
-            return {'confirmed': confirmed_json(answer, request, self.source)}
+            return {'confirmed': confirmed_json(answer, request, source)}
         if answer.error_code == AnswerRefusal.NOT_FOUND:
             raise Refusal('unknown_task_id', answer.message, 'task_id')
         if answer.error_code == AnswerRefusal.NOT_WAITING:
@@ -230,7 +232,9 @@ class RequestHandler:
         self._remember(handle)
         return {**_started(handle), 'subtask_ids': subtask_ids}
 
-    def _source_of(self, request: mqtt.StartTaskRequest | mqtt.StartMissionRequest) -> str:
+    def _source_of(
+        self, request: mqtt.StartTaskRequest | mqtt.StartMissionRequest | mqtt.ConfirmRequest
+    ) -> str:
         """The bridge's source (`CLOUD`), followed by the name the request gives, if any
         (`CLOUD:alice`): never another door's."""
         try:

@@ -222,6 +222,28 @@ def test_a_mission_waits_at_its_confirmation_until_the_cloud_confirms_it(
     assert unknown.value.code == 'unknown_task_id' and "'nobody'" in str(unknown.value)
 
 
+def test_a_confirm_names_who_answered_as_a_start_does(online: FleetClient) -> None:
+    events: list[dict[str, Any]] = []
+    online.on_event(lambda _, event: events.append(event))
+    step = {'task_name': 'system/confirm', 'task_data': {'prompt': 'Load the tray'}}
+    mission = online.start_mission(ROBOT, [step])
+    (confirm_id,) = mission.accepted()['subtask_ids']
+    wait_until(
+        lambda: [e for e in events if e['task']['task_id'] == confirm_id and e['task']['feedback']],
+        'the prompt as feedback',
+    )
+    with pytest.raises(FleetError) as claimed:  # another door's source: nothing answered
+        online.confirm(ROBOT, confirm_id, source='WEB:boss')
+    assert (claimed.value.code, 'source' in str(claimed.value)) == ('invalid_request', True)
+
+    confirmed = online.confirm(ROBOT, confirm_id, source='alice')
+
+    assert confirmed['by'] == 'CLOUD:alice'
+    assert check(mission.result(), 'task')['status'] == 'DONE'
+    (stored,) = online.history(ROBOT, task_name='system/confirm')
+    assert stored['result']['by'] == 'CLOUD:alice'
+
+
 def changes_of(events: list[dict[str, Any]], task_id: str) -> list[tuple[str, str]]:
     """(event, status) of a task's events, in order."""
     return [(e['event'], e['task']['status']) for e in events if e['task']['task_id'] == task_id]

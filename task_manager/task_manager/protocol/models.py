@@ -378,6 +378,11 @@ class DeclaredTask(BaseModel):
     cancel_on_stop: bool = False
     reentrant: bool = False
     cancel_reported_as_success: bool = False
+    resources: list[str] = Field(
+        default_factory=list,
+        description='The resources it holds while it runs, as declared (none: left out); a '
+        'blocking task also holds the blocking slot, one not reentrant its one goal slot.',
+    )
     pause: PauseModeName = Field(
         'none',
         description='How it pauses: none (it cannot), restart (its goal is cancelled and sent '

@@ -132,10 +132,11 @@ class SchedulesRequest(_Addressed):
     )
 
 
-class ConfirmRequest(ConfirmTask, _Addressed):
-    """`confirm`: answer the waiting system/confirm `task_id`, as the bridge's source (its
-    result's `by`); `unknown_task_id` for a task the node does not know, `not_waiting` for one
-    that is no waiting confirmation."""
+class ConfirmRequest(ConfirmTask, _Sourced, _Addressed):
+    """`confirm`: answer the waiting system/confirm `task_id`, as the bridge's source followed
+    by the name `source` gives, as a start's (its result's `by`: `CLOUD:alice`);
+    `unknown_task_id` for a task the node does not know, `not_waiting` for one that is no
+    waiting confirmation."""
 
     op: Literal['confirm']
     task_id: Name = Field(min_length=1, max_length=NAME_MAX)
