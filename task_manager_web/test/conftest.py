@@ -6,16 +6,16 @@ dashboard's tests drive Debian's headless Chromium at /usr/bin/chromium with Pla
 never downloads a browser.
 """
 
-import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import httpx
 import pytest
-from playwright.sync_api import Browser, Page, Route, expect, sync_playwright
+from playwright.sync_api import Browser, Page, Route, expect
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, SharedBaseRobot
 from task_manager.testing.harness import RosHarness
+from task_manager_web.doors_testing import chromium, watched_page
 from task_manager_web.testing import GatewayProcess, HeldRead, gateway_client
 
 
@@ -55,38 +55,17 @@ def base(ros: RosHarness, tmp_path: Path) -> Iterator[SharedBaseRobot]:
     robot.close()
 
 
-CHROMIUM = shutil.which('chromium') or '/usr/bin/chromium'
-# No background connections: this machine's network is closed, and the test needs none.
-CHROMIUM_ARGS = [
-    '--no-sandbox',
-    '--disable-gpu',
-    '--disable-quic',
-    '--no-first-run',
-    '--disable-background-networking',
-    '--disable-component-update',
-    '--disable-sync',
-]
-EXPECT_TIMEOUT_MS = int(TIMEOUT_SEC * 1000)
-
-
 @pytest.fixture(scope='module')
 def browser() -> Iterator[Browser]:
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
+    with chromium() as browser:
         yield browser
-        browser.close()
 
 
 @pytest.fixture
 def blank_page(browser: Browser) -> Iterator[Page]:
     """A new page whose script errors and Content-Security-Policy refusals fail the test."""
-    expect.set_options(timeout=EXPECT_TIMEOUT_MS)
-    context = browser.new_context(viewport={'width': 1280, 'height': 900})
-    page = context.new_page()
-    errors = _watch_errors(page)
-    yield page
-    context.close()
-    assert not errors, errors
+    with watched_page(browser, TIMEOUT_SEC) as page:
+        yield page
 
 
 @pytest.fixture
@@ -95,19 +74,6 @@ def page(blank_page: Page, robot: Robot, gateway: GatewayProcess) -> Page:
     blank_page.goto(f'{gateway.url}/?token={gateway.token}')
     expect(blank_page.locator('#connection')).to_have_text('connected')
     return blank_page
-
-
-def _watch_errors(page: Page) -> list[str]:
-    """The page's script errors and what its Content-Security-Policy refused, as they come."""
-    errors: list[str] = []
-    page.on('pageerror', lambda error: errors.append(str(error)))
-    page.on(
-        'console',
-        lambda message: (
-            errors.append(message.text) if 'Content Security Policy' in message.text else None
-        ),
-    )
-    return errors
 
 
 @pytest.fixture
