@@ -1,23 +1,29 @@
 """Fixtures of the console's tests: the fleet history on SQLite and on a real PostgreSQL server
 (one per test session, a database per test), a real mosquitto with an account per robot and
-one for the console."""
+one for the console, the console as users run it, and two of the demo's robots on the broker."""
 
 import itertools
+import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 from task_manager_mqtt.broker import CLOUD_USER
-from task_manager_mqtt.testing import BrokerProcess
+from task_manager_mqtt.testing import BRIDGE_EXECUTABLE, CONNECTED_LINE, BrokerProcess
 
+from task_manager.testing.process import NodeProcess
+from task_manager_console.doors_testing import ConsoleProcess
 from task_manager_console.fleet import Fleet
 from task_manager_console.simulation.robot import SimulatedRobot
 from task_manager_console.store.fleet_history import FleetHistory
 from task_manager_console.store.local_postgres import PostgresServer
 from task_manager_console.testing import CONSOLE_USER, ROBOTS, TIMEOUT_SEC, postgres_server
+from task_manager_demo.run_demo import ROBOT_READY, TASK_MANAGER_READY, default_params_file
+from task_manager_demo.testing import robot_command
 
 DATABASES = ('sqlite', 'postgresql')
+DEMO_START_TIMEOUT_SEC = 30.0
 _numbers = itertools.count(1)
 
 
@@ -86,3 +92,49 @@ def start_robot_on(broker: BrokerProcess) -> Iterator[Callable[..., SimulatedRob
     yield start
     for robot in robots:
         robot.close()
+
+
+@pytest.fixture
+def console(broker: BrokerProcess, tmp_path: Path) -> Iterator[ConsoleProcess]:
+    """`task-manager-console` as users run it, on the test's broker and a SQLite file."""
+    console = ConsoleProcess(broker, f'sqlite:///{tmp_path / "fleet.sqlite"}', tmp_path / 'c')
+    yield console
+    assert console.stop() == 0, '\n'.join(console.lines)
+
+
+def demo_robot(
+    robot_id: str, domain: int, broker: BrokerProcess, folder: Path
+) -> list[NodeProcess]:
+    """The demo's simulated robot, its Task Manager (the demo's tasks) and its bridge, in ROS
+    domain `domain`; started, not waited for."""
+    env = {'ROS_DOMAIN_ID': str(domain)}
+    bridge = [
+        BRIDGE_EXECUTABLE, '--robot-id', robot_id, '--broker-url', broker.url(robot_id),
+        '--state-file', str(folder / f'{robot_id}.acked'),
+    ]  # fmt: skip
+    return [
+        NodeProcess(None, command=robot_command(), env=env),
+        NodeProcess(default_params_file(), env=env),
+        NodeProcess(None, command=bridge, env=env),
+    ]
+
+
+@pytest.fixture
+def two_demo_robots(broker: BrokerProcess, tmp_path: Path) -> Iterator[None]:
+    """robot1 and robot2, each the demo's robot, Task Manager and bridge in a ROS domain of its
+    own: this run's domains 2 and 3 (the root conftest.py gives each test process its own of
+    the four, `make test`'s two processes the first two)."""
+    first = int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
+    processes = [
+        process
+        for number, robot_id in enumerate(('robot1', 'robot2'))
+        for process in demo_robot(robot_id, first + 2 + number, broker, tmp_path)
+    ]
+    try:
+        ready_lines = [ROBOT_READY.pattern, TASK_MANAGER_READY.pattern, CONNECTED_LINE] * 2
+        for process, ready in zip(processes, ready_lines, strict=True):
+            process.wait_for_log(ready, DEMO_START_TIMEOUT_SEC)
+        yield
+    finally:
+        for process in reversed(processes):
+            process.stop()

@@ -4,22 +4,15 @@ is started, cancelled, paused, resumed, reprioritized, confirmed and stopped thr
 reaches the robot and comes back as its answer, its result stored and streamed; "any robot"
 with one robot busy, one offline and one free chooses the free one and says why."""
 
-import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import httpx
 import pytest
-from task_manager_mqtt.testing import (
-    BRIDGE_EXECUTABLE,
-    CONNECTED_LINE,
-    BridgeProcess,
-    BrokerProcess,
-)
+from task_manager_mqtt.testing import BridgeProcess, BrokerProcess
 
 from task_manager.testing.gateway import Robot
-from task_manager.testing.process import NodeProcess
 from task_manager_console.doors_testing import (
     ADMIN,
     OPERATOR,
@@ -29,8 +22,6 @@ from task_manager_console.doors_testing import (
     wait_for,
 )
 from task_manager_console.simulation.robot import SimulatedRobot
-from task_manager_demo.run_demo import ROBOT_READY, TASK_MANAGER_READY, default_params_file
-from task_manager_demo.testing import robot_command
 
 pytestmark = pytest.mark.ros
 
@@ -39,13 +30,6 @@ START_TIMEOUT_SEC = 30.0
 NAVIGATE = 'navigation/navigate_to_pose'
 FIB = {'task_name': 'fib', 'task_data': {'order': 1}}
 Document = dict[str, Any]
-
-
-@pytest.fixture
-def console(broker: BrokerProcess, tmp_path: Path) -> Iterator[ConsoleProcess]:
-    console = ConsoleProcess(broker, f'sqlite:///{tmp_path / "fleet.sqlite"}', tmp_path / 'c')
-    yield console
-    assert console.stop() == 0, '\n'.join(console.lines)
 
 
 @pytest.fixture
@@ -203,44 +187,6 @@ def test_cancel_pause_resume_reprioritize_confirm_and_stop_come_back_as_the_robo
 
 
 # ---- "any robot": one busy, one offline, one free ------------------------------------------
-
-
-def demo_robot(
-    robot_id: str, domain: int, broker: BrokerProcess, folder: Path
-) -> list[NodeProcess]:
-    """The demo's simulated robot, its Task Manager (the demo's tasks) and its bridge, in ROS
-    domain `domain`; started, not waited for."""
-    env = {'ROS_DOMAIN_ID': str(domain)}
-    bridge = [
-        BRIDGE_EXECUTABLE, '--robot-id', robot_id, '--broker-url', broker.url(robot_id),
-        '--state-file', str(folder / f'{robot_id}.acked'),
-    ]  # fmt: skip
-    return [
-        NodeProcess(None, command=robot_command(), env=env),
-        NodeProcess(default_params_file(), env=env),
-        NodeProcess(None, command=bridge, env=env),
-    ]
-
-
-@pytest.fixture
-def two_demo_robots(broker: BrokerProcess, tmp_path: Path) -> Iterator[None]:
-    """robot1 and robot2, each the demo's robot, Task Manager and bridge in a ROS domain of its
-    own: this run's domains 2 and 3 (conftest.py gives each test process its own of the four,
-    `make test`'s two processes the first two)."""
-    first = int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
-    processes = [
-        process
-        for number, robot_id in enumerate(('robot1', 'robot2'))
-        for process in demo_robot(robot_id, first + 2 + number, broker, tmp_path)
-    ]
-    try:
-        ready_lines = [ROBOT_READY.pattern, TASK_MANAGER_READY.pattern, CONNECTED_LINE] * 2
-        for process, ready in zip(processes, ready_lines, strict=True):
-            process.wait_for_log(ready, START_TIMEOUT_SEC)
-        yield
-    finally:
-        for process in reversed(processes):
-            process.stop()
 
 
 def test_any_robot_is_the_free_one_of_a_busy_an_offline_and_a_free_robot(

@@ -7,21 +7,20 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
-from starlette.routing import Mount, Route
 from task_manager_mqtt.testing import BrokerProcess
+from task_manager_web import doors_testing
 from task_manager_web.doors.task_roles import SYSTEM_TASK_ROLES
 from task_manager_web.doors.tokens import generated_token
+from task_manager_web.doors_testing import ADMIN, NAMES, OPERATOR, PUBLIC, RANKS, VIEWER
 
 from task_manager.core.names import SYSTEM_TASK_NAMES
 from task_manager_console.app import Settings, create_app
-from task_manager_console.doors_testing import ADMIN, OPERATOR, VIEWER, ConsoleProcess
+from task_manager_console.doors_testing import ConsoleProcess
 from task_manager_console.fleet import Fleet
 from task_manager_console.store.fleet_history import FleetHistory
 from task_manager_console.testing import CONSOLE_USER, ROBOTS
 
-PUBLIC = None
 # key: (method, route path) of every route of the console ('MOUNT' for a folder of files),
 # value: the role it needs (PUBLIC: none). A route added to the app needs a line here.
 ROUTE_ROLES: dict[tuple[str, str], str | None] = {
@@ -47,15 +46,7 @@ ROUTE_ROLES: dict[tuple[str, str], str | None] = {
     ('POST', '/api/fleet/stop'): OPERATOR,
     ('POST', '/api/robots/{robot_id}/tasks/reprioritize'): ADMIN,
 }
-RANKS = {VIEWER: 1, OPERATOR: 2, ADMIN: 3}
-CALLERS = (None, VIEWER, OPERATOR, ADMIN)
-"""Who sends a request: no token, or the token of a role."""
-ROUTE_CASES = [
-    pytest.param(method, path, needed, caller, id=f'{method} {path} as {caller or "nobody"}')
-    for (method, path), needed in ROUTE_ROLES.items()
-    if method != 'MOUNT'
-    for caller in CALLERS
-]
+ROUTE_CASES = doors_testing.route_cases(ROUTE_ROLES)
 FIB = {'task_name': 'fib', 'task_data': {'order': 1}}
 # key: a way of asking for a system task, value: its request's path, the field a refusal
 # names, and the answer when it is let in (no robot is on the broker: nothing can start)
@@ -83,16 +74,6 @@ SYSTEM_TASK_CASES = [
 def url_of(path: str) -> str:
     """A route's path with ids in its parameters."""
     return path.replace('{robot_id}', 'robot1').replace('{task_id:path}', 'some-id')
-
-
-def request(client: httpx.Client, method: str, path: str) -> httpx.Response:
-    """`method path`, with `{}` for a body (what it holds is checked after the role)."""
-    if path == '/api/events':  # its answer never ends: its head only, or its error
-        with client.stream(method, url_of(path)) as response:
-            if response.status_code != 200:
-                response.read()
-            return response
-    return client.request(method, url_of(path), json={} if method == 'POST' else None)
 
 
 def asking_for(task: str, way: str) -> dict[str, Any]:
@@ -131,14 +112,7 @@ def test_the_table_has_every_route_of_the_console(tmp_path: Path) -> None:
         app = create_app(fleet, Settings(tokens=(generated_token(),)))
     finally:
         history.close()
-    routes = set()
-    for route in app.routes:
-        if isinstance(route, Mount):
-            routes.add(('MOUNT', route.path))
-        elif isinstance(route, Route):
-            routes.update((method, route.path) for method in (route.methods or set()) - {'HEAD'})
-        else:
-            routes.add(('?', repr(route)))
+    routes = doors_testing.routes_of(app)
 
     assert routes - ROUTE_ROLES.keys() == set(), 'a route without a role: add it to ROUTE_ROLES'
     assert ROUTE_ROLES.keys() - routes == set(), 'a route in ROUTE_ROLES the console lacks'
@@ -149,29 +123,17 @@ def test_each_route_lets_in_the_roles_it_needs_and_refuses_the_others(
     console: ConsoleProcess, method: str, path: str, needed: str | None, caller: str | None
 ) -> None:
     with console.client(caller) as client:
-        response = request(client, method, path)
+        response = doors_testing.request(client, method, url_of(path))
 
-    if needed is PUBLIC or (caller and RANKS[caller] >= RANKS[needed]):
-        assert response.status_code not in (401, 403), response.text
-    elif caller is None:
-        assert response.status_code == 401, response.text
-        assert response.json()['error']['code'] == 'unauthorized'
-    else:
-        assert response.status_code == 403, response.text
-        assert response.json()['error'] == {
-            'code': 'forbidden',
-            'message': f'{method} {url_of(path)} needs role {needed}; this token is {caller}',
-            'field': '',
-        }
+    doors_testing.check_role_answer(response, method, url_of(path), needed, caller)
 
 
 @pytest.mark.parametrize('caller', [VIEWER, OPERATOR, ADMIN])
 def test_whoami_says_the_role_and_name_of_the_token(console: ConsoleProcess, caller: str) -> None:
-    names = {VIEWER: 'victor', OPERATOR: 'alice', ADMIN: ''}
     with console.client(caller) as client:
         response = client.get('/api/whoami')
 
-    assert (response.status_code, response.json()) == (200, {'role': caller, 'name': names[caller]})
+    assert (response.status_code, response.json()) == (200, {'role': caller, 'name': NAMES[caller]})
 
 
 # ---- every system task, every way of asking for it, every role -----------------------------

@@ -5,74 +5,24 @@ bridge, each in a ROS domain of its own) for what it does: STOP ALL reaching eve
 on "any robot" landing on the free one, a confirmation answered from the banner."""
 
 import os
-import shutil
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
-import pytest
-from playwright.sync_api import Browser, Page, expect, sync_playwright
-from task_manager_mqtt.testing import BRIDGE_EXECUTABLE, CONNECTED_LINE, BrokerProcess
+from playwright.sync_api import Page, expect
+from task_manager_web.doors_testing import OPERATOR, TOKENS, VIEWER
+from task_manager_web.doors_testing import blank_page as blank_page
+from task_manager_web.doors_testing import browser as browser
 
-from task_manager.testing.process import NodeProcess
-from task_manager_console.doors_testing import OPERATOR, TOKENS, VIEWER, ConsoleProcess, wait_for
+from task_manager_console.doors_testing import ConsoleProcess, wait_for
 from task_manager_console.simulation.robot import SimulatedRobot
-from task_manager_console.testing import TIMEOUT_SEC
-from task_manager_demo.run_demo import ROBOT_READY, TASK_MANAGER_READY, default_params_file
-from task_manager_demo.testing import robot_command
 
-CHROMIUM = shutil.which('chromium') or '/usr/bin/chromium'
-# No background connections: this machine's network is closed, and the test needs none.
-CHROMIUM_ARGS = [
-    '--no-sandbox',
-    '--disable-gpu',
-    '--disable-quic',
-    '--no-first-run',
-    '--disable-background-networking',
-    '--disable-component-update',
-    '--disable-sync',
-]
 SCREENSHOT = Path(__file__).parents[2] / 'docs' / 'images' / 'console.png'
 SCREENSHOT_ASKED = 'TASK_MANAGER_SCREENSHOTS'
 """Set (to 1) to write the docs' screenshot again (else the test leaves the work tree alone)."""
-START_TIMEOUT_SEC = 30.0
 NAVIGATE = 'navigation/navigate_to_pose'
 Document = dict[str, Any]
-
-
-@pytest.fixture(scope='module')
-def browser() -> Iterator[Browser]:
-    with sync_playwright() as playwright:
-        browser = playwright.chromium.launch(executable_path=CHROMIUM, args=CHROMIUM_ARGS)
-        yield browser
-        browser.close()
-
-
-@pytest.fixture
-def blank_page(browser: Browser) -> Iterator[Page]:
-    """A new page whose script errors and Content-Security-Policy refusals fail the test."""
-    expect.set_options(timeout=int(TIMEOUT_SEC * 1000))
-    context = browser.new_context(viewport={'width': 1280, 'height': 900})
-    page = context.new_page()
-    errors: list[str] = []
-    page.on('pageerror', lambda error: errors.append(str(error)))
-    page.on(
-        'console',
-        lambda message: (
-            errors.append(message.text) if 'Content Security Policy' in message.text else None
-        ),
-    )
-    yield page
-    context.close()
-    assert not errors, errors
-
-
-@pytest.fixture
-def console(broker: BrokerProcess, tmp_path: Path) -> Iterator[ConsoleProcess]:
-    console = ConsoleProcess(broker, f'sqlite:///{tmp_path / "fleet.sqlite"}', tmp_path / 'c')
-    yield console
-    assert console.stop() == 0, '\n'.join(console.lines)
 
 
 def open_page(page: Page, console: ConsoleProcess, role: str) -> Page:
@@ -179,42 +129,6 @@ def test_the_history_filters_by_robot_and_a_confirmation_waiting_on_any_robot_is
 
 
 # ---- what the page does (real robots) ------------------------------------------------------
-
-
-def demo_robot(
-    robot_id: str, domain: int, broker: BrokerProcess, folder: Path
-) -> list[NodeProcess]:
-    """The demo's simulated robot, its Task Manager and its bridge in ROS domain `domain`."""
-    env = {'ROS_DOMAIN_ID': str(domain)}
-    bridge = [
-        BRIDGE_EXECUTABLE, '--robot-id', robot_id, '--broker-url', broker.url(robot_id),
-        '--state-file', str(folder / f'{robot_id}.acked'),
-    ]  # fmt: skip
-    return [
-        NodeProcess(None, command=robot_command(), env=env),
-        NodeProcess(default_params_file(), env=env),
-        NodeProcess(None, command=bridge, env=env),
-    ]
-
-
-@pytest.fixture
-def two_demo_robots(broker: BrokerProcess, tmp_path: Path) -> Iterator[None]:
-    """robot1 and robot2, each the demo's robot, Task Manager and bridge in a ROS domain of its
-    own (this run's domains 2 and 3, as the doors' tests take them)."""
-    first = int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
-    processes = [
-        process
-        for number, robot_id in enumerate(('robot1', 'robot2'))
-        for process in demo_robot(robot_id, first + 2 + number, broker, tmp_path)
-    ]
-    try:
-        ready_lines = [ROBOT_READY.pattern, TASK_MANAGER_READY.pattern, CONNECTED_LINE] * 2
-        for process, ready in zip(processes, ready_lines, strict=True):
-            process.wait_for_log(ready, START_TIMEOUT_SEC)
-        yield
-    finally:
-        for process in reversed(processes):
-            process.stop()
 
 
 def stored(console: ConsoleProcess, task_id: str) -> Document:

@@ -1,6 +1,6 @@
 """Tools of the tests of the console's doors: `task-manager-console` run as users run it, its
-HTTP clients by role, and its event stream read as it comes (no rclpy here, as in the rest of
-the console)."""
+HTTP clients by role (the web gateway's tests' tokens, task_manager_web.doors_testing), and its
+event stream read as it comes (no rclpy here, as in the rest of the console)."""
 
 import json
 import os
@@ -16,6 +16,8 @@ from typing import Any
 
 import httpx
 from task_manager_mqtt.broker import MosquittoBroker
+from task_manager_web.doors_testing import ADMIN, TOKEN_FILE, TOKENS, VIEWER, client_of
+from task_manager_web.doors_testing import OPERATOR as OPERATOR
 
 from task_manager.testing.output_reader import OutputReader
 from task_manager_console.main import READY_LINE
@@ -23,18 +25,6 @@ from task_manager_console.testing import CONSOLE_USER, TIMEOUT_SEC
 
 CONSOLE = str(Path(sys.executable).with_name('task-manager-console'))
 DASHBOARD_LINE = r'dashboard: (?P<url>http://[^/\s]+)/'
-VIEWER, OPERATOR, ADMIN = 'viewer', 'operator', 'admin'
-TOKENS = {
-    VIEWER: 'viewer-token-0123456789',
-    OPERATOR: 'operator-token-0123456789',
-    ADMIN: 'admin-token-0123456789',
-}
-"""key: a role, value: its token in TOKEN_FILE."""
-TOKEN_FILE = f"""# the tokens of the console's tests
-viewer   {TOKENS[VIEWER]}   victor
-operator {TOKENS[OPERATOR]} alice
-admin    {TOKENS[ADMIN]}
-"""
 Document = dict[str, Any]
 
 
@@ -103,8 +93,7 @@ class ConsoleProcess:
 
     def client(self, role: str | None = ADMIN) -> httpx.Client:
         """An HTTP client with the token of `role` (None: no token)."""
-        headers = {'Authorization': f'Bearer {TOKENS[role]}'} if role else {}
-        return httpx.Client(base_url=self.url, headers=headers, timeout=TIMEOUT_SEC)
+        return client_of(self.url, role, TIMEOUT_SEC)
 
 
 def wait_for(read: Callable[[], Any], condition: Callable[[Any], Any], what: str) -> Any:

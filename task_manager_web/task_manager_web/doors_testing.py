@@ -1,8 +1,8 @@
 """Tools of the tests of the doors, the web gateway's and the fleet console's alike (no rclpy
 here): a token for each role and their file, a table of routes and roles walked over HTTP, and
-the page in Debian's headless Chromium (driven by Playwright, which never downloads one)."""
+the page in Debian's headless Chromium (driven by Playwright, which never downloads one): the
+fixtures `browser` and `blank_page`, which a conftest.py or test module takes by importing them."""
 
-import contextlib
 import shutil
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
@@ -36,6 +36,8 @@ operator {TOKENS[OPERATOR]} {NAMES[OPERATOR]}   # the operator of the tests
 admin    {TOKENS[ADMIN]}
 """
 EVENTS_PATH = '/api/events'
+PAGE_TIMEOUT_SEC = 20.0
+"""How long a page's test waits for what the page should show."""
 CHROMIUM = shutil.which('chromium') or '/usr/bin/chromium'
 # No background connections: this machine's network is closed, and the tests need none.
 CHROMIUM_ARGS = [
@@ -111,9 +113,9 @@ def check_role_answer(
         }
 
 
-@contextlib.contextmanager
-def chromium() -> Iterator['Browser']:
-    """Debian's headless Chromium, closed at the end."""
+@pytest.fixture(scope='module')
+def browser() -> Iterator['Browser']:
+    """Debian's headless Chromium, for the tests of a module."""
     from playwright.sync_api import sync_playwright
 
     with sync_playwright() as playwright:
@@ -122,13 +124,13 @@ def chromium() -> Iterator['Browser']:
         browser.close()
 
 
-@contextlib.contextmanager
-def watched_page(browser: 'Browser', timeout_sec: float) -> Iterator['Page']:
-    """A new page, each `expect` on it waiting at most `timeout_sec`; its script errors and
-    what its Content-Security-Policy refused fail the test at the end."""
+@pytest.fixture
+def blank_page(browser: 'Browser') -> Iterator['Page']:
+    """A new page, each `expect` on it waiting at most PAGE_TIMEOUT_SEC; its script errors and
+    what its Content-Security-Policy refused fail the test."""
     from playwright.sync_api import expect
 
-    expect.set_options(timeout=int(timeout_sec * 1000))
+    expect.set_options(timeout=int(PAGE_TIMEOUT_SEC * 1000))
     context = browser.new_context(viewport={'width': 1280, 'height': 900})
     page = context.new_page()
     errors: list[str] = []

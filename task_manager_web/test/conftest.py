@@ -11,11 +11,12 @@ from pathlib import Path
 
 import httpx
 import pytest
-from playwright.sync_api import Browser, Page, Route, expect
+from playwright.sync_api import Page, Route, expect
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, SharedBaseRobot
 from task_manager.testing.harness import RosHarness
-from task_manager_web.doors_testing import chromium, watched_page
+from task_manager_web.doors_testing import blank_page as blank_page
+from task_manager_web.doors_testing import browser as browser
 from task_manager_web.testing import GatewayProcess, HeldRead, gateway_client
 
 
@@ -53,19 +54,6 @@ def base(ros: RosHarness, tmp_path: Path) -> Iterator[SharedBaseRobot]:
     robot = SharedBaseRobot(ros, tmp_path)
     yield robot
     robot.close()
-
-
-@pytest.fixture(scope='module')
-def browser() -> Iterator[Browser]:
-    with chromium() as browser:
-        yield browser
-
-
-@pytest.fixture
-def blank_page(browser: Browser) -> Iterator[Page]:
-    """A new page whose script errors and Content-Security-Policy refusals fail the test."""
-    with watched_page(browser, TIMEOUT_SEC) as page:
-        yield page
 
 
 @pytest.fixture

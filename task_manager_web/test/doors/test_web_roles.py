@@ -26,18 +26,7 @@ from task_manager_web.doors.task_roles import (
     with_runs_priority,
 )
 from task_manager_web.doors.tokens import Role, generated_token
-from task_manager_web.doors_testing import (
-    ADMIN,
-    OPERATOR,
-    PUBLIC,
-    RANKS,
-    TOKEN_FILE,
-    VIEWER,
-    check_role_answer,
-    request,
-    route_cases,
-    routes_of,
-)
+from task_manager_web.doors_testing import ADMIN, OPERATOR, PUBLIC, RANKS, TOKEN_FILE, VIEWER
 from task_manager_web.testing import GatewayProcess
 
 # key: (method, route path) of every route of the gateway ('MOUNT' for a folder of files),
@@ -87,7 +76,7 @@ SYSTEM_TASK_ROLES_EXPECTED: dict[str, str] = {
     'system/unschedule': ADMIN,
     'system/enable_schedule': ADMIN,
 }
-ROUTE_CASES = route_cases(ROUTE_ROLES)
+ROUTE_CASES = doors_testing.route_cases(ROUTE_ROLES)
 
 
 def url_of(path: str) -> str:
@@ -132,7 +121,7 @@ def gateway(robot: Robot, token_file: Path) -> Iterator[GatewayProcess]:
 
 
 def test_the_table_has_every_route_of_the_gateway() -> None:
-    routes = routes_of(create_app(Settings(tokens=(generated_token(),)), no_client))
+    routes = doors_testing.routes_of(create_app(Settings(tokens=(generated_token(),)), no_client))
 
     assert routes - ROUTE_ROLES.keys() == set(), 'a route without a role: add it to ROUTE_ROLES'
     assert ROUTE_ROLES.keys() - routes == set(), 'a route in ROUTE_ROLES the gateway lacks'
@@ -144,9 +133,9 @@ def test_each_route_lets_in_the_roles_it_needs_and_refuses_the_others(
     alone: GatewayProcess, method: str, path: str, needed: str | None, caller: str | None
 ) -> None:
     with client_of(alone, caller) as client:
-        response = request(client, method, url_of(path))
+        response = doors_testing.request(client, method, url_of(path))
 
-    check_role_answer(response, method, url_of(path), needed, caller)
+    doors_testing.check_role_answer(response, method, url_of(path), needed, caller)
     if response.status_code in (401, 403):
         check(response.json(), 'error')
 
