@@ -13,6 +13,7 @@ import re
 import shutil
 import sys
 import textwrap
+from collections.abc import Sequence
 from pathlib import Path
 
 from task_manager.discovery import use_quick_discovery
@@ -64,6 +65,26 @@ def shown_path(path: Path) -> str:
     return absolute if relative.startswith('..') else relative
 
 
+def start_robot(
+    supervisor: Supervisor,
+    params_file: Path,
+    prefix: str = '',
+    env: dict[str, str] | None = None,
+    robot_parameters: Sequence[str] = (),
+) -> None:
+    """The simulated robot (with these `NAME:=VALUE` ROS parameters) and a Task Manager of
+    `params_file`, children of `supervisor` named `<prefix>sim_robot` and
+    `<prefix>task_manager`, with `env` added to their environment."""
+    robot = [find_executable(*ROBOT_EXECUTABLE)]
+    if robot_parameters:
+        robot += ['--ros-args', *(arg for p in robot_parameters for arg in ('-p', p))]
+    supervisor.start_child(f'{prefix}sim_robot', robot, ROBOT_READY, env)
+    task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
+    supervisor.start_child(
+        f'{prefix}task_manager', [*task_manager, str(params_file)], TASK_MANAGER_READY, env
+    )
+
+
 def banner(tasks: str, robot_pose: str, params_file: Path, dashboard: str = '') -> str:
     taskctl = shown_path(Path(sys.executable).with_name('taskctl'))
     return '\n'.join(
@@ -111,9 +132,7 @@ class Demo(Supervisor):
         self.token_file = token_file
 
     def start(self) -> None:
-        self.start_child('sim_robot', [find_executable(*ROBOT_EXECUTABLE)], ROBOT_READY)
-        task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
-        self.start_child('task_manager', [*task_manager, str(self.params_file)], TASK_MANAGER_READY)
+        start_robot(self, self.params_file)
         if self.web_port is not None:
             web = [find_executable(*WEB_EXECUTABLE), '--port', str(self.web_port)]
             if self.token_file is not None:

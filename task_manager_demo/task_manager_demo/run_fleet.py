@@ -23,19 +23,15 @@ from task_manager_console.store.local_postgres import PostgresError, PostgresSer
 from task_manager_mqtt.broker import CLOUD_USER, OBSERVER_USER, READY_LINE, MosquittoBroker
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 
-from task_manager.discovery import use_quick_discovery
 from task_manager_demo.children import Child, Events
 from task_manager_demo.run_demo import (
     READY_TIMEOUT_SEC,
-    ROBOT_EXECUTABLE,
-    ROBOT_READY,
-    TASK_MANAGER_EXECUTABLE,
-    TASK_MANAGER_READY,
     default_params_file,
     find_executable,
     shown_path,
+    start_robot,
 )
-from task_manager_demo.supervisor import Supervisor, supervise
+from task_manager_demo.supervisor import Supervisor, supervise_demo
 
 BRIDGE_EXECUTABLE = ('task-manager-mqtt', 'task_manager_mqtt')
 BRIDGE_READY = re.compile(r'connected to the broker')
@@ -124,17 +120,7 @@ class Fleet(Supervisor):
         password_file = home / PASSWORD_FILE
         write_password(password_file, self.broker.passwords[robot_id])
         env = {'ROS_DOMAIN_ID': str(self.domains[robot_id]), 'ROS_HOME': str(home)}
-        robot = [find_executable(*ROBOT_EXECUTABLE)]
-        if self.robot_args:
-            robot += ['--ros-args', *(arg for p in self.robot_args for arg in ('-p', p))]
-        self.start_child(f'{robot_id}/sim_robot', robot, ROBOT_READY, env)
-        task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
-        self.start_child(
-            f'{robot_id}/task_manager',
-            [*task_manager, str(self.params_file)],
-            TASK_MANAGER_READY,
-            env,
-        )
+        start_robot(self, self.params_file, f'{robot_id}/', env, self.robot_args)
         bridge = [
             find_executable(*BRIDGE_EXECUTABLE),
             '--robot-id',
@@ -195,24 +181,36 @@ def write_password(path: Path, password: str) -> None:
         file.write(password + '\n')
 
 
-def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
+def broker_demo_parser(
+    prog: str, description: str | None, folder_name: str, folder_holds: str
+) -> argparse.ArgumentParser:
+    """The options of a demo on a local broker: --broker-port, --folder (which holds
+    `folder_holds`, $ROS_HOME/task_manager/<folder_name> by default) and --ready-timeout."""
     ros_home = Path(os.environ.get('ROS_HOME') or Path.home() / '.ros')
-    parser = argparse.ArgumentParser(prog='task-manager-fleet', description=__doc__)
-    parser.add_argument('--robots', type=int, default=DEFAULT_ROBOTS, help='how many (3)')
+    parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument(
         '--broker-port', type=int, default=DEFAULT_PORT, help='default 0: any free one'
     )
+    parser.add_argument(
+        '--folder',
+        type=Path,
+        default=ros_home / 'task_manager' / folder_name,
+        help=f'{folder_holds} ($ROS_HOME/task_manager/{folder_name})',
+    )
+    parser.add_argument('--ready-timeout', type=float, default=READY_TIMEOUT_SEC)
+    return parser
+
+
+def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
+    parser = broker_demo_parser(
+        'task-manager-fleet', __doc__, 'fleet', "broker files and each robot's ROS_HOME"
+    )
+    parser.add_argument('--robots', type=int, default=DEFAULT_ROBOTS, help='how many (3)')
     parser.add_argument(
         '--first-domain',
         type=int,
         default=DEFAULT_FIRST_DOMAIN,
         help='ROS domain of robot1; robot2 gets the next, ... (1)',
-    )
-    parser.add_argument(
-        '--folder',
-        type=Path,
-        default=ros_home / 'task_manager' / 'fleet',
-        help="broker files and each robot's ROS_HOME ($ROS_HOME/task_manager/fleet)",
     )
     parser.add_argument(
         '--robot-arg',
@@ -230,7 +228,6 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
         help="the console's fleet history: a SQLite file in the folder, or a PostgreSQL server "
         "of its own started beside the broker (Debian's postgresql); %(default)s",
     )
-    parser.add_argument('--ready-timeout', type=float, default=READY_TIMEOUT_SEC)
     options = parser.parse_args(argv)
     if options.robots < 1:
         parser.error('--robots: at least 1')
@@ -238,13 +235,7 @@ def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> int:
-    options = parse_arguments(argv)
-    use_quick_discovery()  # also for the children, which inherit the environment
-    return supervise(
-        lambda events: Fleet(options, events),
-        options.ready_timeout,
-        'task-manager-fleet: the fleet has stopped',
-    )
+    return supervise_demo(Fleet, parse_arguments(argv), 'task-manager-fleet: the fleet has stopped')
 
 
 if __name__ == '__main__':

@@ -8,7 +8,6 @@ the vehicle's topic prefix, then streams their logs. Ctrl-C stops everything it 
 """
 
 import argparse
-import os
 import re
 import sys
 from pathlib import Path
@@ -17,20 +16,21 @@ from task_manager_vda5050.broker import MASTER_USER, VdaBroker
 from task_manager_vda5050.mapping import DEMO_MAPPING
 from task_manager_vda5050.topics import DEFAULT_INTERFACE
 
-from task_manager.discovery import use_quick_discovery
 from task_manager_demo.children import Events
 from task_manager_demo.run_demo import (
-    READY_TIMEOUT_SEC,
-    ROBOT_EXECUTABLE,
-    ROBOT_READY,
-    TASK_MANAGER_EXECUTABLE,
-    TASK_MANAGER_READY,
     default_params_file,
     find_executable,
     shown_path,
+    start_robot,
 )
-from task_manager_demo.run_fleet import BROKER_READY, PASSWORD_FILE, RULE, write_password
-from task_manager_demo.supervisor import Supervisor, supervise
+from task_manager_demo.run_fleet import (
+    BROKER_READY,
+    PASSWORD_FILE,
+    RULE,
+    broker_demo_parser,
+    write_password,
+)
+from task_manager_demo.supervisor import Supervisor, supervise_demo
 
 ADAPTER_EXECUTABLE = ('task-manager-vda5050', 'task_manager_vda5050')
 ADAPTER_READY = re.compile(r'connected to the broker')
@@ -49,11 +49,7 @@ class VdaDemo(Supervisor):
 
     def start(self) -> None:
         self.start_child('broker', self.broker.command, BROKER_READY)
-        self.start_child('sim_robot', [find_executable(*ROBOT_EXECUTABLE)], ROBOT_READY)
-        task_manager = [find_executable(*TASK_MANAGER_EXECUTABLE), '--ros-args', '--params-file']
-        self.start_child(
-            'task_manager', [*task_manager, str(default_params_file())], TASK_MANAGER_READY
-        )
+        start_robot(self, default_params_file())
         password_file = self.folder / SERIAL_NUMBER / PASSWORD_FILE
         write_password(password_file, self.broker.passwords[SERIAL_NUMBER])
         adapter = [
@@ -94,27 +90,14 @@ class VdaDemo(Supervisor):
 
 
 def parse_arguments(argv: list[str] | None) -> argparse.Namespace:
-    ros_home = Path(os.environ.get('ROS_HOME') or Path.home() / '.ros')
-    parser = argparse.ArgumentParser(prog='run_vda5050', description=__doc__)
-    parser.add_argument('--broker-port', type=int, default=0, help='default 0: any free one')
-    parser.add_argument(
-        '--folder',
-        type=Path,
-        default=ros_home / 'task_manager' / 'vda5050',
-        help='broker files and the password file ($ROS_HOME/task_manager/vda5050)',
+    parser = broker_demo_parser(
+        'run_vda5050', __doc__, 'vda5050', 'broker files and the password file'
     )
-    parser.add_argument('--ready-timeout', type=float, default=READY_TIMEOUT_SEC)
     return parser.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> int:
-    options = parse_arguments(argv)
-    use_quick_discovery()  # also for the children, which inherit the environment
-    return supervise(
-        lambda events: VdaDemo(options, events),
-        options.ready_timeout,
-        'make vda5050: everything has stopped',
-    )
+    return supervise_demo(VdaDemo, parse_arguments(argv), 'make vda5050: everything has stopped')
 
 
 if __name__ == '__main__':

@@ -6,6 +6,7 @@ stops them in the reverse order of their start (SIGINT, a bounded wait, a kill a
 resort). Everything arrives through one event queue, so the main thread never polls.
 """
 
+import argparse
 import contextlib
 import queue
 import re
@@ -13,6 +14,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+from task_manager.discovery import use_quick_discovery
 from task_manager_demo.children import (
     Child,
     Event,
@@ -182,6 +184,18 @@ class Supervisor:
         for child in children:
             say(f'{child.name} {state}; its output:')
             say('\n'.join(f'  {line}' for line in child.output) or '  (none)')
+
+
+def supervise_demo(
+    demo: Callable[[argparse.Namespace, Events], Supervisor],
+    options: argparse.Namespace,
+    stopped: str,
+) -> int:
+    """`supervise` the supervisor `demo(options, events)` (options.ready_timeout: how long its
+    children may take to be ready), with the project's quick discovery for it and its
+    children, which inherit the environment."""
+    use_quick_discovery()
+    return supervise(lambda events: demo(options, events), options.ready_timeout, stopped)
 
 
 def supervise(make: Callable[[Events], Supervisor], ready_timeout_sec: float, stopped: str) -> int:
