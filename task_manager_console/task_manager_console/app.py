@@ -23,12 +23,18 @@ import uvicorn
 from fastapi import FastAPI, Request, Response
 from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
-from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
-from task_manager_web.doors.access import Access, Identity, MetricsViewer, Viewer
-from task_manager_web.doors.settings import DoorSettings, add_doors, allowed_hosts, door_app
+from task_manager_web.doors.access import Access, MetricsViewer
+from task_manager_web.doors.settings import (
+    DoorSettings,
+    add_doors,
+    add_whoami,
+    allowed_hosts,
+    door_app,
+)
 from task_manager_web.doors.tokens import dashboard_line, door_tokens
 from task_manager_web.errors import ApiError
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
+from task_manager_web.request_metrics import METRICS_ROUTE, metrics_response
 
 from task_manager_console.console_metrics import ConsoleMetrics
 from task_manager_console.fleet import Fleet
@@ -99,6 +105,7 @@ def create_app(fleet: Fleet, settings: Settings) -> FastAPI:
     metrics = ConsoleMetrics(fleet)
     app.state.metrics = metrics
     add_doors(app, settings, access, metrics.request_counts, READ_PATHS)
+    add_whoami(app)
     _add_routes(app)
     add_robot_routes(app)
     add_fleet_routes(app)
@@ -130,24 +137,14 @@ def _add_routes(app: FastAPI) -> None:
             'event_streams': link.stream_count,
         }
 
-    @app.get('/api/whoami', tags=['state'])
-    async def whoami(caller: Viewer) -> Identity:
-        """The role and name of the token sent: what the page may offer."""
-        return Identity.model_validate({'role': caller.role.label, 'name': caller.name})
-
-    @app.get(
-        '/metrics',
-        tags=['state'],
-        response_class=Response,
-        responses={200: {'content': {CONTENT_TYPE_LATEST: {}}}},
-    )
+    @app.get('/metrics', **METRICS_ROUTE)
     async def metrics(_: MetricsViewer, request: Request) -> Response:
         """Prometheus metrics (text format): each robot's connection, active, queued and
         paused tasks, results stored and bad messages; the tasks ended by robot and status;
         the fleet history's; this console's requests. Needs a token unless
         --metrics-without-token."""
         console_metrics: ConsoleMetrics = request.app.state.metrics
-        return Response(generate_latest(console_metrics.registry), media_type=CONTENT_TYPE_LATEST)
+        return metrics_response(console_metrics.registry)
 
 
 class _Server(uvicorn.Server):

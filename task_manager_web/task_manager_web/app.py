@@ -18,7 +18,6 @@ from typing import Annotated, Any, Literal
 from fastapi import FastAPI, Query, Request, Response
 from fastapi.responses import FileResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
-from prometheus_client import CONTENT_TYPE_LATEST, generate_latest
 
 from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
@@ -30,7 +29,6 @@ from task_manager_web.door_link import EVENT_STREAM_ROUTE
 from task_manager_web.doors.access import (
     Access,
     Caller,
-    Identity,
     MetricsViewer,
     Operator,
     StreamViewer,
@@ -39,13 +37,14 @@ from task_manager_web.doors.access import (
     check_start_priority,
     runs,
 )
-from task_manager_web.doors.settings import DoorSettings, add_doors, door_app
+from task_manager_web.doors.settings import DoorSettings, add_doors, add_whoami, door_app
 from task_manager_web.doors.task_roles import needed_by_steps, needed_to_start
 from task_manager_web.errors import ApiError
 from task_manager_web.history.page import history_page
 from task_manager_web.metrics import GatewayMetrics, node_snapshot
 from task_manager_web.node_link import Link, NodeLink
 from task_manager_web.operator_routes import add_operator_routes
+from task_manager_web.request_metrics import METRICS_ROUTE, metrics_response
 
 WAIT_DEFAULT_SEC = 30.0
 WAIT_MAX_SEC = 600.0
@@ -89,6 +88,7 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
     metrics = GatewayMetrics()
     app.state.metrics = metrics
     add_doors(app, settings, access, metrics.request_counts)
+    add_whoami(app)
     _add_routes(app)
     add_operator_routes(app)
     app.mount('/static', StaticFiles(directory=str(STATIC)), name='static')
@@ -121,18 +121,7 @@ def _add_routes(app: FastAPI) -> None:
         """Whether the gateway reaches a Task Manager (no token needed)."""
         return {'connected': link.connected, 'event_streams': link.stream_count}
 
-    @app.get('/api/whoami', tags=['state'])
-    async def whoami(caller: Viewer) -> Identity:
-        """The role and name of the token sent (a viewer without a name when reading needs
-        no token and none is sent): what the dashboard may offer."""
-        return Identity.model_validate({'role': caller.role.label, 'name': caller.name})
-
-    @app.get(
-        '/metrics',
-        tags=['state'],
-        response_class=Response,
-        responses={200: {'content': {CONTENT_TYPE_LATEST: {}}}},
-    )
+    @app.get('/metrics', **METRICS_ROUTE)
     async def metrics(_: MetricsViewer, link: Link, request: Request) -> Response:
         """Prometheus metrics (text format): the tasks ended by name and status, their
         durations, the active, paused and queued counts, the schedules' runs and misses, and
@@ -141,7 +130,7 @@ def _add_routes(app: FastAPI) -> None:
         snapshot = await node_snapshot(link)
         # no await from here to the exposition: another scrape cannot come in between
         gateway_metrics.set_node(link.connected, snapshot)
-        return Response(generate_latest(gateway_metrics.registry), media_type=CONTENT_TYPE_LATEST)
+        return metrics_response(gateway_metrics.registry)
 
     @app.get('/api/tasks', tags=['tasks'])
     async def declared_tasks(_: Viewer, link: Link) -> list[models.DeclaredTask]:

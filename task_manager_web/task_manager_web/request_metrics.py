@@ -1,10 +1,19 @@
 """The requests of a door as Prometheus metrics: an ASGI middleware that counts each request by
-route, method and status and times it to its answer's head. Shared by the web gateway and the
-fleet console (no rclpy here), each with its own registry and metric names."""
+route, method and status and times it to its answer's head; and the answer of GET /metrics.
+Shared by the web gateway and the fleet console (no rclpy here), each with its own registry
+and metric names."""
 
 import time
+from typing import Any
 
-from prometheus_client import CollectorRegistry, Counter, Histogram
+from fastapi import Response
+from prometheus_client import (
+    CONTENT_TYPE_LATEST,
+    CollectorRegistry,
+    Counter,
+    Histogram,
+    generate_latest,
+)
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
 UNMATCHED_ROUTE = '(unmatched)'
@@ -12,6 +21,17 @@ UNMATCHED_ROUTE = '(unmatched)'
 METHODS = frozenset({'GET', 'HEAD', 'POST', 'PUT', 'PATCH', 'DELETE', 'OPTIONS'})
 """Methods named in the method label; any other is `OTHER` (a request cannot add values)."""
 REQUEST_BUCKETS_SEC = (0.001, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1, 2.5, 5, 10, 30)
+METRICS_ROUTE: dict[str, Any] = {
+    'tags': ['state'],
+    'response_class': Response,
+    'responses': {200: {'content': {CONTENT_TYPE_LATEST: {}}}},
+}
+"""What the route of GET /metrics answers, for its OpenAPI description."""
+
+
+def metrics_response(registry: CollectorRegistry) -> Response:
+    """Every metric of `registry`, in Prometheus' text format."""
+    return Response(generate_latest(registry), media_type=CONTENT_TYPE_LATEST)
 
 
 class RequestCounts:

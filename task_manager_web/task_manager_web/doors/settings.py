@@ -13,7 +13,7 @@ from pathlib import Path
 from fastapi import FastAPI
 
 from task_manager.core.bounds import HISTORY_PAGE_MAX_BYTES
-from task_manager_web.doors.access import Access
+from task_manager_web.doors.access import Access, Identity, Viewer
 from task_manager_web.doors.body_door import BODY_TIMEOUT_SEC, BodyDoor
 from task_manager_web.doors.front_door import LOCAL_HOSTS, FrontDoor
 from task_manager_web.doors.read_bound import READ_PATHS, ReadBound
@@ -101,6 +101,16 @@ def door_app(
         redoc_url=None,
         swagger_ui_oauth2_redirect_url=None,
     )
+
+
+def add_whoami(app: FastAPI) -> None:
+    """GET /api/whoami: who the token sent is, for the page to offer what it may do."""
+
+    @app.get('/api/whoami', tags=['state'])
+    async def whoami(caller: Viewer) -> Identity:
+        """The role and name of the token sent (a viewer without a name when reading needs
+        no token and none is sent): what the page may offer."""
+        return Identity.model_validate({'role': caller.role.label, 'name': caller.name})
 
 
 def add_doors(
