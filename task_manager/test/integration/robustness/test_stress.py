@@ -38,6 +38,8 @@ T = TypeVar('T')
 SEED = int(os.environ.get('STRESS_SEED', '20240611'))
 CLIENTS = 4
 BLOCKING_NAMES = frozenset({'nav', 'spin'})
+IGNORE_CANCELS = frozenset({'spin', 'photo'})
+"""The servers that accept a cancel and run on (the Task Manager's cancel_timeout ends them)."""
 PEAK_IN_FLIGHT = 100
 MAX_THREADS = 30
 IGNORED_CANCEL_TIMEOUT_SEC = 0.3
@@ -169,24 +171,14 @@ def test_concurrent_mixed_requests_are_each_answered_once_and_consistently(
     requests = plan(rng)
     script = GoalScript()
     servers = {
-        'nav': OutcomeServer(ros.node, Fibonacci, f'{topic_prefix}/nav', on_goal=script.on_goal),
-        'spin': OutcomeServer(
+        name: OutcomeServer(
             ros.node,
             Fibonacci,
-            f'{topic_prefix}/spin',
-            cancel_policy=CancelPolicy.IGNORE,
+            f'{topic_prefix}/{name}',
+            cancel_policy=CancelPolicy.IGNORE if name in IGNORE_CANCELS else CancelPolicy.END,
             on_goal=script.on_goal,
-        ),
-        'single': OutcomeServer(
-            ros.node, Fibonacci, f'{topic_prefix}/single', on_goal=script.on_goal
-        ),
-        'photo': OutcomeServer(
-            ros.node,
-            Fibonacci,
-            f'{topic_prefix}/photo',
-            cancel_policy=CancelPolicy.IGNORE,
-            on_goal=script.on_goal,
-        ),
+        )
+        for name in ('nav', 'spin', 'single', 'photo')
     }
     tm = launch_task_manager(
         {
