@@ -70,7 +70,9 @@ def _free(robot: RobotState, task_name: str) -> bool:
 def _held(robot: RobotState, task_name: str) -> frozenset[str]:
     """What a task of the robot holds while it runs, by its declaration (only its one goal
     slot if the robot declares no such task)."""
-    declared: Document | None = next((t for t in robot.tasks if t.get('task_name') == task_name), None)
+    declared: Document | None = next(
+        (t for t in robot.tasks if t.get('task_name') == task_name), None
+    )
     if declared is None:
         return frozenset({task_slot(task_name)})
     return implied_resources(

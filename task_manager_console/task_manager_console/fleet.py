@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any, Unpack
 
 from task_manager_mqtt.fleet_client import FleetClient
@@ -321,7 +321,7 @@ class Fleet:
         with self._progress:
             robot = self._robots.get(robot_id)
             if robot is not None:
-                self._robots[robot_id] = replace(robot, bad_messages=count)
+                self._robots[robot_id] = robot.with_fields(bad_messages=count)
             self._progress.notify_all()
 
     # ---- on the storing thread ---------------------------------------------------------------
@@ -337,8 +337,8 @@ class Fleet:
             with self._lock:
                 self.results_stored += 1
                 robot = self._robots.get(robot_id) or RobotState(robot_id)
-                robot = self._robots[robot_id] = replace(
-                    robot, last_result=document, results_stored=robot.results_stored + 1
+                robot = self._robots[robot_id] = robot.with_fields(
+                    last_result=document, results_stored=robot.results_stored + 1
                 )
             self._notify(Change(robot, document))
 
@@ -356,7 +356,7 @@ class Fleet:
             robot = self._robots.get(robot_id)
             if robot is None or robot.last_result is not None:
                 return
-            robot = self._robots[robot_id] = replace(robot, last_result=last)
+            robot = self._robots[robot_id] = robot.with_fields(last_result=last)
         self._notify(Change(robot))
 
     def _on_schedules(self, robot_id: str, reply: Future[Document]) -> None:
@@ -373,7 +373,7 @@ class Fleet:
             robot = self._robots.get(robot_id)
             if robot is None:
                 return
-            robot = self._robots[robot_id] = replace(robot, schedules=schedules)
+            robot = self._robots[robot_id] = robot.with_fields(schedules=schedules)
         self._notify(Change(robot))
 
     def _notify(self, change: Change) -> None:

@@ -19,14 +19,15 @@ def new_client(
     reconnect_max_sec: int,
     max_in_flight: int,
     manual_ack: bool = False,
+    client_class: type[mqtt.Client] = mqtt.Client,
 ) -> mqtt.Client:
     """An MQTT 5 client with the broker's credentials and TLS; it sends each packet at once.
 
     `max_in_flight`: QoS 1 messages sent before their acknowledgements (paho's default, 20,
     slows a burst). `manual_ack`: a message received is acknowledged by `client.ack()`, not
-    as soon as it arrived.
+    as soon as it arrived. `client_class`: paho's Client, or a subclass of it.
     """
-    client = mqtt.Client(
+    client = client_class(
         CallbackAPIVersion.VERSION2,
         client_id=client_id,
         protocol=mqtt.MQTTv5,
@@ -54,10 +55,11 @@ def connect(
     keepalive_sec: int,
     session_sec: int,
     receive_maximum: int = 0,
+    start_loop: bool = True,
 ) -> None:
     """Connect in the background (retrying), keeping the session for `session_sec` when away;
     `receive_maximum`: the most QoS 1 messages not acknowledged yet that the broker may send
-    (0: the broker's choice)."""
+    (0: the broker's choice). `start_loop`: on paho's own thread (else the caller drives it)."""
     properties = Properties(PacketTypes.CONNECT)
     properties.SessionExpiryInterval = session_sec
     if receive_maximum:
@@ -65,7 +67,8 @@ def connect(
     client.connect_async(
         broker.host, broker.port, keepalive=keepalive_sec, clean_start=False, properties=properties
     )
-    client.loop_start()
+    if start_loop:
+        client.loop_start()
 
 
 @overload

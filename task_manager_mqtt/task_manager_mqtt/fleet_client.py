@@ -24,8 +24,9 @@ from typing import Any, Unpack
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
-from task_manager_mqtt.connection import connect, largest_payload, new_client
+from task_manager_mqtt.connection import RECONNECT_MIN_SEC, connect, largest_payload, new_client
 from task_manager_mqtt.fleet.receiving import FleetReceiver, HeldCallback
+from task_manager_mqtt.fleet.transport import BufferedClient, ClientLoop
 from task_manager_mqtt.fleet_types import (
     TIMEOUT_SEC,
     Document,
@@ -47,6 +48,8 @@ SESSION_EXPIRY_SEC = 24 * 3600
 RECONNECT_MAX_SEC = 2
 FINAL_STATUSES = ('DONE', 'ERROR', 'CANCELED')
 KEEPALIVE_SEC = 60
+CLOSE_TIMEOUT_SEC = 10.0
+"""How long close() waits for the MQTT thread (a connection being made, say)."""
 # the topics followed, of every robot; the connection last, so that the retained state of a
 # robot is there when it is seen ONLINE
 FOLLOWED = ('reply', 'result', 'dead_letter', 'tasks', 'active_tasks', 'connection')
@@ -107,13 +110,17 @@ class FleetClient:
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
         self._session_sec = SESSION_EXPIRY_SEC if client_id else 0
-        self._mqtt = new_client(
+        client = new_client(
             client_id or f'fleet_{uuid.uuid4().hex[:12]}',
             self.broker,
             RECONNECT_MAX_SEC,
             1000,
             manual_ack=hold_results,
+            client_class=BufferedClient,
         )
+        assert isinstance(client, BufferedClient)
+        self._mqtt = client
+        self._loop = ClientLoop(self._mqtt, RECONNECT_MIN_SEC, RECONNECT_MAX_SEC)
         self._hold_results = hold_results
         self._receiver = FleetReceiver(
             prefix,
@@ -127,6 +134,7 @@ class FleetClient:
         self._mqtt.on_connect = self._on_connect
         self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
         self._mqtt.on_message = self._on_message
+        self._mqtt.on_received = self._on_received
         self._mqtt.on_publish = self._on_publish
 
     def __enter__(self) -> 'FleetClient':
@@ -138,14 +146,22 @@ class FleetClient:
 
     def connect(self, timeout_sec: float = TIMEOUT_SEC) -> None:
         """Connect and subscribe (reconnecting by itself afterwards); FleetError if not in time."""
-        connect(self._mqtt, self.broker, KEEPALIVE_SEC, self._session_sec, self._receive_maximum)
+        connect(
+            self._mqtt,
+            self.broker,
+            KEEPALIVE_SEC,
+            self._session_sec,
+            self._receive_maximum,
+            start_loop=False,
+        )
+        self._loop.start()
         if not self._subscribed.wait(timeout_sec):
             self.close()
             raise FleetError(f'no connection to the broker at {self.broker.url} in {timeout_sec} s')
 
     def close(self) -> None:
-        self._mqtt.disconnect()
-        self._mqtt.loop_stop()
+        """Disconnect (the broker keeps the session of a client id given)."""
+        self._loop.stop(CLOSE_TIMEOUT_SEC)
 
     # ---- requests -----------------------------------------------------------------------------
 
@@ -466,15 +482,27 @@ class FleetClient:
             reply.set_exception(FleetError(message, 'refused_by_broker'))
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
-        """The callbacks' boundary: an exception here would end paho's network thread."""
+        """A message paho read itself (see BufferedClient); one whose topic is not UTF-8 (no
+        broker should pass it on) is ignored."""
+        try:
+            topic = message.topic
+        except UnicodeDecodeError:
+            LOG.error('a message on a topic that is not UTF-8 was ignored')
+            if self._hold_results:
+                self._mqtt.ack(message.mid, message.qos)
+            return
+        self._on_received(topic, bytes(message.payload), message.mid, message.qos)
+
+    def _on_received(self, topic: str, payload: bytes, mid: int, qos: int) -> None:
+        """The callbacks' boundary: an exception here would end the MQTT thread's round."""
         held = False
         try:
-            held = self._dispatch(message.topic, bytes(message.payload), message.mid, message.qos)
+            held = self._dispatch(topic, payload, mid, qos)
         except Exception as error:  # a robot's bad document, or a user's callback: logged
-            LOG.error('%s: %s: %s', message.topic, type(error).__name__, error)
+            LOG.error('%s: %s: %s', topic, type(error).__name__, error)
         finally:
             if self._hold_results and not held:
-                self._mqtt.ack(message.mid, message.qos)
+                self._mqtt.ack(mid, qos)
 
     def _dispatch(self, topic: str, payload: bytes, mid: int = 0, qos: int = 0) -> bool:
         """Pass the message on; whether a held result's acknowledgement was handed over."""

@@ -9,7 +9,6 @@ is kept as `{"omitted_bytes": N}`, larger decisions as one `omitted` entry.
 
 import json
 import math
-import re
 from datetime import UTC, datetime
 from typing import Any
 
@@ -19,7 +18,7 @@ from task_manager.core.bounds import (
     TEXT_MAX_CHARACTERS,
     cut_text,
 )
-from task_manager.core.request_text import BIDI_CONTROLS, text_problem
+from task_manager.core.request_text import REFUSED, text_problem
 from task_manager_console.store.schema import ERROR_CODE_MAX_CHARACTERS, STATUS_MAX_CHARACTERS
 
 Document = dict[str, Any]
@@ -38,9 +37,6 @@ STAMPS = ('received', 'started', 'ended')
 DETAILS = ('error_message', 'duration_sec', 'paused_sec', 'priority', 'attempt', 'decisions')
 """What a row keeps of the rest of a Task document (not `feedback`: the task has ended)."""
 SEQUENCE_MAX = 2**63 - 1
-REFUSED = re.compile(f'[\x00-\x1f\x7f-\x9f{"".join(BIDI_CONTROLS)}]')
-"""What text_problem refuses (Unicode's Cc and the bidirectional controls), found in one C
-pass: most texts have none, and the character by character check is the slower part of a row."""
 
 
 class BadResultError(ValueError):

@@ -1,2 +1,3 @@
 """Parts of the FleetClient (`task_manager_mqtt.fleet_client`): `receiving.py`, what robots send,
-read and handed on."""
+read and handed on; `transport.py`, paho's client on a socket that reads ahead and writes in
+one go."""
