@@ -1,7 +1,7 @@
 // The gateway's API: the token (taken from the address once, then kept for the session),
 // requests with it, their errors, and what the token's holder may do.
 
-import { $ } from './dom.js';
+import { $, element } from './dom.js';
 
 const TOKEN_KEY = 'task_manager_token';
 let token = '';
@@ -51,11 +51,19 @@ export function askForToken() {
   $('#token-form').hidden = false;
 }
 
-// The token taken from the address, else asked for with the token form, whose token is kept
-// for the session and the page loaded again with it.
+// The token taken from the address, else asked for with the token form (built here, naming
+// the program its data-program says prints the token), whose token is kept for the session
+// and the page loaded again with it.
 export function wireToken() {
+  const form = $('#token-form');
+  form.replaceChildren(
+    element('label', { text: 'Token ' },
+      element('input', { id: 'token-input', type: 'password', autocomplete: 'current-password', required: '' })),
+    element('button', { type: 'submit', text: 'Use' }),
+    element('span', { class: 'hint' }, 'printed by ', element('code', { text: form.dataset.program }),
+      ' at start (the ', element('code', { text: '?token=' }), ' of its dashboard line)'));
   if (!takeToken()) askForToken();
-  $('#token-form').addEventListener('submit', (event) => {
+  form.addEventListener('submit', (event) => {
     event.preventDefault();
     sessionStorage.setItem(TOKEN_KEY, $('#token-input').value.trim());
     window.location.reload();
