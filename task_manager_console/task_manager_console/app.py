@@ -36,6 +36,7 @@ from task_manager_web.errors import ApiError
 from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
 from task_manager_web.request_metrics import METRICS_ROUTE, metrics_response
 
+from task_manager.protocol.errors import RefusalCode
 from task_manager_console.console_metrics import ConsoleMetrics
 from task_manager_console.fleet import Fleet
 from task_manager_console.fleet_link import FleetLink, Link
@@ -121,7 +122,7 @@ def _add_routes(app: FastAPI) -> None:
     async def page() -> FileResponse:
         index = STATIC / 'index.html'
         if not index.is_file():
-            raise ApiError(404, 'not_found', 'this console has no page')
+            raise ApiError(404, RefusalCode.NOT_FOUND, 'this console has no page')
         return FileResponse(str(index))
 
     @app.get('/api/health', tags=['state'])

@@ -28,7 +28,7 @@ from task_manager_web.errors import ApiError
 from task_manager_web.event_stream import STREAM_QUEUE_MAX, EventStream
 
 from task_manager.core.json_text import compact_json
-from task_manager.protocol.errors import describe
+from task_manager.protocol.errors import RefusalCode, describe
 from task_manager_console.fleet import Change, Fleet
 from task_manager_console.robots import RobotState, robot_id_problem
 from task_manager_console.store.fleet_history import DatabaseUnavailable
@@ -37,16 +37,16 @@ T = TypeVar('T')
 M = TypeVar('M', bound=BaseModel)
 # key: an error code of a FleetError (the console's, the broker's or a robot's reply), value:
 # the HTTP status it is answered with; any other code: 502 (the robot refused it)
-STATUS_OF_CODE = {
-    'invalid_request': 422,
-    'payload_too_large': 413,
-    'unknown_robot': 404,
-    'unknown_task_id': 404,
-    'unknown_schedule_id': 404,
-    'robot_offline': 409,
-    'not_waiting': 409,
-    'task_manager_unavailable': 503,
-    'timeout': 504,
+STATUS_OF_CODE: dict[str, int] = {
+    RefusalCode.INVALID_REQUEST: 422,
+    RefusalCode.PAYLOAD_TOO_LARGE: 413,
+    RefusalCode.UNKNOWN_ROBOT: 404,
+    RefusalCode.UNKNOWN_TASK_ID: 404,
+    RefusalCode.UNKNOWN_SCHEDULE_ID: 404,
+    RefusalCode.ROBOT_OFFLINE: 409,
+    RefusalCode.NOT_WAITING: 409,
+    RefusalCode.TASK_MANAGER_UNAVAILABLE: 503,
+    RefusalCode.TIMEOUT: 504,
 }
 ROBOT_ERROR_STATUS = 502
 ROBOT_EVENT = 'robot'
@@ -55,7 +55,7 @@ RESULT_EVENT = 'result'
 
 def api_error(error: FleetError) -> ApiError:
     """The HTTP answer of a FleetError: its code and message, the status of STATUS_OF_CODE."""
-    code = error.code or 'robot_error'
+    code = error.code or RefusalCode.ROBOT_ERROR
     return ApiError(STATUS_OF_CODE.get(code, ROBOT_ERROR_STATUS), code, str(error))
 
 
@@ -67,14 +67,14 @@ def checked_answer(model: type[M], document: Any, robot_id: str) -> M:
     except ValidationError as error:
         message, _ = describe(error.errors())
         message = f'the reply of {robot_id} does not fit: {message}'
-        raise ApiError(502, 'bad_reply', message) from None
+        raise ApiError(502, RefusalCode.BAD_REPLY, message) from None
 
 
 def checked_robot_id(robot_id: str) -> str:
     """`robot_id` of a request's path; 422 naming it when it can name no robot (control
     characters, too long, a topic level or wildcard)."""
     if problem := robot_id_problem(robot_id):
-        raise ApiError(422, 'invalid_request', problem, 'robot_id')
+        raise ApiError(422, RefusalCode.INVALID_REQUEST, problem, 'robot_id')
     return robot_id
 
 
@@ -102,7 +102,7 @@ class FleetLink(DoorLink):
         robot = self.fleet.robot(checked_robot_id(robot_id))
         if robot is None:
             message = f'no robot {robot_id!r} is known on the broker'
-            raise ApiError(404, 'unknown_robot', message, 'robot_id')
+            raise ApiError(404, RefusalCode.UNKNOWN_ROBOT, message, 'robot_id')
         return robot
 
     async def read(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
@@ -110,7 +110,7 @@ class FleetLink(DoorLink):
         try:
             return await self._in(self._reads, partial(function, *args, **kwargs))
         except DatabaseUnavailable as error:
-            raise ApiError(503, 'database_unavailable', str(error)) from None
+            raise ApiError(503, RefusalCode.DATABASE_UNAVAILABLE, str(error)) from None
 
     async def start(self, function: Callable[..., T], *args: Any, **kwargs: Any) -> T:
         """A start on a robot (its reply awaited), in a start thread."""

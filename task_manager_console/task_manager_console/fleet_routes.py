@@ -26,6 +26,7 @@ from task_manager.core.bounds import FLEET_HISTORY_ROWS_DEFAULT, FLEET_HISTORY_R
 from task_manager.core.json_text import compact_json
 from task_manager.core.names import STOP
 from task_manager.core.request_text import text_problem
+from task_manager.protocol.errors import RefusalCode
 from task_manager_console.choosing import Choice, choose_robot
 from task_manager_console.documents import FleetStart, FleetStarted, RobotAnswer, StopAll, started
 from task_manager_console.fleet_link import FleetLink, Link, checked_answer
@@ -40,7 +41,7 @@ PAGE = PageFormat(
 )
 OTHERS_SHOWN = 10
 """Candidates named in the refusal of a start no robot can take (the rest are counted)."""
-GONE = ('robot_offline', 'unknown_robot')
+GONE = (RefusalCode.ROBOT_OFFLINE, RefusalCode.UNKNOWN_ROBOT)
 """Error codes of a start on a robot that went away since it was chosen: another is chosen."""
 
 
@@ -72,7 +73,7 @@ def add_fleet_routes(app: FastAPI) -> None:
         check_need(caller, lambda: needed_to_start(body.task_name, body.task_data))
         for index, robot_id in enumerate(body.robots or []):
             if problem := robot_id_problem(robot_id):
-                raise ApiError(422, 'invalid_request', problem, f'robots.{index}')
+                raise ApiError(422, RefusalCode.INVALID_REQUEST, problem, f'robots.{index}')
         gone: dict[str, str] = {}  # key: a robot chosen that went away, value: why
         while True:
             choice = _choice(link, body, gone)
@@ -126,7 +127,7 @@ def add_fleet_routes(app: FastAPI) -> None:
         `database_unavailable` while the database cannot be reached."""
         for field in FILTER_TEXTS:
             if problem := text_problem(field, getattr(query, field)):
-                raise ApiError(422, 'invalid_request', problem, field)
+                raise ApiError(422, RefusalCode.INVALID_REQUEST, problem, field)
         where = HistoryFilter(**query.model_dump(exclude={'format'}))
         results = await link.read(link.fleet.history.query, where)
         return history_page(
@@ -162,16 +163,16 @@ def _no_robot(link: FleetLink, body: FleetStart, choice: Choice) -> ApiError:
         why = choice.others.get(robot_id, '')
         if robot is None:
             message = f'no robot {robot_id!r} is known on the broker'
-            return ApiError(404, 'unknown_robot', message, 'robots.0')
+            return ApiError(404, RefusalCode.UNKNOWN_ROBOT, message, 'robots.0')
         if not robot.online:
             since = f' since {robot.since.isoformat()}' if robot.since else ''
             message = f'robot {robot_id} is {why}{since}'
-            return ApiError(409, 'robot_offline', message, 'robots.0')
+            return ApiError(409, RefusalCode.ROBOT_OFFLINE, message, 'robots.0')
     whys = [f'{robot_id}: {why}' for robot_id, why in sorted(choice.others.items())]
     if len(whys) > OTHERS_SHOWN:
         whys = [*whys[:OTHERS_SHOWN], f'and {len(whys) - OTHERS_SHOWN} more']
     message = choice.reason + (f' ({"; ".join(whys)})' if whys else ': no robot on the broker')
-    return ApiError(409, 'no_robot', message, 'robots' if body.robots else 'task_name')
+    return ApiError(409, RefusalCode.NO_ROBOT, message, 'robots' if body.robots else 'task_name')
 
 
 def _answer(robot_id: str, answer: dict[str, Any]) -> RobotAnswer:
@@ -181,5 +182,5 @@ def _answer(robot_id: str, answer: dict[str, Any]) -> RobotAnswer:
     try:
         return RobotAnswer.model_validate({'robot_id': robot_id, **fields})
     except ValidationError:
-        error = {'code': 'bad_reply', 'message': f'the reply of {robot_id} does not fit'}
+        error = {'code': RefusalCode.BAD_REPLY, 'message': f'the reply of {robot_id} does not fit'}
         return RobotAnswer(robot_id=robot_id, ok=False, error=error)  # type: ignore[arg-type]

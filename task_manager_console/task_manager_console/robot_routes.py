@@ -30,6 +30,7 @@ from task_manager.core.json_text import compact_json
 from task_manager.core.names import CANCEL_TASK, MISSION, PAUSE, REPRIORITIZE, RESUME, STOP
 from task_manager.core.request_text import text_problem
 from task_manager.protocol import models
+from task_manager.protocol.errors import RefusalCode
 from task_manager_console.documents import RobotStarted, started
 from task_manager_console.fleet_link import FleetLink, Link, checked_answer
 from task_manager_console.robots import RobotState
@@ -167,7 +168,7 @@ def add_robot_routes(app: FastAPI) -> None:
         `not_waiting`."""
         link.robot(robot_id)
         if problem := text_problem('task_id', task_id):
-            raise ApiError(422, 'invalid_request', problem, 'task_id')
+            raise ApiError(422, RefusalCode.INVALID_REQUEST, problem, 'task_id')
         confirmed = await link.control(
             link.fleet.client.confirm,
             robot_id,

@@ -30,7 +30,8 @@ from paho.mqtt.subscribeoptions import SubscribeOptions
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.json_text import compact_json
-from task_manager.gateway_json import declared_json, event_json, iso, task_json
+from task_manager.gateway.documents import declared_json, event_json, iso, task_json
+from task_manager.protocol.errors import RefusalCode
 from task_manager_mqtt.connection import (
     RECONNECT_MIN_SEC,
     connect,
@@ -316,7 +317,7 @@ class Bridge:
             LOG.error('a request message failed: %s: %s', type(error).__name__, error)
         finally:
             if not answered:
-                detail = refusal('internal_error', 'the bridge failed to answer it')
+                detail = refusal(RefusalCode.INTERNAL_ERROR, 'the bridge failed to answer it')
                 with contextlib.suppress(Exception):
                     self._dead_letter(payload, retained, detail)
             self.mqtt.ack(message_id, qos)

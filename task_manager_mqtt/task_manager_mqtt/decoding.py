@@ -8,8 +8,6 @@ reply when the message has a usable `request_id` to address it to, and is otherw
 letter: the request_id is read from the parsed document, or, of a message too large, too
 deep or broken to parse, by a scan of its top level (linear too). Nothing here raises,
 whatever the payload, and nothing here reaches a Task Manager.
-
-`load_json` is the same depth guard for the documents the FleetClient receives from robots.
 """
 
 import json
@@ -20,8 +18,8 @@ from typing import Any
 from pydantic import ValidationError
 
 from task_manager.protocol import models, mqtt
-from task_manager.protocol.errors import describe
-from task_manager.protocol.strict_json import MAX_DEPTH, RefusedJsonError, deeper_than, load
+from task_manager.protocol.errors import RefusalCode, describe
+from task_manager.protocol.strict_json import MAX_DEPTH, RefusedJsonError, load
 
 OPS = (
     'start_task', 'start_mission', 'cancel', 'stop', 'history', 'reprioritize', 'why', 'pause',
@@ -80,7 +78,7 @@ def decode(payload: bytes, max_payload_bytes: int, retained: bool = False) -> De
         return _decode(payload, max_payload_bytes, retained)
     except Exception as error:  # a safety net: every message must still end in an answer
         message = f'the bridge could not read the request: {type(error).__name__}'
-        return Decoded(error=refusal('internal_error', message))
+        return Decoded(error=refusal(RefusalCode.INTERNAL_ERROR, message))
 
 
 def _decode(payload: bytes, max_payload_bytes: int, retained: bool) -> Decoded:
@@ -89,7 +87,9 @@ def _decode(payload: bytes, max_payload_bytes: int, retained: bool) -> Decoded:
     except RefusedJsonError as refused:
         return _refused(payload[:max_payload_bytes], refused.code, refused.message)
     if not isinstance(document, dict):
-        return Decoded(error=refusal('invalid_request', 'the message must be a JSON object'))
+        return Decoded(
+            error=refusal(RefusalCode.INVALID_REQUEST, 'the message must be a JSON object')
+        )
     op = document.get('op')
     op = op if op in OPS else ''
     request_id = _usable_id(document.get('request_id'))
@@ -100,7 +100,7 @@ def _decode(payload: bytes, max_payload_bytes: int, retained: bool) -> Decoded:
             'retained requests are refused (one would run again at every reconnection); '
             'publish requests without the retain flag'
         )
-        return Decoded(request_id, op, error=refusal('retained_request', message))
+        return Decoded(request_id, op, error=refusal(RefusalCode.RETAINED_REQUEST, message))
     try:
         request = mqtt.RobotRequest.model_validate(document).root
     except ValidationError as error:
@@ -118,7 +118,7 @@ def _invalid(error: ValidationError) -> dict[str, str]:
     if error.errors()[0].get('type') == 'union_tag_invalid':
         message = f'unknown op; allowed: {", ".join(OPS)}'
         field = 'op'
-    return refusal('invalid_request', message, field)
+    return refusal(RefusalCode.INVALID_REQUEST, message, field)
 
 
 def _usable_id(value: Any) -> str:
@@ -127,12 +127,12 @@ def _usable_id(value: Any) -> str:
 
 def _id_problem(document: dict[str, Any]) -> dict[str, str]:
     if 'request_id' not in document:
-        return refusal('invalid_request', 'request_id: required (replies are addressed by it)',
-                       'request_id')  # fmt: skip
+        message = 'request_id: required (replies are addressed by it)'
+        return refusal(RefusalCode.INVALID_REQUEST, message, 'request_id')
     value = document['request_id']
     given = f'{len(value)} characters' if isinstance(value, str) else type(value).__name__
     message = f'request_id: a string of 1 to {models.NAME_MAX} characters, got {given}'
-    return refusal('invalid_request', message, 'request_id')
+    return refusal(RefusalCode.INVALID_REQUEST, message, 'request_id')
 
 
 def top_level_request_id(payload: bytes) -> str:
@@ -149,10 +149,3 @@ def _id_of_token(token: bytes) -> str:
         return _usable_id(json.loads(token))
     except ValueError:
         return ''
-
-
-def load_json(payload: bytes, max_depth: int = MAX_DEPTH) -> Any:
-    """A JSON document of at most `max_depth` levels; ValueError for anything else."""
-    if deeper_than(payload, max_depth):
-        raise ValueError(f'nested deeper than {max_depth} levels')
-    return json.loads(payload)

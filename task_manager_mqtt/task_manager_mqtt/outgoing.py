@@ -23,6 +23,7 @@ from typing import Any
 
 from task_manager.core.bounds import REASON_MAX_CHARACTERS, cut_text
 from task_manager.core.json_text import compact_json
+from task_manager.protocol.errors import RefusalCode
 
 LOG = logging.getLogger('task_manager_mqtt')
 BULKY = ('result', 'feedback')
@@ -171,7 +172,7 @@ def _too_large(reply: Document, size: int, max_bytes: int) -> bytes:
             f'the reply would be {size} bytes; at most {max_bytes} fit in a message: ask for less'
         )
         field = ''
-    error = {'code': 'reply_too_large', 'message': message, 'field': field}
+    error = {'code': RefusalCode.REPLY_TOO_LARGE, 'message': message, 'field': field}
     fields = ('request_id', 'op')
     return compact_json({**{k: reply[k] for k in fields if k in reply}, 'ok': False,
                          'error': error}).encode()  # fmt: skip

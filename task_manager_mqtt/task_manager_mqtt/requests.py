@@ -11,8 +11,8 @@ task, with `duplicate: true`; `why` of a task it does not know is `unknown_task_
 the answer of a confirm, have the bridge's source followed by the name the request's `source`
 gives (`CLOUD:alice`); one that claims another door's source (`WEB:boss`) is
 `invalid_request`. Pause, resume, the schedules and confirm go through the same calls as the
-web gateway's routes
-(`gateway_requests`). Whatever happens, `answer` returns one Answer.
+web gateway's routes (`task_manager.gateway.requests`). Whatever happens, `answer` returns
+one Answer.
 """
 
 import contextlib
@@ -21,12 +21,12 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
-from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient, TaskState
 from task_manager.core.confirmation import AnswerRefusal
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.status import TaskStatus
-from task_manager.gateway_json import (
+from task_manager.gateway import requests as gateway_requests
+from task_manager.gateway.documents import (
     confirmed_json,
     decisions_json,
     paused_json,
@@ -37,6 +37,7 @@ from task_manager.gateway_json import (
     task_json,
 )
 from task_manager.protocol import mqtt
+from task_manager.protocol.errors import RefusalCode
 from task_manager_mqtt.decoding import Decoded, decode, refusal
 
 LOG = logging.getLogger('task_manager_mqtt')
@@ -97,7 +98,7 @@ class RequestHandler:
             LOG.error('the reply to %r failed: %s: %s', decoded.request_id, type(error).__name__,
                       error)  # fmt: skip
             message = f'the bridge failed: {type(error).__name__}'
-            detail = refusal('internal_error', message)
+            detail = refusal(RefusalCode.INTERNAL_ERROR, message)
             return Answer(reply=_error_reply(decoded, detail))
 
     def _reply(self, decoded: Decoded) -> dict[str, Any]:
@@ -109,13 +110,13 @@ class RequestHandler:
         try:
             return {'request_id': request_id, 'ok': True, 'op': op, **self._run(decoded.request)}
         except TaskManagerUnavailable as error:
-            return _error_reply(decoded, refusal('task_manager_unavailable', str(error)))
+            return _error_reply(decoded, refusal(RefusalCode.TASK_MANAGER_UNAVAILABLE, str(error)))
         except Refusal as refused:
             return _error_reply(decoded, refused.detail)
         except Exception as error:  # one line, a reply; the bridge goes on
             LOG.error('request %r (%s) failed: %s: %s', request_id, op, type(error).__name__, error)
             message = f'the bridge failed: {type(error).__name__}'
-            return _error_reply(decoded, refusal('internal_error', message))
+            return _error_reply(decoded, refusal(RefusalCode.INTERNAL_ERROR, message))
 
     def _run(self, request: Any) -> dict[str, Any]:
         self._wait_for_node_once()
@@ -146,7 +147,7 @@ class RequestHandler:
                 decisions = gateway_requests.why(self.client, request.task_id)
                 if decisions is None:
                     message = f'the Task Manager knows no task {request.task_id!r}'
-                    raise Refusal('unknown_task_id', message, 'task_id')
+                    raise Refusal(RefusalCode.UNKNOWN_TASK_ID, message, 'task_id')
                 return {'decisions': decisions_json(decisions)}
         raise AssertionError(f'unhandled request {request!r}')
 
@@ -185,10 +186,10 @@ class RequestHandler:
         if answer.taken:
             return {'confirmed': confirmed_json(answer, request, source)}
         if answer.error_code == AnswerRefusal.NOT_FOUND:
-            raise Refusal('unknown_task_id', answer.message, 'task_id')
+            raise Refusal(RefusalCode.UNKNOWN_TASK_ID, answer.message, 'task_id')
         if answer.error_code == AnswerRefusal.NOT_WAITING:
-            raise Refusal('not_waiting', answer.message, 'task_id')
-        raise Refusal(answer.error_code or 'invalid_request', answer.message)
+            raise Refusal(RefusalCode.NOT_WAITING, answer.message, 'task_id')
+        raise Refusal(answer.error_code or RefusalCode.INVALID_REQUEST, answer.message)
 
     def _enable_schedules(self, request: mqtt.EnableSchedulesRequest) -> dict[str, Any]:
         try:
@@ -240,7 +241,7 @@ class RequestHandler:
         try:
             return gateway_requests.claimed_source(self.source, request.source)
         except ValueError as error:
-            raise Refusal('invalid_request', str(error), 'source') from None
+            raise Refusal(RefusalCode.INVALID_REQUEST, str(error), 'source') from None
 
     def _known(self, task_id: str) -> dict[str, Any] | None:
         """The reply to a start of a task id the Task Manager knows (active or ended)."""
@@ -274,7 +275,7 @@ def _started(handle: TaskHandle) -> dict[str, Any]:
 
 def _unknown_schedule(schedule_id: str, field: str) -> Refusal:
     message = f'the Task Manager has no schedule {schedule_id!r}'
-    return Refusal('unknown_schedule_id', message, field)
+    return Refusal(RefusalCode.UNKNOWN_SCHEDULE_ID, message, field)
 
 
 def _error_reply(decoded: Decoded, detail: dict[str, str]) -> dict[str, Any]:

@@ -13,7 +13,7 @@ from urllib.parse import unquote, urlsplit
 
 import yaml
 
-from task_manager.secret_file import exposure_warning
+from task_manager.gateway.secret_file import exposure_warning
 
 DEFAULT_PREFIX = 'task_manager/v1'
 DEFAULT_PORTS = {'mqtt': 1883, 'mqtts': 8883}

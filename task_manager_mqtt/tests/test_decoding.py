@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from task_manager.protocol import models, mqtt
 from task_manager.protocol.strict_json import MAX_DEPTH
-from task_manager_mqtt.decoding import OPS, decode, load_json, top_level_request_id
+from task_manager_mqtt.decoding import OPS, decode, top_level_request_id
 from task_manager_mqtt.requests import RequestHandler
 
 MAX_BYTES = 4096
@@ -91,17 +91,6 @@ def test_any_message_gets_one_reply_or_one_dead_letter(payload: bytes, retained:
 
 
 @settings(max_examples=EXAMPLES // 2, deadline=None)
-@given(value=json_values)
-def test_the_fleet_client_reads_any_json_within_the_depth(value: Any) -> None:
-    text = json.dumps(value).encode()
-    if depth_of(value) > MAX_DEPTH:
-        with pytest.raises(ValueError, match='nested deeper than 32 levels'):
-            load_json(text)
-    else:
-        assert json.dumps(load_json(text)) == text.decode()  # (NaN is not equal to itself)
-
-
-@settings(max_examples=EXAMPLES // 2, deadline=None)
 @given(document=request_like, junk=st.binary(max_size=50))
 def test_the_scan_finds_the_request_id_the_parser_finds(
     document: dict[str, Any], junk: bytes
@@ -114,20 +103,6 @@ def test_the_scan_finds_the_request_id_the_parser_finds(
     if 'request_id' in document:  # the rest broken (too large, too deep, cut): still found
         start = json.dumps({'request_id': request_id}).encode()[:-1]
         assert top_level_request_id(start + b', ' + junk) == expected
-
-
-def depth_of(value: Any) -> int:
-    """Nesting levels of a parsed document, without recursion."""
-    deepest, stack = 0, [(value, 0)]
-    while stack:
-        item, depth = stack.pop()
-        if isinstance(item, dict | list):
-            depth += 1
-            deepest = max(deepest, depth)
-            stack.extend(
-                (child, depth) for child in (item.values() if isinstance(item, dict) else item)
-            )
-    return deepest
 
 
 def test_a_request_nested_5000_deep_is_refused_by_its_id() -> None:

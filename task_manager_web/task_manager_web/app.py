@@ -19,12 +19,13 @@ from fastapi import FastAPI, Query, Request, Response
 from fastapi.responses import FileResponse, StreamingResponse
 from fastapi.staticfiles import StaticFiles
 
-from task_manager import gateway_requests
 from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.names import CANCEL_TASK, MISSION, REPRIORITIZE, STOP
 from task_manager.core.request_text import text_problem
-from task_manager.gateway_json import decisions_json, declared_json, result_json, task_json
+from task_manager.gateway import requests as gateway_requests
+from task_manager.gateway.documents import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models
+from task_manager.protocol.errors import RefusalCode
 from task_manager_web.door_link import EVENT_STREAM_ROUTE
 from task_manager_web.doors.access import (
     Access,
@@ -244,7 +245,9 @@ def _add_routes(app: FastAPI) -> None:
         refused = text_problem('task_id', task_id) is not None
         decisions = None if refused else await link.read(gateway_requests.why, link.client, task_id)
         if decisions is None:
-            raise ApiError(404, 'unknown_task_id', f'the Task Manager knows no task {task_id!r}')
+            raise ApiError(
+                404, RefusalCode.UNKNOWN_TASK_ID, f'the Task Manager knows no task {task_id!r}'
+            )
         return [models.Decision.model_validate(d) for d in decisions_json(decisions)]
 
     @app.get('/api/tasks/{task_id:path}', tags=['state'])
@@ -254,7 +257,9 @@ def _add_routes(app: FastAPI) -> None:
         refused = text_problem('task_id', task_id) is not None
         states = [] if refused else await link.read(link.client.task_states, [task_id])
         if not states:
-            raise ApiError(404, 'unknown_task_id', f'the Task Manager knows no task {task_id!r}')
+            raise ApiError(
+                404, RefusalCode.UNKNOWN_TASK_ID, f'the Task Manager knows no task {task_id!r}'
+            )
         return models.Task.model_validate(task_json(states[0]))
 
     @app.get(

@@ -12,15 +12,15 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException
 
 from task_manager.core.errors import TaskManagerUnavailable
-from task_manager.protocol.errors import describe
+from task_manager.protocol.errors import RefusalCode, describe
 
 LOG = logging.getLogger('task_manager_web')
 # key: HTTP status of Starlette's own errors, value: our code for it
 _HTTP_CODES = {
-    401: 'unauthorized',
-    404: 'not_found',
-    405: 'method_not_allowed',
-    413: 'body_too_large',
+    401: RefusalCode.UNAUTHORIZED,
+    404: RefusalCode.NOT_FOUND,
+    405: RefusalCode.METHOD_NOT_ALLOWED,
+    413: RefusalCode.BODY_TOO_LARGE,
 }
 # the parts of a request's error locations that name no field
 REQUEST_PARTS = ('body', 'query', 'path')
@@ -63,7 +63,7 @@ async def _on_validation_error(_: Request, error: Exception) -> JSONResponse:
             'source: set by the gateway (the tasks started here are its own, WEB by default), '
             'not by the request: leave it out'
         )
-    return error_response(422, 'invalid_request', message, field)
+    return error_response(422, RefusalCode.INVALID_REQUEST, message, field)
 
 
 async def _on_api_error(_: Request, error: Exception) -> JSONResponse:
@@ -72,7 +72,7 @@ async def _on_api_error(_: Request, error: Exception) -> JSONResponse:
 
 
 async def _on_unavailable(_: Request, error: Exception) -> JSONResponse:
-    return error_response(503, 'task_manager_unavailable', str(error))
+    return error_response(503, RefusalCode.TASK_MANAGER_UNAVAILABLE, str(error))
 
 
 async def _on_http_error(_: Request, error: Exception) -> JSONResponse:
@@ -83,7 +83,9 @@ async def _on_http_error(_: Request, error: Exception) -> JSONResponse:
 
 async def _on_unexpected(request: Request, error: Exception) -> JSONResponse:
     LOG.error('%s %s failed: %s: %s', request.method, request.url.path, type(error).__name__, error)
-    return error_response(500, 'internal_error', f'the gateway failed: {type(error).__name__}')
+    return error_response(
+        500, RefusalCode.INTERNAL_ERROR, f'the gateway failed: {type(error).__name__}'
+    )
 
 
 def add_error_handlers(app: FastAPI) -> None:

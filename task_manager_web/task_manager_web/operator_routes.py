@@ -7,12 +7,12 @@ from typing import Annotated
 
 from fastapi import FastAPI
 
-from task_manager import gateway_requests
 from task_manager.client import ConfirmAnswer
 from task_manager.core.confirmation import AnswerRefusal, not_found_reason
 from task_manager.core.names import ENABLE_SCHEDULE, PAUSE, RESUME, SCHEDULE, UNSCHEDULE
 from task_manager.core.request_text import text_problem
-from task_manager.gateway_json import (
+from task_manager.gateway import requests as gateway_requests
+from task_manager.gateway.documents import (
     confirmed_json,
     paused_json,
     result_json,
@@ -21,6 +21,7 @@ from task_manager.gateway_json import (
     scheduled_json,
 )
 from task_manager.protocol import models
+from task_manager.protocol.errors import RefusalCode
 from task_manager_web.doors.access import Caller, Operator, Viewer, check_need, runs
 from task_manager_web.doors.task_roles import (
     Need,
@@ -141,17 +142,19 @@ def _check_schedule_id(schedule_id: str) -> None:
 
 
 def _no_task(task_id: str) -> ApiError:
-    return ApiError(404, 'unknown_task_id', not_found_reason(task_id))
+    return ApiError(404, RefusalCode.UNKNOWN_TASK_ID, not_found_reason(task_id))
 
 
 def _not_taken(answer: ConfirmAnswer) -> ApiError:
     """The HTTP error of an answer the Task Manager did not take."""
     if answer.error_code == AnswerRefusal.NOT_FOUND:
-        return ApiError(404, 'unknown_task_id', answer.message)
+        return ApiError(404, RefusalCode.UNKNOWN_TASK_ID, answer.message)
     if answer.error_code == AnswerRefusal.NOT_WAITING:
-        return ApiError(409, 'not_waiting', answer.message)
-    return ApiError(422, answer.error_code or 'invalid_request', answer.message)
+        return ApiError(409, RefusalCode.NOT_WAITING, answer.message)
+    return ApiError(422, answer.error_code or RefusalCode.INVALID_REQUEST, answer.message)
 
 
 def _unknown(schedule_id: str) -> ApiError:
-    return ApiError(404, 'unknown_schedule_id', f'the Task Manager has no schedule {schedule_id!r}')
+    return ApiError(
+        404, RefusalCode.UNKNOWN_SCHEDULE_ID, f'the Task Manager has no schedule {schedule_id!r}'
+    )

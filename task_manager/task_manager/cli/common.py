@@ -14,8 +14,8 @@ from rich.console import Console
 
 from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, TaskStatus
 from task_manager.client.records import Decision
-from task_manager.client.tasks import PRIORITY_MAX, PRIORITY_MIN
 from task_manager.core.admission.options import OnConflict
+from task_manager.core.bounds import PRIORITY
 
 EXIT_DONE = 0
 EXIT_ERROR = 1
@@ -44,8 +44,8 @@ def source_option() -> Any:
 
 def check_priority(value: int | None) -> int | None:
     """A priority option or argument: an int32."""
-    if value is not None and not PRIORITY_MIN <= value <= PRIORITY_MAX:
-        raise typer.BadParameter(f'must be from {PRIORITY_MIN} to {PRIORITY_MAX}, got {value}')
+    if value is not None and PRIORITY.problem('priority', value):
+        raise typer.BadParameter(f'must be from {PRIORITY.low} to {PRIORITY.high}, got {value}')
     return value
 
 

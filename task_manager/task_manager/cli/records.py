@@ -11,8 +11,8 @@ from typing import Any
 
 from task_manager import ActiveTaskInfo, Pause, TaskResult, TaskState
 from task_manager.client import Decision
+from task_manager.client.records import paused_time
 from task_manager.core.names import CONFIRM
-from task_manager.pauses import paused_time
 
 # key: a property of a declared task in taskctl's JSON, value: its default
 DECLARED_FLAGS = {

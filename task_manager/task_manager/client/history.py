@@ -1,40 +1,56 @@
-"""What the Task Manager keeps of tasks: their current states, its recent results, and its
-durable history, read page by page, with the statistics made from it."""
+"""What the Task Manager keeps and declares: the current states of tasks, its recent results,
+its durable history (read page by page, with the statistics made from it) and the declared
+tasks (read from its parameters)."""
 
 from collections.abc import Sequence
 from datetime import UTC, datetime, timedelta
+from typing import Any
 
+from rcl_interfaces.srv import GetParameters, ListParameters
+from rclpy.parameter import parameter_value_to_python
 from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.client.records import Decision, TaskResult, TaskState
-from task_manager.client.services import CallService
+from task_manager.client.services import ClientParts
 from task_manager.core.errors import TaskManagerError
 from task_manager.core.history.stats import TaskStats, task_stats
 from task_manager.core.names import (
+    GET_PARAMETERS_SERVICE,
     GET_TASK_RESULTS_SERVICE,
     GET_TASK_STATES_SERVICE,
     HISTORY_QUERY_LIMIT_MAX,
+    LIST_PARAMETERS_SERVICE,
     QUERY_TASK_HISTORY_SERVICE,
 )
 from task_manager.core.status import TaskStatus
+from task_manager.core.system_tasks import SYSTEM_SPECS
 from task_manager.messages.task_messages import stamp
 
 FINAL_STATUSES = tuple(s.value for s in TaskStatus if s.is_final)
 
 
-class History:
-    """The Task Manager's query services, through `call`."""
+class HistoryQueries(ClientParts):
+    """TaskManagerClient's reads of what the Task Manager keeps, through its query services."""
 
-    def __init__(self, call: CallService) -> None:
-        self._call = call
+    def task_states(
+        self, task_ids: Sequence[str] = (), timeout_sec: float | None = None
+    ) -> list[TaskState]:
+        """The current state of these tasks (active or ended and kept), or of every active one.
 
-    def task_states(self, task_ids: Sequence[str], timeout_sec: float | None) -> list[TaskState]:
+        Ids the Task Manager does not know are left out.
+        """
         request = GetTaskStates.Request(task_ids=list(task_ids))
         response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
         return [TaskState.from_message(m) for m in response.tasks]
 
-    def why(self, task_id: str, timeout_sec: float | None) -> list[Decision]:
-        """See TaskManagerClient.why."""
+    def why(self, task_id: str, timeout_sec: float | None = None) -> list[Decision]:
+        """Every decision the Task Manager took about a task, oldest first: queued, started
+        (after a wait, or pre-empting), refused, pre-empted, timed out, retried,
+        reprioritized, each with its reason; empty when it was simply started.
+
+        From its state while it is active, else from the history; TaskManagerError when the
+        Task Manager knows no such task.
+        """
         states = self.task_states([task_id], timeout_sec)
         if not states:
             raise TaskManagerError(
@@ -42,7 +58,11 @@ class History:
             )
         return states[0].decisions
 
-    def recent_results(self, max_results: int) -> list[TaskResult]:
+    def recent_results(self, max_results: int = 0) -> list[TaskResult]:
+        """Results the Task Manager has kept (oldest first), including from before we started.
+
+        With their stamps, from /task_manager/get_task_states.
+        """
         request = GetTaskResults.Request(max_results=max_results)
         response = self._call(GetTaskResults, GET_TASK_RESULTS_SERVICE, request)
         results = [TaskResult.from_message(m) for m in response.results]
@@ -77,6 +97,13 @@ class History:
         oldest_first: bool = False,
         timeout_sec: float | None = None,
     ) -> list[TaskState]:
+        """Ended tasks from the Task Manager's durable history, newest first.
+
+        Empty filters do not filter. `since`: ended at or after this moment, or within this
+        long before now; `until`: ended at or before it. `after_sequence`: only tasks whose
+        `sequence` is greater; with `oldest_first` the tasks come by sequence, so that a
+        consumer can resume after the last one it saw. At most `limit` (1 to 10,000).
+        """
         if not 1 <= limit <= HISTORY_QUERY_LIMIT_MAX:
             raise ValueError(f'limit must be from 1 to {HISTORY_QUERY_LIMIT_MAX}, got {limit}')
         if status and status not in FINAL_STATUSES:
@@ -100,14 +127,20 @@ class History:
 
     def stats(
         self,
-        task_name: str,
+        task_name: str = '',
         *,
-        source: str,
-        mission_id: str,
-        since: datetime | timedelta,
-        until: datetime | None,
-        timeout_sec: float | None,
+        source: str = '',
+        mission_id: str = '',
+        since: datetime | timedelta = timedelta(days=1),
+        until: datetime | None = None,
+        timeout_sec: float | None = None,
     ) -> list[TaskStats]:
+        """Per task name: count, success rate, median and p95 duration of the tasks that ended
+        in the range (default: the last 24 h), computed here from the whole history range.
+
+        The history is read by sequence, 10,000 tasks per call (each call bounded by the
+        timeout).
+        """
         if isinstance(since, timedelta):
             since = datetime.now(UTC) - since  # one range for every page
         ended: list[TaskState] = []
@@ -126,3 +159,46 @@ class History:
             ended.extend(page)
             if len(page) < HISTORY_QUERY_LIMIT_MAX:
                 return task_stats(ended)
+
+    def declared_tasks(self) -> list[dict[str, Any]]:
+        """The declared tasks and their properties, read from the node's parameters, then the
+        system tasks.
+
+        Through the client's own two clients of the node's parameter services (made once): a
+        parameter client per call (rclpy's AsyncParameterClient makes six) was never
+        destroyed, and every process of the domain grew with each read.
+        """
+        listed = self._call(ListParameters, LIST_PARAMETERS_SERVICE, ListParameters.Request())
+        names = list(listed.result.names)
+        request = GetParameters.Request(names=names)
+        got = self._call(GetParameters, GET_PARAMETERS_SERVICE, request)
+        values = {n: parameter_value_to_python(v) for n, v in zip(names, got.values, strict=True)}
+        return [*_declared_in(values), *_system_tasks()]
+
+
+def _declared_in(values: dict[str, Any]) -> list[dict[str, Any]]:
+    return [
+        {
+            'key': key,
+            **{n[len(key) + 1 :]: v for n, v in values.items() if n.startswith(f'{key}.')},
+        }
+        for key in values.get('tasks') or []
+    ]
+
+
+def _system_tasks() -> list[dict[str, Any]]:
+    return [
+        {
+            'key': '',
+            'task_name': spec.task_name,
+            'msg_interface': str(spec.interface),
+            'topic': '',
+            'blocking': spec.blocking,
+            'cancel_on_stop': spec.cancel_on_stop,
+            'reentrant': spec.reentrant,
+            'cancel_reported_as_success': spec.cancel_reported_as_success,
+            'cancel_timeout': spec.cancel_timeout_sec,
+            'pause': spec.pause.value,
+        }
+        for spec in SYSTEM_SPECS
+    ]

@@ -8,31 +8,10 @@ from dataclasses import dataclass
 from task_manager_msgs.srv import ConfirmTask
 
 from task_manager.client.records import TaskResult
-from task_manager.client.services import CallService, RunTask
+from task_manager.client.services import ClientParts
 from task_manager.core.names import CONFIRM_TASK_SERVICE
 from task_manager.core.names import PAUSE as PAUSE_TASK
 from task_manager.core.names import RESUME as RESUME_TASK
-
-
-class Pauses:
-    """Pauses and resumes tasks by id, through `run_task`."""
-
-    def __init__(self, run_task: RunTask) -> None:
-        self._run_task = run_task
-
-    def pause(
-        self, task_ids: Sequence[str], *, source: str = 'python', timeout_sec: float | None = None
-    ) -> TaskResult:
-        """See TaskManagerClient.pause."""
-        data = {'task_ids': list(task_ids)}
-        return self._run_task(PAUSE_TASK, data, source=source, timeout_sec=timeout_sec)
-
-    def resume(
-        self, task_ids: Sequence[str], *, source: str = 'python', timeout_sec: float | None = None
-    ) -> TaskResult:
-        """See TaskManagerClient.resume."""
-        data = {'task_ids': list(task_ids)}
-        return self._run_task(RESUME_TASK, data, source=source, timeout_sec=timeout_sec)
 
 
 @dataclass(frozen=True)
@@ -49,14 +28,39 @@ class ConfirmAnswer:
     system/confirm waiting for its answer) or `invalid_request` (a refused comment or source)."""
 
 
-class Confirmations:
-    """Answers confirmations through `call` (an answer asked again is taken again)."""
+class Interventions(ClientParts):
+    """TaskManagerClient's interventions: pauses and resumes by id (system/pause and
+    system/resume), and answers to confirmations (/task_manager/confirm_task)."""
 
-    def __init__(self, call: CallService) -> None:
-        self._call = call
+    def pause(
+        self, task_ids: Sequence[str], *, source: str = 'python', timeout_sec: float | None = None
+    ) -> TaskResult:
+        """Pause active tasks by id through system/pause, and wait for its result.
 
-    def confirm(self, task_id: str, reject: bool, comment: str, source: str) -> ConfirmAnswer:
-        """See TaskManagerClient.confirm."""
+        It ends DONE when every task is paused (one already paused counts), else ERROR; its
+        result has `successful_pauses` and `errors` (one line per other id). `timeout_sec`:
+        as for run_task (None: no limit).
+        """
+        data = {'task_ids': list(task_ids)}
+        return self._system_task(PAUSE_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def resume(
+        self, task_ids: Sequence[str], *, source: str = 'python', timeout_sec: float | None = None
+    ) -> TaskResult:
+        """Resume paused tasks by id through system/resume, and wait for its result.
+
+        It ends DONE when every task runs again, else ERROR; its result has
+        `successful_resumes` and `errors` (one line per other id, e.g. one not paused).
+        """
+        data = {'task_ids': list(task_ids)}
+        return self._system_task(RESUME_TASK, data, source=source, timeout_sec=timeout_sec)
+
+    def confirm(
+        self, task_id: str, *, reject: bool = False, comment: str = '', source: str = 'python'
+    ) -> ConfirmAnswer:
+        """Answer a waiting system/confirm: confirmed, it ends DONE; rejected, ERROR `rejected`;
+        its result names `source` (`by`) and `comment`. Start one with start_task. An answer
+        asked again is taken again."""
         request = ConfirmTask.Request(
             task_id=task_id, reject=reject, comment=comment, source=source
         )

@@ -2,26 +2,18 @@
 system/schedule, system/unschedule, system/enable_schedule and /task_manager/get_schedules.
 
 When a schedule runs is one value, `When`, the same for a task and a mission; the client's
-methods also take its fields as keywords (`schedule_task('dock', period=3600)`).
+methods (scheduling.py) also take its fields as keywords (`schedule_task('dock', period=3600)`).
 """
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any, TypeAlias, TypedDict, Unpack
 
-from task_manager_msgs.srv import GetSchedules
-
 from task_manager.client.message_values import datetime_of, datetime_of_json, json_object, json_text
-from task_manager.client.missions import Subtask, mission_task_data
 from task_manager.client.records import TaskResult, status_of
-from task_manager.client.services import CallService, RunTask
 from task_manager.core.admission.options import RequestOptions
-from task_manager.core.names import ENABLE_SCHEDULE as ENABLE_SCHEDULE_TASK
-from task_manager.core.names import GET_SCHEDULES_SERVICE, MISSION
-from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
-from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
 from task_manager.core.schedules.schedule import OverlapPolicy
 from task_manager.core.status import TaskStatus
 from task_manager.messages.task_messages import options_of_message
@@ -299,87 +291,3 @@ def schedule_request(
         # there sets has_priority
         request['options'] = options.to_dict()
     return request
-
-
-class Schedules:
-    """Makes, removes, switches and lists schedules, through `run_task` and `call`."""
-
-    def __init__(self, run_task: RunTask, call: CallService) -> None:
-        self._run_task = run_task
-        self._call = call
-
-    def schedule_task(
-        self,
-        task_name: str,
-        task_data: dict[str, Any] | str | None,
-        when: When,
-        *,
-        schedule_id: str = '',
-        source: str = 'python',
-        timeout_sec: float | None = None,
-        options: RequestOptions | None = None,
-    ) -> TaskResult:
-        """See TaskManagerClient.schedule_task."""
-        data = schedule_request(
-            task_name, task_data, when, schedule_id=schedule_id, options=options
-        )
-        return self._run_task(SCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
-
-    def schedule_mission(
-        self,
-        subtasks: Sequence[Subtask],
-        when: When,
-        *,
-        schedule_id: str = '',
-        source: str = 'python',
-        timeout_sec: float | None = None,
-        options: RequestOptions | None = None,
-    ) -> TaskResult:
-        """See TaskManagerClient.schedule_mission."""
-        fixed = [s.task_id for s in subtasks if s.task_id]
-        if fixed and not when.runs_once:
-            raise ValueError(
-                f'subtask ids {", ".join(fixed)} would repeat in every run; leave task_id '
-                'empty in a repeating schedule (each run makes its own)'
-            )
-        data = mission_task_data(subtasks, [s.task_id for s in subtasks])
-        return self.schedule_task(
-            MISSION,
-            data,
-            when,
-            schedule_id=schedule_id,
-            source=source,
-            timeout_sec=timeout_sec,
-            options=options,
-        )
-
-    def unschedule(
-        self,
-        schedule_ids: Sequence[str],
-        *,
-        source: str = 'python',
-        timeout_sec: float | None = None,
-    ) -> TaskResult:
-        """See TaskManagerClient.unschedule."""
-        data = {'schedule_ids': list(schedule_ids)}
-        return self._run_task(UNSCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
-
-    def enable_schedules(
-        self,
-        schedule_ids: Sequence[str],
-        enabled: bool,
-        *,
-        source: str = 'python',
-        timeout_sec: float | None = None,
-    ) -> TaskResult:
-        """See TaskManagerClient.enable_schedules."""
-        data = {'schedule_ids': list(schedule_ids), 'enabled': enabled}
-        return self._run_task(ENABLE_SCHEDULE_TASK, data, source=source, timeout_sec=timeout_sec)
-
-    def schedules(
-        self, schedule_ids: Sequence[str] | None = None, timeout_sec: float | None = None
-    ) -> list[ScheduleInfo]:
-        """See TaskManagerClient.schedules."""
-        request = GetSchedules.Request(schedule_ids=list(schedule_ids or []))
-        response = self._call(GetSchedules, GET_SCHEDULES_SERVICE, request, timeout_sec)
-        return [ScheduleInfo.from_message(m) for m in response.schedules]

@@ -1,10 +1,10 @@
-"""How the client's helpers reach the Task Manager: a call of one of its services that only
+"""How the client's parts reach the Task Manager: a call of one of its services that only
 read (or, as confirm_task, take a request asked again as the first), asked again when a reply
-is lost, and the shapes of the calls a helper is given."""
+is lost, and what every part of the client stands on (`ClientParts`)."""
 
 import threading
 import time
-from typing import Any, Protocol
+from typing import Any
 
 from rclpy.client import Client
 from rclpy.task import Future
@@ -14,25 +14,23 @@ from task_manager.client.records import TaskResult
 from task_manager.core.errors import TaskManagerUnavailable
 
 
-class CallService(Protocol):
-    """Call a Task Manager service that may be asked again; TaskManagerUnavailable if no reply."""
+class ClientParts:
+    """What every part of TaskManagerClient stands on (the mixins of watching.py, history.py,
+    interventions.py and scheduling.py): a call of one of the Task Manager's services, and a
+    system task run to its end. TaskManagerClient gives both; a test may give its own."""
 
-    def __call__(
+    def _call(
         self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
-    ) -> Any: ...
+    ) -> Any:
+        """Call a Task Manager service that may be asked again (ServiceCalls.call)."""
+        raise NotImplementedError
 
-
-class RunTask(Protocol):
-    """Start a task and wait for its result (TaskManagerClient.run_task)."""
-
-    def __call__(
-        self,
-        task_name: str,
-        task_data: dict[str, Any] | str | None = None,
-        *,
-        timeout_sec: float | None = None,
-        **options: Any,
-    ) -> TaskResult: ...
+    def _system_task(
+        self, task_name: str, data: dict[str, Any], *, source: str, timeout_sec: float | None
+    ) -> TaskResult:
+        """Run a system task with this task data as `source`; its result, waited for at most
+        `timeout_sec` (None: no limit)."""
+        raise NotImplementedError
 
 
 class ServiceCalls:

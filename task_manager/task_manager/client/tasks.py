@@ -30,6 +30,7 @@ from task_manager.client.missions import Subtask, mission_task_data
 from task_manager.client.records import TaskEvent, TaskEventKind, TaskResult
 from task_manager.client.watching import ActiveTasks
 from task_manager.core.admission.options import OnConflict, RequestOptions, parse_on_conflict
+from task_manager.core.bounds import PRIORITY
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
@@ -51,8 +52,6 @@ from task_manager.rclpy_tools.futures import result_of
 # The event is published first, so it is normally there already; this bounds a lost one.
 ENDED_EVENT_GRACE_SEC = 2.0
 
-PRIORITY_MIN, PRIORITY_MAX = -(2**31), 2**31 - 1
-"""A priority is an int32 on the wire."""
 NO_OPTIONS = RequestOptions()
 
 T = TypeVar('T')
@@ -62,8 +61,7 @@ def check_priority(priority: int) -> int:
     """`priority`, if an int32; else ValueError saying what is allowed."""
     if isinstance(priority, bool) or not isinstance(priority, int):
         raise ValueError(f'priority must be an integer, got {priority!r}')
-    if not PRIORITY_MIN <= priority <= PRIORITY_MAX:
-        raise ValueError(f'priority must be from {PRIORITY_MIN} to {PRIORITY_MAX}, got {priority}')
+    PRIORITY.check('priority', priority)
     return priority
 
 

@@ -6,6 +6,7 @@ import weakref
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
+from rclpy.node import Node
 from rclpy.task import Future
 from task_manager_msgs.msg import ActiveTaskArray
 
@@ -54,36 +55,43 @@ class ActiveTasks:
             self._connection.lock.notify_all()
 
 
-class Watch:
-    """Iterators and callbacks over the active lists, the results and the task events."""
+class Watching:
+    """TaskManagerClient's watching of what the Task Manager publishes: the active list, and
+    iterators and callbacks over the active lists, the results and the task events."""
 
-    def __init__(
-        self,
-        connection: Connection,
-        active: ActiveTasks,
-        results: Listeners[TaskResult],
-        events: EventFeed,
-    ) -> None:
-        self._logger = connection.node.get_logger()
-        self._active = active
-        self._results = results
-        self._events = events
+    node: Node
+    _active: ActiveTasks
+    _results: Listeners[TaskResult]
+    """Who gets every result of /task_manager/results (the client's tasks put them)."""
+    _events: EventFeed
+
+    def active_tasks(self, timeout_sec: float | None = None) -> list[ActiveTaskInfo]:
+        """The current active tasks (the latest /task_manager/active_tasks message)."""
+        return self._active.latest(timeout_sec)
 
     def active_task_updates(
-        self, timeout_sec: float | None, until: Future[Any] | None
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[list[ActiveTaskInfo]]:
+        """Every active task list from now on.
+
+        Stops after `timeout_sec` without an update (None: never), or once `until` completes.
+        """
         inbox: Inbox[list[ActiveTaskInfo]] = queue.SimpleQueue()
         with self._active.listeners.listening(inbox):
             yield from drain(inbox, timeout_sec, until)
 
-    def results(self, timeout_sec: float | None, until: Future[Any] | None) -> Iterator[TaskResult]:
+    def results(
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
+    ) -> Iterator[TaskResult]:
+        """Every task result from now on; stops as active_task_updates does."""
         inbox: Inbox[TaskResult] = queue.SimpleQueue()
         with self._results.listening(inbox):
             yield from drain(inbox, timeout_sec, until)
 
     def updates(
-        self, timeout_sec: float | None, until: Future[Any] | None
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[list[ActiveTaskInfo] | TaskResult]:
+        """Active task lists and results, in the order they arrive; stops as above."""
         inbox: Inbox[list[ActiveTaskInfo] | TaskResult] = queue.SimpleQueue()
         with self._active.listeners.listening(inbox), self._results.listening(inbox):
             # annotated: mypy infers no T from `A | B | End` against `T | End` by itself
@@ -91,9 +99,13 @@ class Watch:
             yield from arrivals
 
     def task_events(
-        self, timeout_sec: float | None, until: Future[Any] | None
+        self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[TaskEvent]:
-        """Every event from this call on (not from the first `next()`)."""
+        """Every event of every task from this call on; stops as active_task_updates does.
+
+        Events are kept from the call, not from the first `next()`: start the iterator, then
+        the tasks whose events it must not miss.
+        """
         self._events.follow()
         inbox: Inbox[TaskEvent] = queue.SimpleQueue()
         listeners = self._events.listeners
@@ -104,8 +116,12 @@ class Watch:
         return events
 
     def on_task_event(self, callback: Callable[[TaskEvent], None]) -> Callable[[], None]:
+        """Call `callback(event)` with every task event from now on; returns the unsubscribe.
+
+        It runs on the executor thread: it must return quickly and never wait on the client.
+        """
         self._events.subscribe()
-        return self._events.listeners.add(Callback(callback, self._logger))
+        return self._events.listeners.add(Callback(callback, self.node.get_logger()))
 
 
 def _drain_then_stop(

@@ -25,6 +25,9 @@ CONFIRM_TASK_SERVICE = '/task_manager/confirm_task'
 """ConfirmTask: answer a waiting system/confirm (confirm or reject)."""
 TASK_SERVER_PREFIX = '/task_manager/task/'
 """With enable_task_servers, task NAME is also served at TASK_SERVER_PREFIX + NAME."""
+LIST_PARAMETERS_SERVICE = f'/{NODE_NAME}/list_parameters'
+GET_PARAMETERS_SERVICE = f'/{NODE_NAME}/get_parameters'
+"""The node's parameter services (rclpy's own): where the declared tasks are read."""
 
 # ---- the system tasks ---------------------------------------------------------------------------
 MISSION = 'system/mission'

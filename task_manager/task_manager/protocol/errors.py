@@ -1,9 +1,71 @@
-"""A pydantic validation error as the protocol's error: one message and the field at fault."""
+"""The protocol's error answers: the code of each (`RefusalCode`), and a pydantic validation
+error as one message and the field at fault."""
 
 from collections.abc import Iterable, Sequence
+from enum import StrEnum
 from typing import Any
 
+from task_manager.core.status import ErrorCode
+
 MAX_ERRORS_SHOWN = 5
+
+
+class RefusalCode(StrEnum):
+    """The `code` of every error answer of a gateway (`{"error": {"code", "message", "field"}}`
+    of the web gateway and the fleet console, an MQTT reply's `error`, a FleetError): why a
+    request was refused, or why it could not be answered. docs/security.md says which door
+    answers which."""
+
+    INVALID_REQUEST = ErrorCode.INVALID_REQUEST.value
+    """A field, a document or its JSON is refused; the message says what is allowed."""
+    PAYLOAD_TOO_LARGE = 'payload_too_large'
+    """An MQTT message (a request, or one a FleetClient would send) over the size allowed."""
+    NESTING_TOO_DEEP = 'nesting_too_deep'
+    """JSON nested deeper than core/bounds.py's JSON_MAX_DEPTH."""
+    RETAINED_REQUEST = 'retained_request'
+    """An MQTT request published with the retain flag."""
+    REPLY_TOO_LARGE = 'reply_too_large'
+    """An MQTT reply that would not fit in a message: ask for less."""
+    TASK_MANAGER_UNAVAILABLE = 'task_manager_unavailable'
+    """No Task Manager answers."""
+    INTERNAL_ERROR = 'internal_error'
+    """The gateway itself failed (one log line; never a traceback to the client)."""
+    UNKNOWN_TASK_ID = 'unknown_task_id'
+    """The Task Manager knows no such task (neither active nor in its history)."""
+    UNKNOWN_SCHEDULE_ID = 'unknown_schedule_id'
+    """The Task Manager has no such schedule."""
+    NOT_WAITING = 'not_waiting'
+    """An answer to a task that is no system/confirm waiting for it."""
+    UNAUTHORIZED = 'unauthorized'
+    """No token, or an unknown one."""
+    FORBIDDEN = 'forbidden'
+    """A token whose role is below what the request needs."""
+    NOT_FOUND = 'not_found'
+    """No such route or page."""
+    METHOD_NOT_ALLOWED = 'method_not_allowed'
+    BODY_TOO_LARGE = 'body_too_large'
+    BODY_TIMEOUT = 'body_timeout'
+    """A request body that did not arrive in time."""
+    HOST_NOT_ALLOWED = 'host_not_allowed'
+    """A `Host` header that names no name of the gateway."""
+    TOO_MANY_REQUESTS = 'too_many_requests'
+    """Too many reads of one client in flight."""
+    UNKNOWN_ROBOT = 'unknown_robot'
+    """The fleet console knows no such robot."""
+    ROBOT_OFFLINE = 'robot_offline'
+    """The robot asked for is not connected to the broker."""
+    NO_ROBOT = 'no_robot'
+    """No robot of those asked for can take the task."""
+    ROBOT_ERROR = 'robot_error'
+    """A robot refused, without a code of its own."""
+    BAD_REPLY = 'bad_reply'
+    """A robot's reply that is not the protocol's."""
+    TIMEOUT = 'timeout'
+    """No reply within the time allowed."""
+    REFUSED_BY_BROKER = 'refused_by_broker'
+    """The broker refused to take a message (e.g. not authorized)."""
+    DATABASE_UNAVAILABLE = 'database_unavailable'
+    """The fleet history's database does not answer."""
 
 
 def field_of(location: Iterable[Any], skip: Sequence[str] = ()) -> str:

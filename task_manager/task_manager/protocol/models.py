@@ -20,15 +20,13 @@ from pydantic import (
     model_validator,
 )
 
-from task_manager.core.bounds import DECISIONS_PER_TASK_MAX
+from task_manager.core.bounds import DECISIONS_PER_TASK_MAX, PRIORITY
 from task_manager.core.confirmation import TEXT_MAX_LENGTH
 from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, IDS_MAX
 from task_manager.core.request_text import MAX_LENGTH, is_refused_character
 
 NAME_MAX = MAX_LENGTH
 """The longest task name, task id or source accepted."""
-PRIORITY_MIN, PRIORITY_MAX = -(2**31), 2**31 - 1
-"""A priority is an int32 on the wire."""
 
 TaskStatusName = Literal[
     'RECEIVED', 'QUEUED', 'IN_PROGRESS', 'PAUSED', 'DONE', 'ERROR', 'CANCELED'
@@ -62,7 +60,7 @@ class _Request(BaseModel):
     model_config = ConfigDict(extra='forbid')
 
 
-Priority = Annotated[StrictInt, Field(ge=PRIORITY_MIN, le=PRIORITY_MAX)]
+Priority = Annotated[StrictInt, Field(ge=PRIORITY.low, le=PRIORITY.high)]
 Seconds = Annotated[StrictFloat, Field(gt=0, allow_inf_nan=False)]
 OnConflictName = Literal['preempt', 'queue', 'reject']
 

@@ -16,6 +16,7 @@ import re
 from typing import Any
 
 from task_manager.core.bounds import JSON_MAX_DEPTH, cut_text
+from task_manager.protocol.errors import RefusalCode
 
 MAX_DEPTH = JSON_MAX_DEPTH
 """Nesting levels (objects and arrays) a request may have; a mission's task_data uses ~6."""
@@ -72,23 +73,33 @@ def _nested_within(levels: int) -> re.Pattern[bytes]:
     return re.compile(rb'(?:' + content + rb'|\]++)*+')
 
 
+def load_within(payload: bytes, max_depth: int = MAX_DEPTH) -> Any:
+    """The JSON document in `payload` as Python's parser reads it (a key twice, NaN), but only
+    when it nests at most `max_depth` levels (a parser recurses into each); ValueError for
+    anything else. For the documents of a trusted writer (what a robot's bridge publishes,
+    read by a FleetClient); a request is read by `load`."""
+    if deeper_than(payload, max_depth):
+        raise ValueError(f'nested deeper than {max_depth} levels')
+    return json.loads(payload)
+
+
 def load(payload: bytes, max_depth: int = MAX_DEPTH, max_bytes: int | None = None) -> Any:
     """The document in `payload`; RefusedJsonError for anything not plain JSON of at most
     `max_bytes` bytes (None: any size) and `max_depth` levels, with a duplicate key or a
     number that is not finite."""
     if max_bytes is not None and len(payload) > max_bytes:
         message = f'the request is {len(payload)} bytes; at most {max_bytes} allowed'
-        raise RefusedJsonError('payload_too_large', message)
+        raise RefusedJsonError(RefusalCode.PAYLOAD_TOO_LARGE, message)
     if deeper_than(payload, max_depth):
         raise RefusedJsonError(
-            'nesting_too_deep',
+            RefusalCode.NESTING_TOO_DEEP,
             f'the request nests deeper than {max_depth} levels; at most {max_depth} allowed',
         )
     try:
         text = payload.decode()
     except UnicodeDecodeError as error:
         message = f'not UTF-8 text: byte 0x{payload[error.start]:02x} at offset {error.start}'
-        raise RefusedJsonError('invalid_request', message) from None
+        raise RefusedJsonError(RefusalCode.INVALID_REQUEST, message) from None
     try:
         return json.loads(
             text,
@@ -100,9 +111,9 @@ def load(payload: bytes, max_depth: int = MAX_DEPTH, max_bytes: int | None = Non
         raise
     except json.JSONDecodeError as error:
         message = f'not valid JSON: {error.msg} (line {error.lineno}, column {error.colno})'
-        raise RefusedJsonError('invalid_request', message) from None
+        raise RefusedJsonError(RefusalCode.INVALID_REQUEST, message) from None
     except ValueError as error:  # an integer of more digits than Python converts (4,300)
-        raise RefusedJsonError('invalid_request', f'not valid JSON: {error}') from None
+        raise RefusedJsonError(RefusalCode.INVALID_REQUEST, f'not valid JSON: {error}') from None
 
 
 def _without_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -110,7 +121,8 @@ def _without_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     for key, value in pairs:
         if key in document:
             raise RefusedJsonError(
-                'invalid_request', f'the key {cut_text(key)!r} is given twice in one object'
+                RefusalCode.INVALID_REQUEST,
+                f'the key {cut_text(key)!r} is given twice in one object',
             )
         document[key] = value
     return document
@@ -118,12 +130,14 @@ def _without_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 
 def _no_constant(name: str) -> Any:
     raise RefusedJsonError(
-        'invalid_request', f'{name} is not a JSON number: numbers must be finite'
+        RefusalCode.INVALID_REQUEST, f'{name} is not a JSON number: numbers must be finite'
     )
 
 
 def _finite_float(text: str) -> float:
     value = float(text)
     if not math.isfinite(value):
-        raise RefusedJsonError('invalid_request', f'{text[:40]} is too large for a number here')
+        raise RefusedJsonError(
+            RefusalCode.INVALID_REQUEST, f'{text[:40]} is too large for a number here'
+        )
     return value

@@ -11,7 +11,13 @@ from task_manager_msgs.action import ExecuteTask, StartTask
 from task_manager_msgs.msg import ActiveTaskArray, TaskDoneResult, TaskEvent, TaskOptions
 from unique_identifier_msgs.msg import UUID
 
-from task_manager.core.names import EXECUTE_TASK_ACTION, START_TASK_ACTION, TASK_EVENTS_TOPIC
+from task_manager.core.names import (
+    ACTIVE_TASKS_TOPIC,
+    EXECUTE_TASK_ACTION,
+    RESULTS_TOPIC,
+    START_TASK_ACTION,
+    TASK_EVENTS_TOPIC,
+)
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import (
     RosHarness,
@@ -78,11 +84,9 @@ class TaskManagerProbe:
         self.timeout_sec = timeout_sec
         self.client = execute_task_client(ros)
         self._start_client: Any = None
-        self.results: TopicRecorder = ros.record(
-            TaskDoneResult, '/task_manager/results', qos.RESULTS
-        )
+        self.results: TopicRecorder = ros.record(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS)
         self.active: TopicRecorder = ros.record(
-            ActiveTaskArray, '/task_manager/active_tasks', qos.ACTIVE_TASKS
+            ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS
         )
 
     def wait_until_connected(self) -> None:

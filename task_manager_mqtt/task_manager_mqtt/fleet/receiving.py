@@ -13,7 +13,7 @@ import threading
 from collections.abc import Callable
 from concurrent.futures import Future
 
-from task_manager_mqtt.decoding import load_json
+from task_manager.protocol.strict_json import load_within
 from task_manager_mqtt.fleet_types import Document, RobotView
 from task_manager_mqtt.topics import ANY_ROBOT, Topics
 
@@ -98,7 +98,7 @@ class FleetReceiver:
             self._bad_message(robot_id, name, f'{len(payload)} bytes; at most {limit} are read')
             return False
         try:
-            document = load_json(payload) if payload else None
+            document = load_within(payload) if payload else None
         except ValueError as error:  # the robot's documents are checked as its requests are
             self._bad_message(robot_id, name, f'not JSON ({str(error)[:200]})')
             return False

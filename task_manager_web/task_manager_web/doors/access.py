@@ -30,6 +30,7 @@ from starlette.datastructures import Headers
 from starlette.types import Scope
 
 from task_manager.core.sources import door_source
+from task_manager.protocol.errors import RefusalCode
 from task_manager_web.doors.task_roles import (
     SYSTEM_TASK_ROLES,
     TASK_ROLE,
@@ -118,14 +119,14 @@ class Access:
         if not given:
             raise ApiError(
                 401,
-                'unauthorized',
+                RefusalCode.UNAUTHORIZED,
                 'missing token: send Authorization: Bearer <token>',
                 headers={'WWW-Authenticate': 'Bearer'},
             )
         if token is None:
             raise ApiError(
                 401,
-                'unauthorized',
+                RefusalCode.UNAUTHORIZED,
                 'wrong token',
                 headers={'WWW-Authenticate': 'Bearer error="invalid_token"'},
             )
@@ -135,7 +136,7 @@ class Access:
 def forbidden(what: str, needed: Role, role: Role, field: str = '', hint: str = '') -> ApiError:
     """403 for `what`, beyond a caller of `role`."""
     message = f'{what} needs role {needed.label}; this token is {role.label}'
-    return ApiError(403, 'forbidden', message + (f' ({hint})' if hint else ''), field)
+    return ApiError(403, RefusalCode.FORBIDDEN, message + (f' ({hint})' if hint else ''), field)
 
 
 def check_need(caller: Caller, needed: Callable[[], Need]) -> None:
@@ -144,7 +145,9 @@ def check_need(caller: Caller, needed: Callable[[], Need]) -> None:
     try:
         need = needed()
     except UnreadableTaskDataError as unreadable:
-        raise ApiError(422, 'invalid_request', str(unreadable), unreadable.field) from None
+        raise ApiError(
+            422, RefusalCode.INVALID_REQUEST, str(unreadable), unreadable.field
+        ) from None
     if caller.role < need.role:
         raise forbidden(need.what, need.role, caller.role, field=need.field)
 

@@ -13,6 +13,7 @@ import asyncio
 from starlette.datastructures import Headers
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from task_manager.protocol.errors import RefusalCode
 from task_manager.protocol.strict_json import RefusedJsonError, load
 from task_manager_web.errors import error_response
 
@@ -40,7 +41,7 @@ class BodyDoor:
                 body = await self._read(receive)
         except TimeoutError:
             message = f'the body did not arrive within {self.timeout_sec:g} s'
-            await error_response(408, 'body_timeout', message)(scope, receive, send)
+            await error_response(408, RefusalCode.BODY_TIMEOUT, message)(scope, receive, send)
             return
         if body is None:  # the client went away
             return
@@ -71,7 +72,7 @@ class BodyDoor:
 
     async def _too_large(self, scope: Scope, receive: Receive, send: Send) -> None:
         response = error_response(
-            413, 'body_too_large', f'request bodies are limited to {self.max_bytes} bytes'
+            413, RefusalCode.BODY_TOO_LARGE, f'request bodies are limited to {self.max_bytes} bytes'
         )
         await response(scope, receive, send)
 

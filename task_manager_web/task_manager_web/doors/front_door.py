@@ -12,6 +12,7 @@ from collections.abc import Iterable
 from starlette.datastructures import Headers, MutableHeaders
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 
+from task_manager.protocol.errors import RefusalCode
 from task_manager_web.errors import error_response
 
 LOCAL_HOSTS = ('127.0.0.1', 'localhost', '::1')
@@ -60,7 +61,7 @@ class FrontDoor:
             allowed = ', '.join(self.allowed_hosts)
             response = error_response(
                 400,
-                'host_not_allowed',
+                RefusalCode.HOST_NOT_ALLOWED,
                 f'Host {host[:100]!r} is not a name of this gateway ({allowed}); start it with '
                 '--allowed-host NAME to answer to another',
             )

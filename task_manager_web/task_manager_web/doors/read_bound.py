@@ -13,6 +13,7 @@ from collections import Counter
 
 from starlette.types import ASGIApp, Receive, Scope, Send
 
+from task_manager.protocol.errors import RefusalCode
 from task_manager_web.doors.access import Access
 from task_manager_web.errors import error_response
 
@@ -49,7 +50,7 @@ class ReadBound:
         if self._in_flight[key] >= self.max_reads:
             response = error_response(
                 429,
-                'too_many_requests',
+                RefusalCode.TOO_MANY_REQUESTS,
                 f'at most {self.max_reads} reads in flight per client: wait for the answers '
                 'before asking again',
                 headers={'Retry-After': str(RETRY_AFTER_SEC)},

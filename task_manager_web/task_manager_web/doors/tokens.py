@@ -20,7 +20,7 @@ from pathlib import Path
 
 from task_manager.core.bounds import TOKEN_MIN_CHARACTERS
 from task_manager.core.sources import SOURCE_NAME, SOURCE_NAME_RULE
-from task_manager.secret_file import exposure_warning
+from task_manager.gateway.secret_file import exposure_warning
 
 GENERATED_NAME = 'admin'
 """The name of the token the gateway makes when it is given no token file."""

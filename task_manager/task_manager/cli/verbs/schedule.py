@@ -25,7 +25,7 @@ from task_manager.cli.common import (
 from task_manager.cli.durations import parse_span
 from task_manager.cli.records import iso, json_line
 from task_manager.cli.verbs.mission import load_subtasks
-from task_manager.schedules import schedule_request
+from task_manager.client.schedules import schedule_request
 
 schedule_app = typer.Typer(
     name='schedule',

@@ -11,7 +11,7 @@ from task_manager.core.admission.decisions import (
 from task_manager.core.bounds import DECISIONS_PER_TASK_MAX, REASON_MAX_CHARACTERS
 from task_manager.core.task import TaskRecord
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
-from task_manager.gateway_json import decisions_json
+from task_manager.gateway.documents import decisions_json
 from task_manager.testing.gateway import check
 
 REPRIORITIZED = DecisionKind.REPRIORITIZED

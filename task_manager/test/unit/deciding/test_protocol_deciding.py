@@ -11,8 +11,8 @@ from pydantic import ValidationError
 
 from task_manager.client import Decision, TaskEvent, TaskEventKind, TaskState
 from task_manager.core.status import TaskStatus
-from task_manager.gateway_json import event_json, task_json
-from task_manager.gateway_requests import options_of
+from task_manager.gateway.documents import event_json, task_json
+from task_manager.gateway.requests import options_of
 from task_manager.protocol import models, mqtt
 from task_manager.protocol.__main__ import SCHEMA_FOLDER
 

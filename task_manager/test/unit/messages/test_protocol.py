@@ -11,7 +11,7 @@ from pydantic import ValidationError
 from task_manager.client import TaskEvent, TaskEventKind, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task_spec import PauseMode
-from task_manager.gateway_json import declared_json, event_json, result_json, task_json
+from task_manager.gateway.documents import declared_json, event_json, result_json, task_json
 from task_manager.protocol import models, mqtt
 from task_manager.protocol.__main__ import SCHEMA_FOLDER, schema_documents
 

@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from task_manager.core.bounds import JSON_MAX_DEPTH, TASK_DATA_MAX_BYTES
-from task_manager.protocol.strict_json import RefusedJsonError, deeper_than, load
+from task_manager.protocol.strict_json import RefusedJsonError, deeper_than, load, load_within
 
 LIMIT = TASK_DATA_MAX_BYTES
 CHECK_MAX_SEC = 0.050
@@ -24,6 +24,12 @@ json_values = st.recursive(
     st.none() | st.booleans() | st.integers() | tricky_text,
     lambda inner: st.lists(inner, max_size=4) | st.dictionaries(tricky_text, inner, max_size=4),
     max_leaves=40,
+)
+# any JSON Python writes, NaN and infinities included (what a FleetClient may receive)
+any_json = st.recursive(
+    st.none() | st.booleans() | st.integers() | st.floats() | st.text(max_size=20),
+    lambda inner: st.lists(inner, max_size=5) | st.dictionaries(st.text(max_size=10), inner),
+    max_leaves=30,
 )
 
 
@@ -91,6 +97,17 @@ def test_what_the_check_lets_through_never_nests_deeper_for_a_parser(
 ) -> None:
     if not deeper_than(payload, levels):
         assert depth_a_parser_reaches(payload) <= levels, payload
+
+
+@settings(max_examples=100, deadline=None)
+@given(value=any_json)
+def test_the_fleet_client_reads_any_json_within_the_depth(value: Any) -> None:
+    text = json.dumps(value).encode()
+    if depth_of(value) > JSON_MAX_DEPTH:
+        with pytest.raises(ValueError, match='nested deeper than 32 levels'):
+            load_within(text)
+    else:
+        assert json.dumps(load_within(text)) == text.decode()  # (NaN is not equal to itself)
 
 
 def repeated(unit: bytes, head: bytes = b'', tail: bytes = b'') -> bytes:

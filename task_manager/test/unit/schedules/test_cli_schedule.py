@@ -16,9 +16,8 @@ from rich.console import Console
 from task_manager_msgs.msg import Schedule
 from typer.testing import CliRunner
 
-from task_manager.client import Pause, Subtask, TaskResult, TaskState
+from task_manager.client import Pause, ScheduleInfo, Subtask, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
-from task_manager.schedules import ScheduleInfo
 
 NIGHT = datetime(2026, 11, 25, 1, 0, tzinfo=UTC)
 

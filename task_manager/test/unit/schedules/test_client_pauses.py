@@ -11,10 +11,10 @@ from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskState as TaskStateMessage
 
 from task_manager.client import Pause, TaskEvent, TaskEventKind, TaskResult, TaskState
-from task_manager.client.interventions import Pauses
+from task_manager.client.interventions import Interventions
 from task_manager.client.records import parse_pauses
 from task_manager.core.status import ErrorCode, TaskStatus
-from task_manager.gateway_json import result_json, task_json
+from task_manager.gateway.documents import result_json, task_json
 
 EPOCH = 1_800_000_000  # 2027-01-15T08:00:00Z
 T0 = datetime.fromtimestamp(EPOCH, UTC)
@@ -144,30 +144,24 @@ def test_task_documents_carry_the_running_time_and_the_time_paused() -> None:
     assert result_json(state.to_result())['paused_sec'] == 2.0
 
 
-class RecordingClient:
-    """Records what the client would start (run_task), instead of starting it."""
+class RecordingClient(Interventions):
+    """The client's interventions, recording the system tasks they would run instead."""
 
     def __init__(self) -> None:
         self.started: list[tuple[str, Any, dict[str, Any]]] = []
 
-    def run_task(
-        self,
-        task_name: str,
-        task_data: dict[str, Any] | str | None = None,
-        *,
-        timeout_sec: float | None = None,
-        **options: Any,
+    def _system_task(
+        self, task_name: str, data: dict[str, Any], *, source: str, timeout_sec: float | None
     ) -> TaskResult:
-        self.started.append((task_name, task_data, {'timeout_sec': timeout_sec, **options}))
+        self.started.append((task_name, data, {'timeout_sec': timeout_sec, 'source': source}))
         return TaskResult('id', task_name, TaskStatus.DONE, ErrorCode.NONE, {})
 
 
 def test_pause_and_resume_run_their_system_tasks() -> None:
     client = RecordingClient()
-    pauses = Pauses(client.run_task)
 
-    pauses.pause(('a', 'b'), source='operator')
-    pauses.resume(['a'], timeout_sec=3.0)
+    client.pause(('a', 'b'), source='operator')
+    client.resume(['a'], timeout_sec=3.0)
 
     assert client.started == [
         ('system/pause', {'task_ids': ['a', 'b']}, {'timeout_sec': None, 'source': 'operator'}),

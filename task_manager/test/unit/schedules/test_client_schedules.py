@@ -13,7 +13,6 @@ from task_manager_msgs.srv import GetSchedules
 from task_manager.client import Subtask, TaskResult
 from task_manager.client.schedules import (
     ScheduleInfo,
-    Schedules,
     When,
     WhenKeywords,
     iso_8601,
@@ -21,6 +20,7 @@ from task_manager.client.schedules import (
     scheduled_next_run,
     when_of,
 )
+from task_manager.client.scheduling import Scheduling
 from task_manager.core.names import GET_SCHEDULES_SERVICE
 from task_manager.core.schedules.schedule import OverlapPolicy
 from task_manager.core.status import ErrorCode, TaskStatus
@@ -235,34 +235,30 @@ def test_the_window_and_the_time_of_a_one_shot() -> None:
     assert info.window_end == info.at + timedelta(seconds=10)
 
 
-class RecordingClient:
-    """Records the tasks it would start and the services it would call."""
+class RecordingClient(Scheduling):
+    """The client's schedules, recording the system tasks they would run and the services
+    they would call instead."""
 
     def __init__(self, response: Any = None) -> None:
         self.started: list[tuple[str, Any, dict[str, Any]]] = []
         self.calls: list[tuple[Any, str, Any, float | None]] = []
         self._response = response
 
-    def run_task(
-        self,
-        task_name: str,
-        task_data: dict[str, Any] | str | None = None,
-        *,
-        timeout_sec: float | None = None,
-        **options: Any,
+    def _system_task(
+        self, task_name: str, data: dict[str, Any], *, source: str, timeout_sec: float | None
     ) -> TaskResult:
-        self.started.append((task_name, task_data, {'timeout_sec': timeout_sec, **options}))
+        self.started.append((task_name, data, {'timeout_sec': timeout_sec, 'source': source}))
         return TaskResult('id', task_name, TaskStatus.DONE, ErrorCode.NONE, {})
 
-    def call(
+    def _call(
         self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
     ) -> Any:
         self.calls.append((service_type, name, request, timeout_sec))
         return self._response
 
 
-def _schedules(client: RecordingClient) -> Schedules:
-    return Schedules(client.run_task, client.call)
+def _schedules(client: RecordingClient) -> Scheduling:
+    return client
 
 
 def test_schedule_task_runs_system_schedule() -> None:
@@ -334,3 +330,14 @@ def test_schedules_asks_get_schedules() -> None:
     (_, name, request, timeout_sec), second = client.calls
     assert (name, list(request.schedule_ids), timeout_sec) == (GET_SCHEDULES_SERVICE, [], None)
     assert (list(second[2].schedule_ids), second[3]) == (['nightly', 'other'], 2.0)
+
+
+def test_a_keyword_that_is_neither_a_when_field_nor_a_run_option_is_refused() -> None:
+    client = RecordingClient()
+
+    with pytest.raises(TypeError, match=r'unexpected keyword argument\(s\): priorty'):
+        client.schedule_task('dock', period=60, priorty=3)  # type: ignore[call-arg]
+    with pytest.raises(TypeError, match=r'unexpected keyword argument\(s\): bay'):
+        client.schedule_mission([Subtask('dock')], delay=10, bay=2)  # type: ignore[call-arg]
+
+    assert client.started == []

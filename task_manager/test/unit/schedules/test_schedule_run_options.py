@@ -12,31 +12,28 @@ import typer
 from task_manager_msgs.msg import Schedule, TaskOptions
 from typer.testing import CliRunner
 
-from task_manager.client import TaskResult
-from task_manager.client.schedules import Schedules, When, schedule_request
+from task_manager.client import ScheduleInfo, TaskResult
+from task_manager.client.schedules import When, schedule_request
+from task_manager.client.scheduling import ScheduleKeywords, Scheduling
 from task_manager.client.tasks import request_options
 from task_manager.core.admission.options import OnConflict, RequestOptions
 from task_manager.core.status import ErrorCode, TaskStatus
-from task_manager.schedules import ScheduleInfo
 
 schedule_verb = importlib.import_module('task_manager.cli.verbs.schedule')
 cli_main = importlib.import_module('task_manager.cli.main')
 
 
-class RecordingRunner:
-    """Records the system tasks it would run; answers DONE."""
+class RecordingRunner(Scheduling):
+    """The client's schedules, recording the system tasks they would run; answers DONE."""
 
     def __init__(self) -> None:
         self.started: list[tuple[str, Any, dict[str, Any]]] = []
 
-    def run_task(self, task_name: str, task_data: Any = None, **keywords: Any) -> TaskResult:
-        self.started.append((task_name, task_data, keywords))
+    def _system_task(
+        self, task_name: str, data: dict[str, Any], *, source: str, timeout_sec: float | None
+    ) -> TaskResult:
+        self.started.append((task_name, data, {'source': source, 'timeout_sec': timeout_sec}))
         return TaskResult('id', task_name, TaskStatus.DONE, ErrorCode.NONE, {})
-
-    def call(
-        self, service_type: Any, name: str, request: Any, timeout_sec: float | None = None
-    ) -> Any:
-        raise AssertionError('no service call expected')
 
 
 def test_the_request_carries_the_options_given_only() -> None:
@@ -56,11 +53,14 @@ def test_the_request_carries_the_options_given_only() -> None:
 
 def test_schedules_send_the_options_of_a_task_and_a_mission() -> None:
     runner = RecordingRunner()
-    schedules = Schedules(runner.run_task, runner.call)
-    options = RequestOptions(priority=2, on_conflict=OnConflict.REJECT, timeout_sec=5.0)
+    options: ScheduleKeywords = {
+        'priority': 2,
+        'on_conflict': OnConflict.REJECT,
+        'task_timeout_sec': 5.0,
+    }
 
-    schedules.schedule_task('dock', {}, When(delay=10), options=options)
-    schedules.schedule_mission([], When(delay=10), options=options)
+    runner.schedule_task('dock', {}, When(delay=10), **options)
+    runner.schedule_mission([], When(delay=10), **options)
 
     sent = [data['options'] for _, data, _ in runner.started]
     assert sent == [{'priority': 2, 'on_conflict': 'reject', 'timeout_sec': 5.0}] * 2

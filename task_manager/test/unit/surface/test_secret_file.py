@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from task_manager.secret_file import exposure_warning
+from task_manager.gateway.secret_file import exposure_warning
 
 
 @pytest.mark.parametrize('mode', [0o644, 0o640, 0o604, 0o660])
