@@ -19,6 +19,7 @@ from task_manager.client.records import TaskEvent
 from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
+from task_manager.rclpy_tools.log import NodeLog
 
 DEFAULT_TIMEOUT_SEC = 5.0
 # A request is sent again after this long without a reply, then after twice as long, ...:
@@ -78,7 +79,7 @@ class Connection:
             try:
                 callback(message)
             except Exception:  # the callback boundary: the executor thread must go on
-                self.node.get_logger().error(
+                NodeLog.of(self.node).error(
                     f'a message of {topic} could not be handled:\n{traceback.format_exc()}'
                 )
 

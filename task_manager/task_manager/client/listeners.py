@@ -10,8 +10,9 @@ from collections.abc import Callable, Iterator
 from enum import Enum
 from typing import Any, Generic, Protocol, TypeAlias, TypeVar
 
-from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.task import Future
+
+from task_manager.rclpy_tools.log import NodeLog
 
 T = TypeVar('T')
 T_contra = TypeVar('T_contra', contravariant=True)
@@ -37,15 +38,15 @@ class Listener(Protocol[T_contra]):
 class Callback(Generic[T]):
     """Hands items to a user's callback; what the callback raises is logged, not spread."""
 
-    def __init__(self, callback: Callable[[T], None], logger: RcutilsLogger) -> None:
+    def __init__(self, callback: Callable[[T], None], log: NodeLog) -> None:
         self._callback = callback
-        self._logger = logger
+        self._log = log
 
     def put(self, item: T, /) -> None:
         try:
             self._callback(item)
         except Exception:  # the callback boundary: the executor must go on
-            self._logger.error(f'callback {self._callback!r} failed:\n{traceback.format_exc()}')
+            self._log.error(f'callback {self._callback!r} failed:\n{traceback.format_exc()}')
 
 
 class Listeners(Generic[T]):

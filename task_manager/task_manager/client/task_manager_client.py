@@ -34,6 +34,7 @@ from task_manager.client.tasks import NO_OPTIONS, Tasks, check_priority, request
 from task_manager.client.watching import ActiveTasks, Watching
 from task_manager.core.admission.options import OnConflict
 from task_manager.core.names import CANCEL_TASK, REPRIORITIZE, STOP
+from task_manager.rclpy_tools.log import NodeLog
 
 
 class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
@@ -103,7 +104,7 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
 
         Like every callback of the client, it runs on the executor thread and must be quick.
         """
-        return self._connection.changes.add(Callback(callback, self.node.get_logger()))
+        return self._connection.changes.add(Callback(callback, NodeLog.of(self.node)))
 
     # ---- starting tasks ----------------------------------------------------------------------
 

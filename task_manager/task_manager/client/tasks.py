@@ -47,6 +47,7 @@ from task_manager.messages.task_messages import task_options_msg
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import result_of
+from task_manager.rclpy_tools.log import NodeLog
 
 # How long a result that arrived before its task's ENDED event waits for it (for the stamps).
 # The event is published first, so it is normally there already; this bounds a lost one.
@@ -270,7 +271,7 @@ class Tasks:
 
     def add_feedback_callback(self, handle: TaskHandle, callback: FeedbackCallback) -> None:
         """Have `callback` get the feedback updates of `handle` from now on."""
-        listener: Listener[dict[str, Any]] = Callback(callback, self._node.get_logger())
+        listener: Listener[dict[str, Any]] = Callback(callback, NodeLog.of(self._node))
         self.events.follow()
         with self._lock:
             handle.tracking.feedback_listeners.append(listener)

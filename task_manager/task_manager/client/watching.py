@@ -16,6 +16,7 @@ from task_manager.client.records import ActiveTaskInfo, TaskEvent, TaskResult, s
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import ACTIVE_TASKS_TOPIC
 from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.log import NodeLog
 
 T = TypeVar('T')
 
@@ -121,7 +122,7 @@ class Watching:
         It runs on the executor thread: it must return quickly and never wait on the client.
         """
         self._events.subscribe()
-        return self._events.listeners.add(Callback(callback, self.node.get_logger()))
+        return self._events.listeners.add(Callback(callback, NodeLog.of(self.node)))
 
 
 def _drain_then_stop(

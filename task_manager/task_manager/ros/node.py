@@ -46,6 +46,7 @@ from task_manager.messages.task_messages import (
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wait_until_ready
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.instances import InstanceWatch
 from task_manager.ros.interfaces import load_interface
 from task_manager.ros.parameters import read_settings, read_task_specs
@@ -94,13 +95,14 @@ class TaskManagerNode(Node):
             allow_undeclared_parameters=True,
             automatically_declare_parameters_from_overrides=True,
         )
+        self._log = NodeLog.of(self)
         self.instances = InstanceWatch(self)
         self.settings = read_settings(self)
         self._specs = read_task_specs(self, reserved_names=set(SYSTEM_TASK_NAMES))
         user_runners = [self._create_runner(spec, self.settings.timeouts) for spec in self._specs]
         # key: task id, value: its entry in active_tasks, built once and kept while it runs
         self._active_task_msgs: dict[str, ActiveTask] = {}
-        self.history = open_history(self.settings.history_path, self.get_logger())
+        self.history = open_history(self.settings.history_path, self._log)
         self._events = TaskEventStream(
             self, self.settings.publish_task_events, self.settings.feedback_rate_hz
         )
@@ -182,7 +184,7 @@ class TaskManagerNode(Node):
         self._prune_history()
         self._prune_timer = self.create_timer(PRUNE_PERIOD_SEC, self._prune_history)
         self.scheduler.start()
-        self.get_logger().info(
+        self._log.info(
             f'Task Manager ready with {len(self._specs)} task(s): '
             + ', '.join(spec.task_name for spec in self._specs)
         )
@@ -192,12 +194,12 @@ class TaskManagerNode(Node):
         closed = self.history.close_unfinished(RESTARTED_WHILE_RUNNING)
         if closed:
             self._spawn(self._publish_closed(closed))
-            self.get_logger().warning(
+            self._log.warning(
                 f'{len(closed)} task(s) were running when the Task Manager stopped; ended ERROR: '
                 + ', '.join(f'{r.task_id} ({r.task_name})' for r in closed)
             )
         where = self.history.path
-        self.get_logger().info(f'task history: {where}')
+        self._log.info(f'task history: {where}')
 
     def _prune_history(self) -> None:
         """One batch of retention (history_max_results, history_max_age_days,
@@ -210,7 +212,7 @@ class TaskManagerNode(Node):
                 max_bytes=self.settings.history_max_bytes,
             )
         except sqlite3.Error as error:
-            self.get_logger().warning(f'cannot prune the task history: {error}')
+            self._log.warning(f'cannot prune the task history: {error}')
 
     async def _publish_closed(self, rows: list[HistoryRow]) -> None:
         """Publish the ends of tasks closed at start once a subscriber has matched (bounded):
@@ -236,7 +238,7 @@ class TaskManagerNode(Node):
         bound_sec = SHUTDOWN_MARGIN_SEC + max(
             (r.spec.cancel_timeout_sec for r in records), default=0.0
         )
-        self.get_logger().info(f'shutting down: cancelling {len(records)} active task(s)')
+        self._log.info(f'shutting down: cancelling {len(records)} active task(s)')
         clean = await self.dispatcher.close('the Task Manager is shutting down', bound_sec)
         if not stopped.done():
             stopped.set_result(clean)
@@ -249,7 +251,7 @@ class TaskManagerNode(Node):
             try:
                 history.flush()
             except sqlite3.Error as error:
-                self.get_logger().error(f'cannot write the task history at shutdown: {error}')
+                self._log.error(f'cannot write the task history at shutdown: {error}')
             history.close()
         super().destroy_node()
 

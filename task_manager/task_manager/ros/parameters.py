@@ -18,6 +18,7 @@ from task_manager.core.task_spec import (
     parse_task_specs,
     unknown_keys,
 )
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.running.execution import RunnerTimeouts
 
 # key: node-level parameter, value: (accepted types, default)
@@ -85,12 +86,12 @@ def default_history_path(node: Node) -> str:
     legacy = history_location.legacy_history_path(home)
     try:
         if history_location.adopt_legacy_history(legacy, path):
-            node.get_logger().info(
+            NodeLog.of(node).info(
                 f'moved the task history of an earlier version from {legacy} to {path}: '
                 'each ROS domain and node has its own history file now'
             )
     except HistoryInUseError as error:
-        node.get_logger().warning(f'left the task history {legacy} where it is: {error}')
+        NodeLog.of(node).warning(f'left the task history {legacy} where it is: {error}')
     except OSError as error:
         raise ConfigurationError(
             f'cannot move the task history {legacy} to {path}: {error}'
@@ -172,7 +173,7 @@ def read_task_specs(node: Node, reserved_names: set[str]) -> list[TaskSpec]:
     specs = parse_task_specs(task_keys, entries, reserved_names)
     for spec in specs:
         for unknown in unknown_keys(entries[spec.parameter_key]):
-            node.get_logger().warning(
+            NodeLog.of(node).warning(
                 f"task '{spec.task_name}': ignoring unknown parameter "
                 f'{spec.parameter_key}.{unknown}'
             )

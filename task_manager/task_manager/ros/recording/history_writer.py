@@ -13,7 +13,6 @@ import sqlite3
 import time
 from collections.abc import Callable
 
-from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
@@ -22,13 +21,14 @@ from task_manager.core.errors import ConfigurationError
 from task_manager.core.history.store import HistoryError, HistoryInUseError, TaskHistory
 from task_manager.core.task import TaskRecord
 from task_manager.rclpy_tools.cleanup import destroy_timer
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.parking_executor import spawn_after_turn
 
 WRITE_ERROR_LOG_PERIOD_SEC = 60.0
 RETRY_AFTER_SEC = 5.0
 
 
-def open_history(path: str, logger: RcutilsLogger) -> TaskHistory:
+def open_history(path: str, log: NodeLog) -> TaskHistory:
     """The history at `path`. A file that is not a usable history is moved aside (a robot
     must start) with a warning naming where; a path that cannot be written is a
     ConfigurationError (one line, exit code 2)."""
@@ -40,7 +40,7 @@ def open_history(path: str, logger: RcutilsLogger) -> TaskHistory:
             for suffix in ('', '-wal', '-shm'):
                 if os.path.exists(path + suffix):
                     os.replace(path + suffix, aside + suffix)
-            logger.warning(f'{error}: moved it to {aside} and started a new history')
+            log.warning(f'{error}: moved it to {aside} and started a new history')
             return TaskHistory(path)
     except (OSError, sqlite3.Error, HistoryInUseError) as error:
         raise ConfigurationError(f'cannot open the task history {path}: {error}') from None
@@ -96,7 +96,7 @@ class HistoryWriter:
         now = time.monotonic()
         if now - self._last_error_logged >= WRITE_ERROR_LOG_PERIOD_SEC:
             self._last_error_logged = now
-            self._node.get_logger().error(
+            NodeLog.of(self._node).error(
                 f'cannot write the task history {self.history.path}: {error}; '
                 f'{self.history.pending} change(s) kept to write again (logged once a minute)'
             )

@@ -21,6 +21,7 @@ from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.rclpy_tools.futures import all_completed, first_completed, resolved
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.recording.task_changes import TaskChange, TaskChanges
 from task_manager.ros.running.attempts import Attempts
 from task_manager.ros.running.deadline_timer import Deadline, DeadlineTimer
@@ -41,7 +42,7 @@ class AdmissionControl:
         source_priorities: Mapping[str, int],
     ) -> None:
         self._node = node
-        self._log = node.get_logger()
+        self._log = NodeLog.of(node)
         self._runs = runs
         self._changes = changes
         self._attempts = attempts

@@ -24,6 +24,7 @@ from task_manager.rclpy_tools.futures import (
     result_of,
     wait_for,
 )
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.parking_executor import spawn
 from task_manager.ros.recording.task_changes import TaskChange, TaskChanges
 from task_manager.ros.running.deadline_timer import Deadline, DeadlineTimer
@@ -51,7 +52,7 @@ class Attempts:
         timer: DeadlineTimer,
     ) -> None:
         self._node = node
-        self._log = node.get_logger()
+        self._log = NodeLog.of(node)
         self._catalog = catalog
         self._changes = changes
         self._timer = timer

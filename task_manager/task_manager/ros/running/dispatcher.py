@@ -24,7 +24,7 @@ from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
 from task_manager.messages.json_codec import TaskDataError
 from task_manager.rclpy_tools.futures import completed_future, resolved, result_of, wait_for
-from task_manager.ros.recording import task_log
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.recording.task_changes import TaskChange, TaskChanges
 from task_manager.ros.running.admission_control import AdmissionControl
 from task_manager.ros.running.attempts import Attempts
@@ -57,7 +57,7 @@ class TaskDispatcher:
         self._changes = changes
         self._admission = admission
         self._attempts = attempts
-        self._log = node.get_logger()
+        self._log = NodeLog.of(node)
         self._closing_reason = ''
         # completes once no task is active; replaced whenever a task is admitted
         self._idle: Future[None] = completed_future()
@@ -183,8 +183,7 @@ class TaskDispatcher:
         result: dict[str, Any] | None = None,
     ) -> TaskRecord:
         """End a request that will not run: ERROR, its result `{"error": reason}` (and `result`)."""
-        task_log.warning(
-            self._log,
+        self._log.warning(
             f'task {loggable(record.task_id)} ({loggable(record.task_name)}) from '
             f'{loggable(record.source)!r} rejected, {code}: {reason}',
         )
@@ -230,8 +229,7 @@ class TaskDispatcher:
             if record.started_at is not None and record.ended_at is not None
             else ''
         )
-        task_log.info(
-            self._log,
+        self._log.info(
             f'task {record.task_id} ({record.task_name}) from {record.source!r} ended '
             f'{record.status}{ran_sec}' + (f' ({record.error_code})' if record.error_code else ''),
         )

@@ -18,6 +18,7 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskEnd
 from task_manager.core.task_spec import PauseMode
 from task_manager.rclpy_tools.futures import result_of
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.parking_executor import spawn
 from task_manager.ros.recording.task_changes import TaskChange, TaskChanges
 from task_manager.ros.running.attempts import Attempts
@@ -45,7 +46,7 @@ class PauseControl:
         self._runs = runs
         self._changes = changes
         self._attempts = attempts
-        self._log = node.get_logger()
+        self._log = NodeLog.of(node)
 
     async def pause(self, task_id: str, source: str) -> str:
         """Pause an active task for `source`; '' once it is paused (or already was)."""

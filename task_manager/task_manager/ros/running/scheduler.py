@@ -31,6 +31,7 @@ from task_manager.core.schedules.store import ScheduleStore
 from task_manager.core.status import CancelReason
 from task_manager.core.task import TaskRequest
 from task_manager.rclpy_tools.futures import all_completed, resolved
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.parking_executor import spawn
 from task_manager.ros.running.protocols import TaskCancelling, TaskRunning
 
@@ -51,7 +52,7 @@ class TaskScheduler:
         self._node = node
         self._tasks = tasks
         self._store = store
-        self._log = node.get_logger().get_child('schedules')
+        self._log = NodeLog.of(node, 'schedules')
         # key: schedule id, value: the task ids of its runs that have not ended
         self._active_runs: dict[str, set[str]] = {}
         # ids of BUFFER_ONE schedules with a run waiting for the previous one to end

@@ -17,6 +17,7 @@ from rclpy.task import Future
 from rclpy.timer import Timer
 
 from task_manager.rclpy_tools.cleanup import destroy_timer
+from task_manager.rclpy_tools.log import NodeLog
 
 # A probe answers True (alive now), False (gone now), or a future that completes if alive.
 Probe = Callable[[], bool | Future]
@@ -86,7 +87,7 @@ class ServerWatch:
             execution.on_watch_tick()
         silent_sec = (self._now_ns() - self._last_alive_ns) / 1e9
         if silent_sec > self._settings.loss_timeout_sec and self._in_flight:
-            self._node.get_logger().error(
+            NodeLog.of(self._node).error(
                 f'{self._loss}; failing its {len(self._in_flight)} task(s)'
             )
             for execution in list(self._in_flight):

@@ -35,6 +35,7 @@ from rclpy.timer import Timer
 from task_manager.rclpy_tools.action_services import action_service_name
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.futures import resolved
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, without_qos_events
 from task_manager.ros.recording.turn_publication import TurnPublication
 
@@ -131,7 +132,7 @@ class ActionServicesServer:
         self._execute = execute
         self._cancel = cancel
         self._result_timeout_sec = result_timeout_sec
-        self._log = node.get_logger().get_child('execute_task')
+        self._log = NodeLog.of(node, 'execute_task')
         group = ReentrantCallbackGroup()  # get_result answers wait: they must not hold a group
         handlers: list[tuple[Any, str, Callable[[Any, Any], Any]]] = [
             (self._impl.SendGoalService, 'send_goal', self._on_goal),

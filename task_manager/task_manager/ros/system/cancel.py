@@ -11,6 +11,7 @@ from task_manager.core.system_tasks import CANCEL_TASK_ALIAS_SPEC, CANCEL_TASK_S
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.rclpy_tools.futures import all_completed, resolved
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.running.execution import TaskRunner
 from task_manager.ros.running.protocols import ActiveRecords, TaskCancelling
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
@@ -55,7 +56,7 @@ class CancelTasksRunner(TaskRunner):
     async def _cancel(self, task_ids: list[str], record: TaskRecord) -> TaskEnd:
         for task_id in task_ids:
             if self._tasks.record(task_id) is None:
-                self._node.get_logger().warning(
+                NodeLog.of(self._node).warning(
                     f'task {record.task_id} ({record.task_name}): no active task {task_id!r} '
                     'to cancel; counted as cancelled'
                 )

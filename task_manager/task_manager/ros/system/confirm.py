@@ -30,6 +30,7 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import CONFIRM_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.running.execution import TaskRunner
 from task_manager.ros.running.protocols import ActiveRecords
 from task_manager.ros.system.timed_execution import TimedExecution
@@ -103,13 +104,13 @@ class ConfirmRunner(TaskRunner):
             return response
         if refusal is not None:
             response.error_code, response.message = refusal
-            self._node.get_logger().warning(
+            NodeLog.of(self._node).warning(
                 f'answer to {loggable(request.task_id)} from {loggable(answer.by)!r} not taken: '
                 f'{loggable(response.message, 300)}'
             )
             return response
         verb = 'rejected' if answer.reject else 'confirmed'
-        self._node.get_logger().info(
+        NodeLog.of(self._node).info(
             f'task {request.task_id} ({CONFIRM_SPEC.task_name}) {verb} by {answer.by!r}'
         )
         self._waiting[request.task_id].answer(answer)
@@ -141,6 +142,6 @@ class ConfirmRunner(TaskRunner):
         try:
             rows = self._history.query(HistoryQuery(task_id=task_id, limit=1)) if task_id else []
         except sqlite3.Error as error:
-            self._node.get_logger().warning(f'cannot read the task history: {error}')
+            NodeLog.of(self._node).warning(f'cannot read the task history: {error}')
             rows = []
         return (rows[0].task_name, rows[0].status) if rows else None

@@ -14,6 +14,7 @@ from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.core.task_spec import TaskSpec
 from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.rclpy_tools.futures import all_completed, resolved
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.running.execution import TaskRunner
 from task_manager.ros.running.protocols import TaskPausing
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
@@ -56,7 +57,7 @@ class _PauseStepRunner(TaskRunner):
         errors = [answer.result() or '' for answer in answers]
         done = [t for t, error in zip(task_ids, errors, strict=True) if not error]
         problems = [error for error in errors if error]
-        log = self._node.get_logger()
+        log = NodeLog.of(self._node)
         for problem in problems:
             log.warning(f'task {record.task_id} ({record.task_name}): {problem}')
         success = not problems

@@ -10,6 +10,7 @@ from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import REPRIORITIZE_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
 from task_manager.messages.json_codec import TaskDataError, message_from_json
+from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.running.execution import TaskRunner
 from task_manager.ros.running.protocols import TaskReprioritizing
 from task_manager.ros.system.coroutine_execution import CoroutineExecution
@@ -39,7 +40,7 @@ class ReprioritizeTasksRunner(TaskRunner):
             problem = self._priorities.reprioritize(task_id, message.priority, record.source)
             if problem:
                 errors.append(problem)
-                self._node.get_logger().warning(
+                NodeLog.of(self._node).warning(
                     f'task {record.task_id} ({record.task_name}): {problem}'
                 )
             else:

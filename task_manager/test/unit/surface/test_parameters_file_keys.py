@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from rclpy.logging import LoggingSeverity
 from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
 
 from task_manager.core.admission.arbiter import DEFAULT_MAX_QUEUED
@@ -67,8 +68,11 @@ class ParametersNode:
     def get_logger(self) -> 'ParametersNode':
         return self
 
-    def warning(self, message: str) -> None:
-        self.warnings.append(message)
+    def log(self, message: str, severity: LoggingSeverity) -> bool:
+        """What NodeLog asks of a logger that is not rclpy's: its warnings are kept."""
+        if severity is LoggingSeverity.WARN:
+            self.warnings.append(message)
+        return True
 
 
 def node_of(tmp_path: Path, parameters: dict[str, Any]) -> Any:
