@@ -42,6 +42,11 @@ install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_
   $(STAMPS)/task_manager_web $(STAMPS)/task_manager_mqtt $(STAMPS)/chromium $(STAMPS)/mosquitto \
   $(STAMPS)/task_manager_vda5050 $(STAMPS)/vda5050_master $(STAMPS)/task_manager_console
 
+# build/ holds our build trees and scratch clones: colcon, crawling the workspace, skips it.
+install: $(BUILD)/COLCON_IGNORE
+$(BUILD)/COLCON_IGNORE:
+	@mkdir -p $(BUILD) && touch $@
+
 $(PY):
 	python3 -m venv $(VENV)
 
