@@ -6,9 +6,11 @@ deserializes in Python. At the hundreds of goals per second of a benchmark (neve
 that grows to milliseconds per goal, on both sides of the comparison. So:
 - the bench's clients send goals and ask for results on the action's services, as rclpy's
   ActionClient does, without subscribing to status and feedback;
-- the instant server answers on those services and keeps a result only until it is asked
-  for; it publishes one status message per goal, listing that goal alone, as a server
-  with few goals would.
+- the instant server answers on those services and keeps each result for RESULT_KEEP_SEC
+  (rclpy's default result_timeout), asked for or not: the node asks again for a result whose
+  answer is late, and a server that forgot it once asked would answer "unknown goal"; it
+  publishes one status message per goal, listing that goal alone, as a server with few
+  goals would.
 """
 
 import time
@@ -88,6 +90,9 @@ class LeanActionClient:
         self._node.destroy_client(self._get_result)
 
 
+RESULT_KEEP_SEC = 10.0
+
+
 class InstantActionServer:
     """Accepts every goal and ends it at once with `finish(goal)` as its result."""
 
@@ -97,8 +102,8 @@ class InstantActionServer:
         self._node = node
         self._impl = action_type.Impl
         self._finish = finish
-        # key: goal id (bytes), value: the goal's result until its client asks for it
-        self._results: dict[bytes, Any] = {}
+        # key: goal id (bytes), value: (when it ended, its result), oldest first
+        self._results: dict[bytes, tuple[float, Any]] = {}
         for service, service_type, callback in (
             ('send_goal', self._impl.SendGoalService, self._on_goal),
             ('get_result', self._impl.GetResultService, self._on_get_result),
@@ -122,7 +127,13 @@ class InstantActionServer:
         )
 
     def _on_goal(self, request: Any, response: Any) -> Any:
-        self._results[bytes(request.goal_id.uuid)] = self._finish(request.goal)
+        now = time.monotonic()
+        while self._results:  # the oldest first, as dicts keep their order
+            oldest = next(iter(self._results))
+            if now - self._results[oldest][0] < RESULT_KEEP_SEC:
+                break
+            del self._results[oldest]
+        self._results[bytes(request.goal_id.uuid)] = (now, self._finish(request.goal))
         response.accepted = True
         response.stamp = self._node.get_clock().now().to_msg()
         info = GoalInfo(goal_id=request.goal_id, stamp=response.stamp)
@@ -134,12 +145,12 @@ class InstantActionServer:
         return response
 
     def _on_get_result(self, request: Any, response: Any) -> Any:
-        result = self._results.pop(bytes(request.goal_id.uuid), None)
-        if result is None:
+        kept = self._results.get(bytes(request.goal_id.uuid))
+        if kept is None:
             response.status = GoalStatus.STATUS_UNKNOWN
             return response
         response.status = GoalStatus.STATUS_SUCCEEDED
-        response.result = result
+        response.result = kept[1]
         return response
 
     def _on_cancel(self, _request: Any, response: Any) -> Any:
