@@ -13,7 +13,7 @@ from alembic.runtime.migration import MigrationContext
 from sqlalchemy import create_engine, inspect, text
 
 from task_manager.core.bounds import FLEET_HISTORY_ROWS_MAX, HISTORY_RESULT_MAX_BYTES
-from task_manager.core.request_text import is_refused_character
+from task_manager.core.text.request_text import is_refused_character
 from task_manager_console.store import fleet_history, rows
 from task_manager_console.store.fleet_history import (
     DatabaseUnavailable,

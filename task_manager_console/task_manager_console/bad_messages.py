@@ -6,7 +6,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from task_manager.core.request_text import loggable
+from task_manager.core.text.request_text import loggable
 
 LOG_INTERVAL_SEC = 60.0
 

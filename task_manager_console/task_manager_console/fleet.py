@@ -30,7 +30,7 @@ from task_manager_mqtt.fleet_types import TIMEOUT_SEC, FleetError, StartOptions
 from task_manager_mqtt.settings import DEFAULT_MAX_PAYLOAD_BYTES, DEFAULT_PREFIX
 
 from task_manager.core.bounds import FLEET_RESULTS_HELD_MAX, ids_problem
-from task_manager.core.request_text import request_problem
+from task_manager.core.text.request_text import request_problem
 from task_manager_console.bad_messages import BadMessages
 from task_manager_console.robots import (
     BadDocumentError,

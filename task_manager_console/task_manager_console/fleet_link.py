@@ -27,7 +27,7 @@ from task_manager_web.door_link import DoorLink
 from task_manager_web.errors import ApiError
 from task_manager_web.event_stream import STREAM_QUEUE_MAX, EventStream
 
-from task_manager.core.json_text import compact_json
+from task_manager.core.text.json_text import compact_json
 from task_manager.protocol.errors import RefusalCode, describe
 from task_manager_console.fleet import Change, Fleet
 from task_manager_console.robots import RobotState, robot_id_problem

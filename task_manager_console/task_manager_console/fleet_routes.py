@@ -23,9 +23,9 @@ from task_manager_web.history.csv_export import COLUMNS
 from task_manager_web.history.page import PageFormat, history_page
 
 from task_manager.core.bounds import FLEET_HISTORY_ROWS_DEFAULT, FLEET_HISTORY_ROWS_MAX
-from task_manager.core.json_text import compact_json
 from task_manager.core.names import STOP
-from task_manager.core.request_text import text_problem
+from task_manager.core.text.json_text import compact_json
+from task_manager.core.text.request_text import text_problem
 from task_manager.protocol.errors import RefusalCode
 from task_manager_console.choosing import Choice, choose_robot
 from task_manager_console.documents import FleetStart, FleetStarted, RobotAnswer, StopAll, started

@@ -26,9 +26,9 @@ from task_manager_web.doors.access import (
 from task_manager_web.doors.task_roles import needed_by_steps, needed_to_start
 from task_manager_web.errors import ApiError
 
-from task_manager.core.json_text import compact_json
 from task_manager.core.names import CANCEL_TASK, MISSION, PAUSE, REPRIORITIZE, RESUME, STOP
-from task_manager.core.request_text import text_problem
+from task_manager.core.text.json_text import compact_json
+from task_manager.core.text.request_text import text_problem
 from task_manager.protocol import models
 from task_manager.protocol.errors import RefusalCode
 from task_manager_console.documents import RobotStarted, started

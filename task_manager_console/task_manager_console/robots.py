@@ -14,7 +14,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from task_manager.core.bounds import cut_text
-from task_manager.core.request_text import text_problem
+from task_manager.core.text.request_text import text_problem
 from task_manager.protocol import mqtt
 from task_manager.protocol.errors import describe
 

@@ -29,7 +29,7 @@ from paho.mqtt.subscribeoptions import SubscribeOptions
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
 from task_manager.core.errors import TaskManagerUnavailable
-from task_manager.core.json_text import compact_json
+from task_manager.core.text.json_text import compact_json
 from task_manager.gateway.documents import declared_json, event_json, iso, task_json
 from task_manager.protocol.errors import RefusalCode
 from task_manager_mqtt.connection import (

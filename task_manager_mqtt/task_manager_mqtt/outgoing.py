@@ -22,7 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from task_manager.core.bounds import REASON_MAX_CHARACTERS, cut_text
-from task_manager.core.json_text import compact_json
+from task_manager.core.text.json_text import compact_json
 from task_manager.protocol.errors import RefusalCode
 
 LOG = logging.getLogger('task_manager_mqtt')

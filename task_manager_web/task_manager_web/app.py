@@ -21,7 +21,7 @@ from fastapi.staticfiles import StaticFiles
 
 from task_manager.client import TaskHandle, TaskManagerClient
 from task_manager.core.names import CANCEL_TASK, MISSION, REPRIORITIZE, STOP
-from task_manager.core.request_text import text_problem
+from task_manager.core.text.request_text import text_problem
 from task_manager.gateway import requests as gateway_requests
 from task_manager.gateway.documents import decisions_json, declared_json, result_json, task_json
 from task_manager.protocol import models

@@ -24,7 +24,7 @@ from fastapi import Depends, Request
 
 from task_manager.client import TaskEvent, TaskHandle, TaskManagerClient, TaskResult
 from task_manager.core.errors import TaskManagerUnavailable
-from task_manager.core.json_text import compact_json
+from task_manager.core.text.json_text import compact_json
 from task_manager.gateway.documents import event_json
 from task_manager_web.door_link import DoorLink
 

@@ -10,7 +10,7 @@ from fastapi import FastAPI
 from task_manager.client import ConfirmAnswer
 from task_manager.core.confirmation import AnswerRefusal, not_found_reason
 from task_manager.core.names import ENABLE_SCHEDULE, PAUSE, RESUME, SCHEDULE, UNSCHEDULE
-from task_manager.core.request_text import text_problem
+from task_manager.core.text.request_text import text_problem
 from task_manager.gateway import requests as gateway_requests
 from task_manager.gateway.documents import (
     confirmed_json,

@@ -12,9 +12,9 @@ from typing import Any
 
 from task_manager.core.bounds import SECONDS
 from task_manager.core.names import CONFIRM
-from task_manager.core.request_text import is_refused_character, text_problem
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd
+from task_manager.core.text.request_text import is_refused_character, text_problem
 
 DEFAULT_TIMEOUT_SEC = 600.0
 TEXT_MAX_LENGTH = 1000

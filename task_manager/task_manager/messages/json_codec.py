@@ -29,7 +29,7 @@ from typing import Any, TypeVar
 import numpy
 from rosidl_parser import definition as idl
 
-from task_manager.core.json_text import compact_json
+from task_manager.core.text.json_text import compact_json
 
 T = TypeVar('T')
 Decoder = Callable[[Any, str], Any]

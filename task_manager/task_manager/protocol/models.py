@@ -23,7 +23,7 @@ from pydantic import (
 from task_manager.core.bounds import DECISIONS_PER_TASK_MAX, PRIORITY
 from task_manager.core.confirmation import TEXT_MAX_LENGTH
 from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, IDS_MAX
-from task_manager.core.request_text import MAX_LENGTH, is_refused_character
+from task_manager.core.text.request_text import MAX_LENGTH, is_refused_character
 
 NAME_MAX = MAX_LENGTH
 """The longest task name, task id or source accepted."""

@@ -14,7 +14,7 @@ from paho.mqtt.reasoncodes import ReasonCode
 from task_manager_mqtt.settings import DEFAULT_PREFIX
 from task_manager_mqtt.topics import Topics
 
-from task_manager.core.json_text import compact_json
+from task_manager.core.text.json_text import compact_json
 from task_manager_console.simulation import documents
 from task_manager_console.simulation.documents import Document, declared, iso
 from task_manager_console.simulation.robot_loop import TIMEOUT_SEC, RobotLoop

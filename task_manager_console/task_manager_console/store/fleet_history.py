@@ -37,7 +37,7 @@ from task_manager.core.bounds import (
     FLEET_HISTORY_ROWS_MAX,
     TEXT_MAX_CHARACTERS,
 )
-from task_manager.core.request_text import text_problem
+from task_manager.core.text.request_text import text_problem
 from task_manager_console.store.rows import BadResultError, Document, document_of, row_of, utc
 from task_manager_console.store.schema import results
 

@@ -18,7 +18,7 @@ from task_manager.core.bounds import (
     TEXT_MAX_CHARACTERS,
     cut_text,
 )
-from task_manager.core.request_text import REFUSED, text_problem
+from task_manager.core.text.request_text import REFUSED, text_problem
 from task_manager_console.store.schema import ERROR_CODE_MAX_CHARACTERS, STATUS_MAX_CHARACTERS
 
 Document = dict[str, Any]

@@ -11,7 +11,7 @@ from typing import Any
 
 from fastapi import Response
 
-from task_manager.core.json_text import compact_json
+from task_manager.core.text.json_text import compact_json
 from task_manager_web.errors import ApiError
 from task_manager_web.history.csv_export import COLUMNS, csv_lines
 

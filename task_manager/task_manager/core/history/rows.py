@@ -9,8 +9,8 @@ from dataclasses import dataclass, fields
 
 from task_manager.core.admission.decisions import decisions_to_json
 from task_manager.core.bounds import HISTORY_RESULT_MAX_BYTES, HISTORY_TASK_DATA_MAX_BYTES
-from task_manager.core.json_text import compact_json
 from task_manager.core.task import TaskRecord, pauses_to_json
+from task_manager.core.text.json_text import compact_json
 
 TEXT_COLUMNS = (
     'task_id', 'task_name', 'source', 'mission_id', 'task_data', 'status', 'error_code', 'result',

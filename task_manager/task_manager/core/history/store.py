@@ -31,9 +31,9 @@ from task_manager.core.history.rows import (
     row_of,
     row_size,
 )
-from task_manager.core.json_text import compact_json
 from task_manager.core.schedules.store import SCHEDULES_SCHEMA, ScheduleStore
 from task_manager.core.task import TaskRecord
+from task_manager.core.text.json_text import compact_json
 
 SCHEMA_VERSION = 4
 MEMORY = ':memory:'

@@ -18,10 +18,10 @@ from rclpy.task import Future
 from task_manager.core.admission.arbiter import Verdict
 from task_manager.core.bounds import task_data_problem
 from task_manager.core.errors import TaskRequestError
-from task_manager.core.request_text import loggable, request_problem
 from task_manager.core.status import CancelReason, ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+from task_manager.core.text.request_text import loggable, request_problem
 from task_manager.messages.json_codec import TaskDataError
 from task_manager.rclpy_tools.futures import completed_future, resolved, result_of, wait_for
 from task_manager.rclpy_tools.log import NodeLog

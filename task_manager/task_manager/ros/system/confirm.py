@@ -25,10 +25,10 @@ from task_manager.core.confirmation import (
     not_waiting_reason,
 )
 from task_manager.core.history.store import HistoryQuery, TaskHistory
-from task_manager.core.request_text import loggable
 from task_manager.core.status import TaskStatus
 from task_manager.core.system_tasks import CONFIRM_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord
+from task_manager.core.text.request_text import loggable
 from task_manager.messages.json_codec import TaskDataError, message_from_json
 from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.running.execution import TaskRunner

@@ -7,13 +7,13 @@ from rclpy.task import Future
 from task_manager_msgs.action import Mission
 
 from task_manager.core.bounds import IDS_MAX
-from task_manager.core.json_text import compact_json
 from task_manager.core.mission import MissionProgress, SubtaskRefusal, SubtaskRow
 from task_manager.core.names import MISSION, MISSION_SOURCE
 from task_manager.core.status import CancelReason, ErrorCode
 from task_manager.core.system_tasks import MISSION_SPEC
 from task_manager.core.task import TaskEnd, TaskRecord, TaskRequest
 from task_manager.core.task_spec import PauseMode
+from task_manager.core.text.json_text import compact_json
 from task_manager.messages.json_codec import (
     TaskDataError,
     message_from_dict,

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from test_msgs.action import Fibonacci, NestedMessage
 from test_msgs.srv import BasicTypes
 
-from task_manager.core.request_text import request_problem
+from task_manager.core.text.request_text import request_problem
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import (

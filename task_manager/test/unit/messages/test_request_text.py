@@ -3,7 +3,7 @@ refused, and whatever is logged of them fits one short line."""
 
 import pytest
 
-from task_manager.core.request_text import MAX_LENGTH, loggable, request_problem, text_problem
+from task_manager.core.text.request_text import MAX_LENGTH, loggable, request_problem, text_problem
 
 REFUSED = ['\x00', '\n', '\r', '\t', '\x1b', '\x7f', '\x85', '\u202e', '\u2066', '\u200f']
 
