@@ -10,7 +10,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from task_manager_mqtt.fleet_client import FleetClient, FleetError
+from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.fleet_types import FleetError
 
 ROBOTS = ['robot1', 'robot2', 'robot3']
 TIMEOUT_SEC = 300.0

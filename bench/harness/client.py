@@ -229,22 +229,22 @@ class BenchClient:
     # ---- single requests -------------------------------------------------------------------
 
     def send_task(
-        self, task_name: str, task_data: str, task_id: str = '', accepted: Future | None = None
-    ) -> Future:
+        self, task_name: str, task_data: str, task_id: str = '', accepted: Future[Any] | None = None
+    ) -> Future[Any]:
         return self.execute_task.send_goal(
             execute_task_goal(task_name, task_data, task_id), accepted
         )
 
-    def send_fibonacci(self) -> Future:
+    def send_fibonacci(self) -> Future[Any]:
         return self.fibonacci.send_goal(Fibonacci.Goal(order=0))
 
-    def call(self, client: Any, request: Any) -> Future:
+    def call(self, client: Any, request: Any) -> Future[Any]:
         """Call a service; the future's Reply is stamped when the response came."""
-        replied: Future = Future()
+        replied: Future[Any] = Future()
         client.call_async(request).add_done_callback(stamped(replied))
         return replied
 
-    def call_trigger(self, client: Any = None) -> Future:
+    def call_trigger(self, client: Any = None) -> Future[Any]:
         return self.call(client or self.trigger, Trigger.Request())
 
     def release(self, client: Any, what: str) -> None:

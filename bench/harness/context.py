@@ -116,9 +116,9 @@ class BenchContext:
         self.node = start_node(params_file, self.log_dir, name)
         self.connect()
 
-    def accepted_task(self, task_name: str, task_data: str, task_id: str) -> Future:
+    def accepted_task(self, task_name: str, task_data: str, task_id: str) -> Future[Any]:
         """Send a task; return its reply future once the manager has accepted its goal."""
-        accepted: Future = Future()
+        accepted: Future[Any] = Future()
         replied = self.client.send_task(task_name, task_data, task_id, accepted)
         wait_reply(accepted, f'{task_id} accepted')
         return replied

@@ -28,7 +28,7 @@ EVENT_COUNTS_SERVICE = '/bench/event_counts'
 COUNT_TIMEOUT_SEC = 15.0
 
 
-def _complete(future: Future) -> None:
+def _complete(future: Future[Any]) -> None:
     if not future.done():
         future.set_result(None)
 
@@ -38,7 +38,7 @@ class EventListener:
         self._node = node
         # key: event kind, value: how many since the last answer
         self._counts: Counter[str] = Counter()
-        self._waiting: tuple[int, Future] | None = None
+        self._waiting: tuple[int, Future[Any]] | None = None
         node.create_subscription(
             TaskEvent, TASK_EVENTS_TOPIC, self._on_event, qos.TASK_EVENTS, raw=True
         )
@@ -58,7 +58,7 @@ class EventListener:
                 _complete(reached)
 
     async def _answer(self, request: Any, response: Any) -> Any:
-        reached: Future = Future()
+        reached: Future[Any] = Future()
         self._waiting = (request.uint32_value, reached)
         timer = self._node.create_timer(COUNT_TIMEOUT_SEC, lambda: _complete(reached))
         self._wake_if_reached()

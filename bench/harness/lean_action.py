@@ -61,7 +61,7 @@ class LeanActionClient:
             timeout_sec
         )
 
-    def send_goal(self, goal: Any, accepted: Future | None = None) -> Future:
+    def send_goal(self, goal: Any, accepted: Future[Any] | None = None) -> Future[Any]:
         """A future completing with the Reply of the goal's result (response None if rejected).
 
         The response has `status` (GoalStatus) and `result`, like rclpy's get_result_async.
@@ -69,9 +69,9 @@ class LeanActionClient:
         accepted the goal.
         """
         goal_id = UUID(uuid=list(uuid.uuid4().bytes))
-        replied: Future = Future()
+        replied: Future[Any] = Future()
 
-        def on_goal_response(future: Future) -> None:
+        def on_goal_response(future: Future[Any]) -> None:
             is_accepted = bool(result_of(future).accepted)
             if accepted is not None:
                 accepted.set_result(Reply(time.perf_counter(), is_accepted))

@@ -164,7 +164,7 @@ class PySpyRecorder:
         return Profile.parse(self.output.read_text())
 
 
-def _watch(process: subprocess.Popen, sampling: threading.Event) -> None:
+def _watch(process: subprocess.Popen[str], sampling: threading.Event) -> None:
     """Drain py-spy's output; signal once it says it is sampling."""
     assert process.stdout is not None
     for line in process.stdout:

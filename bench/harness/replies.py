@@ -3,7 +3,7 @@
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 from rclpy.task import Future
 
@@ -23,17 +23,19 @@ class Reply:
     response: Any
 
 
-def stamped(target: Future) -> Callable[[Future], None]:
+def stamped(target: Future[Any]) -> Callable[[Future[Any]], None]:
     """A done callback completing `target` with the Reply of the future it is called with."""
 
-    def on_done(future: Future) -> None:
+    def on_done(future: Future[Any]) -> None:
         target.set_result(Reply(time.perf_counter(), future.result()))
 
     return on_done
 
 
-def wait_reply(future: Future, what: str, timeout_sec: float = config.SAMPLE_TIMEOUT_SEC) -> Reply:
+def wait_reply(
+    future: Future[Any], what: str, timeout_sec: float = config.SAMPLE_TIMEOUT_SEC
+) -> Reply:
     try:
-        return wait_for_future(future, timeout_sec, what)
+        return cast(Reply, wait_for_future(future, timeout_sec, what))
     except WaitTimeoutError as error:
         raise BenchError(str(error)) from error

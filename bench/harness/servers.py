@@ -12,7 +12,7 @@ import json
 import time
 from typing import Any
 
-from rclpy.action import ActionServer
+from rclpy.action.server import ActionServer
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
@@ -58,7 +58,7 @@ class BenchServers:
         # goals accepted by the hold server and not yet executed
         self._held_goals: list[Any] = []
         # futures of slow-service calls still waiting for their response
-        self._held_calls: list[Future] = []
+        self._held_calls: list[Future[Any]] = []
         self._wake = node.create_guard_condition(lambda: None, group)
         self._feedback = FeedbackServer(node, group, self._wake.trigger)
         self._instant = InstantActionServer(
@@ -88,7 +88,7 @@ class BenchServers:
     async def _hold_call(
         self, _request: Trigger.Request, response: Trigger.Response
     ) -> Trigger.Response:
-        released: Future = Future()
+        released: Future[Any] = Future()
         self._held_calls.append(released)
         await released
         response.success = True
@@ -130,7 +130,7 @@ class FeedbackServer:
         self._group = group
         self._wake = wake
         # the running goals, each with the future that releases it
-        self._running: list[tuple[Any, Future]] = []
+        self._running: list[tuple[Any, Future[Any]]] = []
         self._timer: Timer | None = None
         self._published = 0
         self._started_at = 0.0
@@ -153,7 +153,7 @@ class FeedbackServer:
         )
 
     async def _execute(self, goal_handle: Any) -> Fibonacci.Result:
-        released: Future = Future()
+        released: Future[Any] = Future()
         self._running.append((goal_handle, released))
         if self._timer is None:
             self._published = 0

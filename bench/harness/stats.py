@@ -39,7 +39,7 @@ def ratio(measured: float, baseline: float) -> float:
 
 
 def latency_ms(
-    send: Callable[[], Future],
+    send: Callable[[], Future[Any]],
     check: Callable[[Reply], None],
     what: str,
     timeout_sec: float = config.SAMPLE_TIMEOUT_SEC,
@@ -51,7 +51,7 @@ def latency_ms(
     return (reply.at - started) * 1e3
 
 
-def wait_all(futures: Sequence[Future], timeout_sec: float, what: str) -> list[Any]:
+def wait_all(futures: Sequence[Future[Any]], timeout_sec: float, what: str) -> list[Any]:
     """Wait until every future has completed (one event, no polling); return their results."""
     remaining = [len(futures)]
     lock = threading.Lock()
@@ -59,7 +59,7 @@ def wait_all(futures: Sequence[Future], timeout_sec: float, what: str) -> list[A
     if not futures:
         return []
 
-    def on_done(_: Future) -> None:
+    def on_done(_: Future[Any]) -> None:
         with lock:
             remaining[0] -= 1
             if remaining[0] == 0:
@@ -72,13 +72,13 @@ def wait_all(futures: Sequence[Future], timeout_sec: float, what: str) -> list[A
     return [future.result() for future in futures]
 
 
-def last_reply_after(started: float, futures: Sequence[Future], what: str) -> float:
+def last_reply_after(started: float, futures: Sequence[Future[Any]], what: str) -> float:
     """Seconds from `started` until the last of `futures` (completing with Replies) is in."""
     replies = wait_all(futures, config.BURST_TIMEOUT_SEC, what)
-    return max(reply.at for reply in replies) - started
+    return float(max(reply.at for reply in replies) - started)
 
 
-def burst(send: Callable[[int], Future], count: int, what: str) -> tuple[float, list[Reply]]:
+def burst(send: Callable[[int], Future[Any]], count: int, what: str) -> tuple[float, list[Reply]]:
     """Send `count` requests at once; return the seconds until the last reply, and the replies."""
     started = time.perf_counter()
     futures = [send(index) for index in range(count)]

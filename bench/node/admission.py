@@ -23,6 +23,7 @@ import statistics
 import time
 import uuid
 from dataclasses import dataclass
+from typing import Any
 
 from rclpy.task import Future
 
@@ -115,7 +116,7 @@ class AdmissionBench:
                 print(f'[bench] StartTask warm-up {attempt + 1} lost, retrying', flush=True)
         raise BenchError(f'no StartTask round trip and event in {EVENTS_WARM_UP_ATTEMPTS} tries')
 
-    def send(self, task_id: str, on_conflict: str = '') -> Future:
+    def send(self, task_id: str, on_conflict: str = '') -> Future[Any]:
         return self.start_task.send_goal(start_task_goal(task_id, on_conflict))
 
     def wait_started(self, task_ids: set[str], count: int) -> float:
@@ -129,7 +130,7 @@ class AdmissionBench:
         self.events.wait_until(enough, STEP_TIMEOUT_SEC, f'{count} of {len(task_ids)} started')
         return started[count - 1].at
 
-    def hold_base(self, task_id: str) -> Future:
+    def hold_base(self, task_id: str) -> Future[Any]:
         """A `bench/base` task that holds `base` until released; returns its reply future."""
         replied = self.send(task_id)
         self.events.wait_event('STARTED', task_id, STEP_TIMEOUT_SEC)
@@ -150,7 +151,7 @@ class AdmissionBench:
             expect_done(wait_reply(replied, task_id), task_id)
             self.free_ids.append(task_id)
 
-    def fill_queue(self, count: int) -> tuple[list[str], dict[str, Future]]:
+    def fill_queue(self, count: int) -> tuple[list[str], dict[str, Future[Any]]]:
         """`count` requests queued for `base`: their ids in the order the node queued them,
         and their reply futures by id."""
         ids = [f'bench-admission-queued-{uuid.uuid4().hex[:8]}' for _ in range(count)]
@@ -166,7 +167,7 @@ class AdmissionBench:
         queued = [e.task_id for e in self.events.take() if e.event == 'QUEUED']
         return [task_id for task_id in queued if task_id in wanted], replies
 
-    def drain(self, queued_ids: list[str], replies: dict[str, Future]) -> Handover:
+    def drain(self, queued_ids: list[str], replies: dict[str, Future[Any]]) -> Handover:
         """Release the holder, then each queued task once it has started, one after another."""
         wanted = set(queued_ids)
         early = [

@@ -16,6 +16,7 @@ that size, three ways:
 import itertools
 import time
 from dataclasses import dataclass
+from typing import Any
 
 from rclpy.serialization import serialize_message
 from rclpy.task import Future
@@ -62,7 +63,7 @@ class HoldRun:
 
 def direct_hold(ctx: BenchContext, count: int) -> HoldRun:
     """The baseline: the same goals sent to the hold server itself."""
-    accepted: list[Future] = [Future() for _ in range(count)]
+    accepted: list[Future[Any]] = [Future() for _ in range(count)]
     started = time.perf_counter()
     results = [ctx.client.hold.send_goal(Fibonacci.Goal(order=0), a) for a in accepted]
     ramp_sec = last_reply_after(started, accepted, 'direct goals accepted')

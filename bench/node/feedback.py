@@ -12,6 +12,7 @@ checks that the task was still running after the block's last sample.
 import json
 import statistics
 from dataclasses import dataclass
+from typing import Any
 
 from rclpy.task import Future
 
@@ -50,7 +51,7 @@ def busy_block(
     ctx: BenchContext, watcher: TaskEventsWatcher, task_id: str, totals: FeedbackTotals
 ) -> Samples:
     """Samples while the task `task_id` gets feedback at 100 Hz from its server."""
-    replied: Future = ctx.accepted_task(config.FEEDBACK_TASK, config.FIBONACCI_DATA, task_id)
+    replied: Future[Any] = ctx.accepted_task(config.FEEDBACK_TASK, config.FIBONACCI_DATA, task_id)
     watcher.wait_event('FEEDBACK', task_id, FIRST_FEEDBACK_TIMEOUT_SEC)
     samples = _samples(ctx)
     if replied.done():

@@ -6,6 +6,8 @@ instant task, which is all start: its server ends it in its first callback. The 
 samples are taken half before and half after each disturbance, so drift hits both alike.
 """
 
+from typing import Any
+
 from rclpy.task import Future
 
 from bench.harness import config
@@ -28,7 +30,7 @@ def _normal(ctx: BenchContext) -> list[float]:
     return _start_latencies(ctx, config.ISOLATION_SAMPLES // 2)
 
 
-def _during(ctx: BenchContext, disturbance: Future, what: str) -> list[float]:
+def _during(ctx: BenchContext, disturbance: Future[Any], what: str) -> list[float]:
     samples = _start_latencies(ctx, config.ISOLATION_SAMPLES)
     if disturbance.done():
         raise BenchError(f'{what} ended before the samples did: they measured nothing')
@@ -40,9 +42,9 @@ def _expect(reply: Reply, status: str, code: str, what: str) -> None:
         raise BenchError(f'{what} ended {task_status(reply)!r} {error_code(reply)!r}')
 
 
-def _accepted(ctx: BenchContext, task_name: str, task_data: str, task_id: str) -> Future:
+def _accepted(ctx: BenchContext, task_name: str, task_data: str, task_id: str) -> Future[Any]:
     """Send a task; return its reply future once the manager has accepted its goal."""
-    accepted: Future = Future()
+    accepted: Future[Any] = Future()
     replied = ctx.client.send_task(task_name, task_data, task_id, accepted)
     wait_reply(accepted, f'{task_id} accepted')
     return replied

@@ -199,7 +199,7 @@ def warm_up_results(ctx: BenchContext, watcher: ResultsWatcher) -> None:
 
 
 def seconds(stamp: Any) -> float:
-    return float(stamp.sec) + stamp.nanosec * 1e-9
+    return float(stamp.sec + stamp.nanosec * 1e-9)
 
 
 def task_states(ctx: BenchContext, task_ids: list[str]) -> list[Any]:

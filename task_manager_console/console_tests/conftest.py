@@ -16,9 +16,10 @@ from task_manager.testing.process import NodeProcess
 from task_manager_console.doors_testing import ConsoleProcess
 from task_manager_console.fleet import Fleet
 from task_manager_console.simulation.robot import SimulatedRobot
+from task_manager_console.simulation.robot_loop import TIMEOUT_SEC
 from task_manager_console.store.fleet_history import FleetHistory
 from task_manager_console.store.local_postgres import PostgresServer
-from task_manager_console.testing import CONSOLE_USER, ROBOTS, TIMEOUT_SEC, postgres_server
+from task_manager_console.testing import CONSOLE_USER, ROBOTS, postgres_server
 from task_manager_demo.run_demo import ROBOT_READY, TASK_MANAGER_READY, default_params_file
 from task_manager_demo.testing import robot_command
 

@@ -15,8 +15,9 @@ from task_manager_mqtt.testing import BrokerProcess
 from task_manager.testing.process import NodeProcess
 from task_manager_console.main import READY_LINE
 from task_manager_console.simulation.robot import SimulatedRobot
+from task_manager_console.simulation.robot_loop import TIMEOUT_SEC
 from task_manager_console.store.fleet_history import FleetHistory, HistoryFilter
-from task_manager_console.testing import CONSOLE_USER, TIMEOUT_SEC, wait_until
+from task_manager_console.testing import CONSOLE_USER, wait_until
 
 CONSOLE = str(Path(sys.executable).with_name('task-manager-console'))
 BURST = 4000

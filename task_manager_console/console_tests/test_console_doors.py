@@ -15,15 +15,10 @@ import httpx
 import pytest
 from prometheus_client.parser import text_string_to_metric_families
 from task_manager_mqtt.testing import BrokerProcess
+from task_manager_web.doors_testing import VIEWER
 
 from task_manager.core.bounds import FLEET_HISTORY_ROWS_MAX
-from task_manager_console.doors_testing import (
-    OPERATOR,
-    VIEWER,
-    ConsoleProcess,
-    EventReader,
-    wait_for,
-)
+from task_manager_console.doors_testing import OPERATOR, ConsoleProcess, EventReader, wait_for
 from task_manager_console.simulation.robot import SimulatedRobot
 
 Document = dict[str, Any]

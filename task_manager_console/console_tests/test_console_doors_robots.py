@@ -6,21 +6,15 @@ with one robot busy, one offline and one free chooses the free one and says why.
 
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import httpx
 import pytest
 from task_manager_mqtt.testing import BridgeProcess, BrokerProcess
+from task_manager_web.doors_testing import ADMIN, VIEWER
 
 from task_manager.testing.gateway import Robot
-from task_manager_console.doors_testing import (
-    ADMIN,
-    OPERATOR,
-    VIEWER,
-    ConsoleProcess,
-    EventReader,
-    wait_for,
-)
+from task_manager_console.doors_testing import OPERATOR, ConsoleProcess, EventReader, wait_for
 from task_manager_console.simulation.robot import SimulatedRobot
 
 pytestmark = pytest.mark.ros
@@ -48,7 +42,7 @@ def robot_state(http: httpx.Client, robot_id: str) -> Document:
 def online(http: httpx.Client, robot_id: str, task_name: str) -> Document:
     """Wait until the console sees the robot ONLINE, reaching its Task Manager and declaring
     `task_name`; its state."""
-    return wait_for(
+    state: Document = wait_for(
         lambda: robot_state(http, robot_id),
         lambda r: (
             r.get('task_manager_connected')
@@ -57,6 +51,7 @@ def online(http: httpx.Client, robot_id: str, task_name: str) -> Document:
         ),
         f'{robot_id} ONLINE with {task_name}',
     )
+    return state
 
 
 def active(http: httpx.Client, robot_id: str, task_id: str, status: str) -> Document:
@@ -75,7 +70,7 @@ def stored(http: httpx.Client, task_id: str) -> Document:
     found = wait_for(
         lambda: http.get('/api/history', params={'task_id': task_id}).json(), len, task_id
     )
-    return found[0]
+    return cast(Document, found[0])
 
 
 def test_a_task_started_through_the_doors_is_stored_and_streamed_as_its_starter_s(

@@ -12,8 +12,9 @@ from task_manager.testing.gateway import Robot
 from task_manager_console.fleet import Fleet
 from task_manager_console.robots import ConnectionState
 from task_manager_console.simulation.robot import SimulatedRobot
+from task_manager_console.simulation.robot_loop import TIMEOUT_SEC
 from task_manager_console.store.fleet_history import HistoryFilter
-from task_manager_console.testing import TIMEOUT_SEC, Results
+from task_manager_console.testing import Results
 
 pytestmark = pytest.mark.ros
 

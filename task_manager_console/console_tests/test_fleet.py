@@ -13,9 +13,10 @@ from task_manager_mqtt.fleet_types import FleetError
 from task_manager_console.fleet import Fleet
 from task_manager_console.robots import ConnectionState, RobotState
 from task_manager_console.simulation.robot import SimulatedRobot
+from task_manager_console.simulation.robot_loop import TIMEOUT_SEC
 from task_manager_console.store.fleet_history import HistoryFilter
 from task_manager_console.store.local_postgres import PostgresServer
-from task_manager_console.testing import ROBOTS, TIMEOUT_SEC, Results
+from task_manager_console.testing import ROBOTS, Results
 
 StartConsole = Callable[..., Fleet]
 StartRobot = Callable[..., SimulatedRobot]
@@ -171,7 +172,7 @@ def test_actions_need_a_known_robot_online_and_usable_names(
     assert robot_is(
         fleet, 'robot1', lambda r: r.connection_state == 'OFFLINE' and r.since is not None
     )
-    refusals = {
+    refusals: dict[str, Callable[[], object]] = {
         'robot_offline': lambda: fleet.start_task('robot1', 'fib'),
         'unknown_robot': lambda: fleet.client.cancel('robot9', ['t1']),
         'invalid_request': lambda: fleet.start_task('robot\x071', 'fib'),

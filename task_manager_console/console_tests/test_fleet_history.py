@@ -13,8 +13,8 @@ from alembic.runtime.migration import MigrationContext
 from sqlalchemy import create_engine, inspect, text
 
 from task_manager.core.bounds import FLEET_HISTORY_ROWS_MAX, HISTORY_RESULT_MAX_BYTES
-from task_manager.core.text.request_text import is_refused_character
-from task_manager_console.store import fleet_history, rows
+from task_manager.core.text.request_text import REFUSED, is_refused_character
+from task_manager_console.store import fleet_history
 from task_manager_console.store.fleet_history import (
     DatabaseUnavailable,
     FleetHistory,
@@ -274,4 +274,4 @@ def test_a_postgresql_server_that_stops_is_unavailable_then_stores_again(
 
 def test_the_quick_check_of_a_rows_text_refuses_what_text_problem_refuses() -> None:
     refused = [c for c in map(chr, range(0x110000)) if is_refused_character(c)]
-    assert [c for c in map(chr, range(0x110000)) if rows.REFUSED.search(c)] == refused
+    assert [c for c in map(chr, range(0x110000)) if REFUSED.search(c)] == refused

@@ -8,7 +8,7 @@ import os
 from collections.abc import Callable
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 from playwright.sync_api import Page, expect
 from task_manager_web.doors_testing import OPERATOR, TOKENS, VIEWER
@@ -137,7 +137,7 @@ def stored(console: ConsoleProcess, task_id: str) -> Document:
         found = wait_for(
             lambda: http.get('/api/history', params={'task_id': task_id}).json(), len, task_id
         )
-    return found[0]
+    return cast(Document, found[0])
 
 
 def start_from_form(page: Page, task_name: str, task_data: str, robot_id: str = '') -> str:

@@ -21,7 +21,8 @@ from task_manager_web.doors_testing import OPERATOR as OPERATOR
 
 from task_manager.testing.output_reader import OutputReader
 from task_manager_console.main import READY_LINE
-from task_manager_console.testing import CONSOLE_USER, TIMEOUT_SEC
+from task_manager_console.simulation.robot_loop import TIMEOUT_SEC
+from task_manager_console.testing import CONSOLE_USER
 
 CONSOLE = str(Path(sys.executable).with_name('task-manager-console'))
 DASHBOARD_LINE = r'dashboard: (?P<url>http://[^/\s]+)/'

@@ -17,8 +17,7 @@ from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
-from rclpy.action.server import ServerGoalHandle
+from rclpy.action.server import ActionServer, CancelResponse, GoalResponse, ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.event_handler import EventHandler
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -76,7 +75,7 @@ class Outcome(Enum):
     PREEMPTED = 'pre-empted'
 
 
-def finish_goal(goal_handle: ServerGoalHandle, outcome: Outcome) -> None:
+def finish_goal(goal_handle: ServerGoalHandle[Any, Any, Any], outcome: Outcome) -> None:
     if outcome is Outcome.SUCCEEDED:
         goal_handle.succeed()
     elif outcome is Outcome.CANCELED:
@@ -89,7 +88,7 @@ def finish_goal(goal_handle: ServerGoalHandle, outcome: Outcome) -> None:
 class _Drive:
     """The motion the base is carrying out, for one goal."""
 
-    goal_handle: ServerGoalHandle
+    goal_handle: ServerGoalHandle[Any, Any, Any]
     motion: Motion
     feedback: Callable[[Pose], Any]
     outcome: Future[Outcome]
@@ -104,7 +103,10 @@ class Base:
         self._drive: _Drive | None = None
 
     def start(
-        self, goal_handle: ServerGoalHandle, motion: Motion, feedback: Callable[[Pose], Any]
+        self,
+        goal_handle: ServerGoalHandle[Any, Any, Any],
+        motion: Motion,
+        feedback: Callable[[Pose], Any],
     ) -> Future[Outcome]:
         """Start `motion` for `goal_handle`, pre-empting the running one; returns its Outcome."""
         self._end(Outcome.PREEMPTED)
@@ -193,7 +195,7 @@ class SimRobot(Node):
 
     def _action_server(
         self, action_type: Any, topic: str, execute: Any, group: ReentrantCallbackGroup
-    ) -> ActionServer:
+    ) -> ActionServer[Any, Any, Any]:
         return ActionServer(
             self,
             action_type,
@@ -207,7 +209,7 @@ class SimRobot(Node):
         )
 
     async def _drive(
-        self, what: str, goal_handle: ServerGoalHandle, motion: Motion, feedback: Any
+        self, what: str, goal_handle: ServerGoalHandle[Any, Any, Any], motion: Motion, feedback: Any
     ) -> Outcome:
         outcome = await self.base.start(goal_handle, motion, feedback)
         if outcome is None:  # only for a cancelled future, and the base cancels none
@@ -216,7 +218,9 @@ class SimRobot(Node):
         self.get_logger().info(f'{what}: {outcome.value} at {self.base.pose}')
         return outcome
 
-    async def _navigate(self, goal_handle: ServerGoalHandle) -> NavigateToPose.Result:
+    async def _navigate(
+        self, goal_handle: ServerGoalHandle[Any, Any, Any]
+    ) -> NavigateToPose.Result:
         request = goal_handle.request
         motion = DriveToPose(Pose(request.x, request.y, request.theta), self.speeds)
         self.get_logger().info(f'navigate: from {self.base.pose} to {motion.goal}')
@@ -230,7 +234,7 @@ class SimRobot(Node):
         pose = self.base.pose
         return NavigateToPose.Result(x=pose.x, y=pose.y, theta=pose.theta)
 
-    async def _spin(self, goal_handle: ServerGoalHandle) -> Spin.Result:
+    async def _spin(self, goal_handle: ServerGoalHandle[Any, Any, Any]) -> Spin.Result:
         motion = SpinBy(goal_handle.request.angle, self.speeds)
         self.get_logger().info(f'spin: {motion.angle:.2f} rad from {self.base.pose}')
         await self._drive(
@@ -241,7 +245,7 @@ class SimRobot(Node):
         )
         return Spin.Result(angle_travelled=motion.travelled)
 
-    async def _dock(self, goal_handle: ServerGoalHandle) -> Dock.Result:
+    async def _dock(self, goal_handle: ServerGoalHandle[Any, Any, Any]) -> Dock.Result:
         dock_id = goal_handle.request.dock_id or self.dock_id
         if dock_id != self.dock_id:
             self.get_logger().error(f'dock: unknown dock "{dock_id}" (known: "{self.dock_id}")')

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
+from rclpy.action.client import ActionClient
 from rclpy.client import Client
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto, UploadPhotos
@@ -67,7 +67,7 @@ class RobotClient:
         assert self.take_photo.wait_for_service(timeout_sec=TIMEOUT_SEC)
         assert self.upload_photos.wait_for_service(timeout_sec=TIMEOUT_SEC)
 
-    def send(self, client: ActionClient, goal: Any) -> tuple[Any, FeedbackRecorder]:
+    def send(self, client: ActionClient[Any, Any, Any], goal: Any) -> tuple[Any, FeedbackRecorder]:
         feedback = FeedbackRecorder()
         future = client.send_goal_async(goal, feedback_callback=feedback)
         handle = wait_for_future(future, TIMEOUT_SEC, 'goal response')

@@ -19,7 +19,8 @@ import pytest
 from task_manager_console.doors_testing import wait_for
 from task_manager_console.store.local_postgres import postgres_bin
 from task_manager_mqtt.broker import OBSERVER_USER
-from task_manager_mqtt.fleet_client import FleetClient, FleetTask
+from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.fleet_types import FleetTask
 from task_manager_mqtt.testing import RawClient
 from task_manager_mqtt.topics import Topics
 

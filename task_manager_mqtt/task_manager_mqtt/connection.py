@@ -60,7 +60,7 @@ def connect(
     """Connect in the background (retrying), keeping the session for `session_sec` when away;
     `receive_maximum`: the most QoS 1 messages not acknowledged yet that the broker may send
     (0: the broker's choice). `start_loop`: on paho's own thread (else the caller drives it)."""
-    properties = Properties(PacketTypes.CONNECT)
+    properties = Properties(PacketTypes.CONNECT)  # type: ignore[no-untyped-call]
     properties.SessionExpiryInterval = session_sec
     if receive_maximum:
         properties.ReceiveMaximum = receive_maximum

@@ -19,7 +19,7 @@ import uuid
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import replace
-from typing import Any, Unpack
+from typing import Any, Unpack, cast
 
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
@@ -32,6 +32,7 @@ from task_manager_mqtt.fleet_types import (
     Document,
     FleetError,
     FleetTask,
+    Reply,
     RobotView,
     ScheduleFields,
     StartOptions,
@@ -356,10 +357,11 @@ class FleetClient:
             self._refused(request_id, early)
         return reply
 
-    def _answer(self, robot_id: str, op: str, wait_sec: float, /, **fields: Any) -> Document:
+    def _answer(self, robot_id: str, op: str, wait_sec: float, /, **fields: Any) -> Reply:
         """The robot's reply to a request (FleetError if it is an error reply); `fields` may
         hold a `timeout_sec` of their own (a schedule's runs')."""
-        return outcome(self.request(robot_id, op, **fields), wait_sec, f'reply of {robot_id}')
+        reply = outcome(self.request(robot_id, op, **fields), wait_sec, f'reply of {robot_id}')
+        return cast(Reply, reply)
 
     def _start(
         self, robot_id: str, op: str, fields: Document, task_id: str, source: str

@@ -62,6 +62,20 @@ class FleetTask:
         return outcome(self.result_future, timeout_sec, f'result of {self.task_id}')
 
 
+class Reply(TypedDict, total=False):
+    """What a robot's reply to a FleetClient's request holds besides its address and outcome
+    (protocol/mqtt.py's MqttReply): each call returns one of these."""
+
+    task: Document
+    tasks: list[Document]
+    decisions: list[Document]
+    paused: Document
+    resumed: Document
+    scheduled: Document
+    schedules: list[Document]
+    confirmed: Document
+
+
 class StartOptions(TypedDict, total=False):
     """The options of a start (StartTask's); each left out takes the robot's declaration."""
 

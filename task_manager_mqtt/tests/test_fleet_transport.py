@@ -41,7 +41,7 @@ def test_messages_with_properties_are_read_as_mosquitto_sends_them(tmp_path: Pat
             states.append((name, document))
             changed.notify_all()
 
-    properties = Properties(PacketTypes.PUBLISH)
+    properties = Properties(PacketTypes.PUBLISH)  # type: ignore[no-untyped-call]
     properties.UserProperty = [('trace', 'x' * 300)]  # a properties length of two bytes
     properties.ContentType = 'application/json'
     properties.MessageExpiryInterval = 60

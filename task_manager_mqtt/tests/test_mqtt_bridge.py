@@ -3,13 +3,14 @@
 
 import json
 from collections.abc import Callable
-from typing import Any
+from typing import Any, cast
 
 import pytest
 
 from task_manager.client import TaskManagerClient
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
-from task_manager_mqtt.fleet_client import FleetClient, FleetError
+from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.fleet_types import FleetError
 from task_manager_mqtt.settings import (
     DEFAULT_MAX_PAYLOAD_BYTES,
     DEFAULT_PREFIX,
@@ -211,7 +212,8 @@ def test_poison_messages_get_one_answer_each_and_the_robot_still_answers(
 
         def reply_to(request_id: str) -> dict[str, Any]:
             raw.publish(topics.request, json.dumps({'request_id': request_id, 'op': 'dance'}))
-            return raw.wait_for(lambda received: replies_to(received, request_id), request_id)
+            reply = raw.wait_for(lambda received: replies_to(received, request_id), request_id)
+            return cast(dict[str, Any], reply)
 
         # stored by the broker before the bridge's first subscription: never delivered
         stored = start_request('p-retained-stored')

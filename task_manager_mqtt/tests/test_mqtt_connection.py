@@ -8,7 +8,8 @@ from pathlib import Path
 import pytest
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
-from task_manager_mqtt.fleet_client import FleetClient, RobotView
+from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.fleet_types import RobotView
 from task_manager_mqtt.settings import DEFAULT_PREFIX as PREFIX
 from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, BrokerProcess, RawClient
 from task_manager_mqtt.topics import Topics

@@ -6,7 +6,8 @@ from typing import Any
 import pytest
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
-from task_manager_mqtt.fleet_client import FleetClient, FleetError
+from task_manager_mqtt.fleet_client import FleetClient
+from task_manager_mqtt.fleet_types import FleetError
 from task_manager_mqtt.testing import ROBOT
 
 pytestmark = pytest.mark.ros

@@ -2,12 +2,12 @@
 those without a usable request_id are dead letters (no ROS, no broker)."""
 
 import json
-from typing import Any
+from typing import Any, cast
 
 import pytest
 
+from task_manager.protocol.strict_json import MAX_DEPTH
 from task_manager.testing.gateway import check
-from task_manager_mqtt.decoding import MAX_DEPTH
 from task_manager_mqtt.requests import Answer, RequestHandler
 
 MAX_BYTES = 2000
@@ -22,7 +22,7 @@ def answer_to(payload: bytes, retained: bool = False) -> Answer:
 def reply_to(payload: bytes, retained: bool = False) -> dict[str, Any]:
     answer = answer_to(payload, retained)
     assert answer.dead_letter is None
-    return check(answer.reply, 'mqtt_reply')
+    return cast(dict[str, Any], check(answer.reply, 'mqtt_reply'))
 
 
 @pytest.mark.parametrize(

@@ -4,9 +4,9 @@ from typing import Any
 
 import pytest
 
-from task_manager_vda5050.mapping import read_mapping
+from task_manager_vda5050.mapping import DEMO_MAPPING, read_mapping
 from task_manager_vda5050.orders.plan import OrderRejectedError, Planner, check_update
-from task_manager_vda5050.testing import DEMO_MAPPING, edge, node, order, photo
+from task_manager_vda5050.testing import edge, node, order, photo
 
 PLANNER = Planner(read_mapping(DEMO_MAPPING), {'navigation/navigate_to_pose'}.__contains__)
 

@@ -53,7 +53,7 @@ def start_waiting(http: httpx.Client, task_id: str, prompt: str = 'Load the tray
 
 def ended(http: httpx.Client, task_id: str) -> dict[str, Any]:
     """The task once ended, as GET /api/tasks/{task_id} shows it."""
-    return check(
+    task: dict[str, Any] = check(
         wait_until(
             lambda: (
                 (task := http.get(f'/api/tasks/{task_id}').json())['status']
@@ -64,6 +64,7 @@ def ended(http: httpx.Client, task_id: str) -> dict[str, Any]:
         ),
         'task',
     )
+    return task
 
 
 def test_an_operator_confirms_and_the_task_keeps_who_did(

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from functools import cache, partial
 from types import ModuleType
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import numpy
 from rosidl_parser import definition as idl
@@ -109,9 +109,9 @@ def import_class(slot: idl.NamespacedType) -> type:
     """Import the message class of a nested type, e.g. builtin_interfaces.msg.Time."""
     package: ModuleType = importlib.import_module('.'.join(slot.namespaces))
     if hasattr(package, slot.name):
-        return getattr(package, slot.name)
+        return cast(type, getattr(package, slot.name))
     module = importlib.import_module(f'{package.__name__}._{_snake(slot.name.split("_")[0])}')
-    return getattr(module, slot.name)
+    return cast(type, getattr(module, slot.name))
 
 
 def _class_name(msg_class: type) -> str:

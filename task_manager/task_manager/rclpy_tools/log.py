@@ -15,8 +15,8 @@ Python's `logging`.
 import sys
 from typing import Any
 
+from rclpy.impl.logging_severity import LoggingSeverity
 from rclpy.impl.rcutils_logger import RcutilsLogger
-from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 
 try:

@@ -225,7 +225,7 @@ class TaskManagerNode(Node):
         for row in rows:
             self._result_publisher.publish(result_msg_of_row(row))
 
-    async def shut_down(self, stopped: Future) -> None:
+    async def shut_down(self, stopped: Future[Any]) -> None:
         """Cancel every active task on its server, publish the results, then complete `stopped`.
 
         A robot must not keep driving once its Task Manager is gone.

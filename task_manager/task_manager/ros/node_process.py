@@ -3,6 +3,7 @@
 import signal
 import threading
 import traceback
+from typing import Any
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, ShutdownException, SingleThreadedExecutor
@@ -26,7 +27,7 @@ DRAIN_MAX_CALLBACKS = 1000
 
 
 def _receive_signals(
-    node: TaskManagerNode, stopped: Future, shutdown_signals: set[signal.Signals]
+    node: TaskManagerNode, stopped: Future[Any], shutdown_signals: set[signal.Signals]
 ) -> None:
     signal.sigwait(shutdown_signals)
     assert node.executor is not None
@@ -49,7 +50,7 @@ def _drain(executor: SingleThreadedExecutor) -> None:
             return
 
 
-def _serve_until(executor: SingleThreadedExecutor, stopped: Future) -> None:
+def _serve_until(executor: SingleThreadedExecutor, stopped: Future[Any]) -> None:
     """Spin until `stopped`. An exception a callback lets out (a bug of ours) is logged in one
     line, where it was raised, and the node goes on serving: exiting would leave every running
     goal untracked and every client without its result."""
@@ -93,7 +94,7 @@ def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
     except Exception as error:  # a value rclpy refuses (a list of mixed types, a bad name)
         rclpy.try_shutdown()
         return _refuse_configuration(error)
-    stopped: Future = Future()
+    stopped: Future[Any] = Future()
     exit_code = [0]
     executor.add_node(node)
     try:
@@ -128,7 +129,7 @@ def _report_older(node: TaskManagerNode, what: str) -> None:
     )
 
 
-def _yield_to_older(node: TaskManagerNode, stopped: Future, exit_code: list[int]) -> None:
+def _yield_to_older(node: TaskManagerNode, stopped: Future[Any], exit_code: list[int]) -> None:
     """An older Task Manager was discovered late: this one stops as if signalled, exit 2."""
     _report_older(node, 'stopping')
     exit_code[0] = EXIT_ANOTHER_TASK_MANAGER

@@ -2,10 +2,10 @@
 
 import threading
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 import rclpy
-from rclpy.action import ActionClient
+from rclpy.action.client import ActionClient
 from rclpy.event_handler import QoSSubscriptionMatchedInfo, SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -21,7 +21,7 @@ class WaitTimeoutError(AssertionError):
     """A bounded wait in a test ran out before the awaited event happened."""
 
 
-def wait_for_future(future: Future, timeout_sec: float, what: str = 'future') -> Any:
+def wait_for_future(future: Future[Any], timeout_sec: float, what: str = 'future') -> Any:
     """Block the calling (non-executor) thread until `future` completes; return its result."""
     done = threading.Event()
     future.add_done_callback(lambda _: done.set())
@@ -118,7 +118,8 @@ class RosHarness:
         another thread while the executor spins, the executor may see it half-built and die.
         Build action clients through this.
         """
-        return wait_for_future(self.executor.create_task(function), timeout_sec, 'executor task')
+        task = self.executor.create_task(function)
+        return cast(T, wait_for_future(task, timeout_sec, 'executor task'))
 
     def action_client(self, action_type: type, name: str, **options: Any) -> Any:
         """An rclpy ActionClient on this node, built on the executor thread (see on_executor)."""

@@ -10,7 +10,7 @@ import threading
 from dataclasses import dataclass
 from typing import Any
 
-from rclpy.action import GoalResponse
+from rclpy.action.server import GoalResponse
 from test_msgs.action import Fibonacci
 
 from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal

@@ -12,7 +12,7 @@ from collections.abc import Callable
 from enum import Enum
 from typing import Any
 
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.task import Future
@@ -243,7 +243,7 @@ class ScriptedCall:
     def __init__(self, request: Any, response_type: Any, hop: _ExecutorHop) -> None:
         self.request = request
         self._response_type = response_type
-        self._response: Future = Future()
+        self._response: Future[Any] = Future()
         self._hop = hop
 
     def respond(self, **fields: Any) -> None:

@@ -1,7 +1,8 @@
 """Our interfaces travel over real DDS between real rclpy clients and servers."""
 
-from rclpy.action import ActionServer
-from rclpy.action.server import ServerGoalHandle
+from typing import Any
+
+from rclpy.action.server import ActionServer, ServerGoalHandle
 from rclpy.client import Client
 from task_manager_msgs.action import ExecuteTask
 from task_manager_msgs.srv import CancelTasks
@@ -14,7 +15,7 @@ TIMEOUT_SEC = 10.0
 def test_execute_task_goal_and_result_cross_dds(ros: RosHarness) -> None:
     received: list[ExecuteTask.Goal] = []
 
-    def execute(goal_handle: ServerGoalHandle) -> ExecuteTask.Result:
+    def execute(goal_handle: ServerGoalHandle[Any, Any, Any]) -> ExecuteTask.Result:
         received.append(goal_handle.request)
         goal_handle.succeed()
         return ExecuteTask.Result(

@@ -27,6 +27,7 @@ from collections.abc import Callable
 from typing import Any
 
 import paho.mqtt.client as mqtt
+from paho.mqtt.enums import MQTTErrorCode
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
 READ_CHUNK_BYTES = 256 * 1024
@@ -122,7 +123,7 @@ class BufferedClient(mqtt.Client):
     def _create_socket(self) -> Any:
         return BufferedSocket(super()._create_socket())
 
-    def _handle_publish(self) -> mqtt.MQTTErrorCode:
+    def _handle_publish(self) -> MQTTErrorCode:
         received = self.on_received
         command = self._in_packet['command']
         qos = (command & 0x06) >> 1

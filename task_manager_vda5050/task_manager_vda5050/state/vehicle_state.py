@@ -129,7 +129,7 @@ class VehicleState:
         state = self.action_states.get(action_id)
         if state is None or state['actionStatus'] in ENDED:
             return False
-        changed = state['actionStatus'] != status
+        changed = bool(state['actionStatus'] != status)
         state['actionStatus'] = status
         if description and state.get('resultDescription') != description:
             state['resultDescription'] = description

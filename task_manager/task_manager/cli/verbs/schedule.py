@@ -2,7 +2,7 @@
 
 from datetime import datetime
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import typer
 from rich.table import Table
@@ -237,7 +237,7 @@ def add(
 
 def schedule_data(info: ScheduleInfo) -> dict[str, Any]:
     """A schedule as `taskctl schedule list --json` prints it: stamps in ISO 8601."""
-    return info.as_dict(iso)
+    return cast(dict[str, Any], info.as_dict(iso))
 
 
 def schedules_table(schedules: list[ScheduleInfo]) -> Table:

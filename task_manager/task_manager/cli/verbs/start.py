@@ -2,6 +2,7 @@
 
 import time
 from datetime import timedelta
+from typing import cast
 
 import typer
 from rich.console import RenderableType
@@ -95,7 +96,7 @@ def why_it_ended(client: TaskManagerClient, result: TaskResult) -> list[Decision
     if result.status is TaskStatus.DONE or result.error_message:
         return None
     try:
-        return client.why(result.task_id)
+        return cast(list[Decision], client.why(result.task_id))
     except TaskManagerError:
         return None
 

@@ -56,13 +56,13 @@ class ActionExecution:
         self._client = client
         self._goal_id = goal_id
         self._spec = spec
-        self.outcome: Future = Future()
+        self.outcome: Future[Any] = Future()
         self._ticks_since_ask = 0
         self._ticks_between_asks = 1
         self._result_request = self._ask_for_result()
         self.outcome.add_done_callback(lambda _: self._forget())
 
-    def _ask_for_result(self, again: bool = False) -> Future:
+    def _ask_for_result(self, again: bool = False) -> Future[Any]:
         request = self._client.get_result(self._goal_id, again)
         request.add_done_callback(self._on_result)
         return request
@@ -84,7 +84,7 @@ class ActionExecution:
         if not self._result_request.done():
             self._client.forget_result_request(self._result_request)
 
-    def _on_result(self, future: Future) -> None:
+    def _on_result(self, future: Future[Any]) -> None:
         response = future.result()
         if self.outcome.done() or response is None:
             return
@@ -207,14 +207,14 @@ class ActionTaskRunner(TaskRunner):
             'the goal may still run'
         )
 
-    def _probe(self) -> bool | Future:
+    def _probe(self) -> bool | Future[Any]:
         """A cancel request for a goal id that does not exist: a live server answers at
         once, and it cancels nothing."""
         if not self._client.server_is_ready():
             return False
         return self._client.cancel(uuid.uuid4().bytes)
 
-    def _cancel_late_goal(self, goal_id: bytes, goal_future: Future) -> None:
+    def _cancel_late_goal(self, goal_id: bytes, goal_future: Future[Any]) -> None:
         """A goal accepted after its start timed out would run untracked: cancel it."""
         self._client.forget(goal_id)
         response = goal_future.result()

@@ -12,7 +12,8 @@ import time
 from collections.abc import Iterable
 from typing import Protocol
 
-from rclpy.clock import Clock, ClockType
+from rclpy.clock import Clock
+from rclpy.clock_type import ClockType
 from rclpy.node import Node
 
 from task_manager.core.admission.options import RequestOptions

@@ -10,7 +10,7 @@ that moment, the moment the loss becomes visible.
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 from rclpy.node import Node
 from rclpy.task import Future
@@ -20,13 +20,13 @@ from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.log import NodeLog
 
 # A probe answers True (alive now), False (gone now), or a future that completes if alive.
-Probe = Callable[[], bool | Future]
+Probe = Callable[[], bool | Future[Any]]
 
 
 class FailableExecution(Protocol):
     """A running task that can be ended ERROR without its server."""
 
-    outcome: Future
+    outcome: Future[Any]
 
     def fail(self, reason: str) -> None: ...
 
@@ -55,7 +55,7 @@ class ServerWatch:
         self._in_flight: set[FailableExecution] = set()
         self._timer: Timer | None = None
         self._last_alive_ns = 0
-        self._probe_in_flight: Future | None = None
+        self._probe_in_flight: Future[Any] | None = None
 
     def _now_ns(self) -> int:
         return self._node.get_clock().now().nanoseconds

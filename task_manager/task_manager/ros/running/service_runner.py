@@ -27,7 +27,7 @@ class ServiceExecution:
         self._node = node
         self._client = client
         self._spec = spec
-        self.outcome: Future = Future()
+        self.outcome: Future[Any] = Future()
         self._response_future = client.call_async(request)
         self._response_future.add_done_callback(self._on_response)
         self._deadline = node.create_timer(
@@ -38,7 +38,7 @@ class ServiceExecution:
         )
         self.outcome.add_done_callback(lambda _: self._clean_up())
 
-    def _on_response(self, future: Future) -> None:
+    def _on_response(self, future: Future[Any]) -> None:
         if self.outcome.done() or future.cancelled() or future.result() is None:
             return
         response = message_to_dict(future.result())

@@ -25,7 +25,7 @@ from typing import Any
 
 from action_msgs.msg import GoalInfo, GoalStatus, GoalStatusArray
 from action_msgs.srv import CancelGoal
-from rclpy.action import CancelResponse
+from rclpy.action.server import CancelResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, qos_profile_action_status_default
@@ -89,7 +89,7 @@ class ServedGoal:
 
     @property
     def is_cancel_requested(self) -> bool:
-        return self.status == GoalStatus.STATUS_CANCELING
+        return bool(self.status == GoalStatus.STATUS_CANCELING)
 
     def succeed(self) -> None:
         self._move_to(GoalStatus.STATUS_SUCCEEDED)

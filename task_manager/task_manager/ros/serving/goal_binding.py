@@ -4,7 +4,7 @@ import contextlib
 import dataclasses
 from typing import Any, Protocol
 
-from rclpy.action import CancelResponse
+from rclpy.action.server import CancelResponse
 from rclpy.node import Node
 from rclpy.task import Future
 
@@ -92,7 +92,7 @@ class GoalTaskBinding:
         cancelled = self._tasks.cancel(bound.task_id, CancelReason.CLIENT)
         cancelled.add_done_callback(lambda done: self._on_cancel_done(bound, done))
 
-    def _on_cancel_done(self, bound: _BoundGoal, cancelled: Future) -> None:
+    def _on_cancel_done(self, bound: _BoundGoal, cancelled: Future[Any]) -> None:
         record = self._tasks.record(bound.task_id)
         if cancelled.result() or record is None or bound.cancel_failed.done():
             return

@@ -6,7 +6,7 @@ the same dispatcher (conflicts, tracking, results) as ExecuteTask, with source `
 
 from typing import Any
 
-from rclpy.action import ActionServer, GoalResponse
+from rclpy.action.server import ActionServer, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.node import Node
 
@@ -57,7 +57,7 @@ def create_task_servers(node: Node, tasks: GoalTasks, specs: list[TaskSpec]) -> 
 
 def _action_server(
     node: Node, binding: GoalTaskBinding, spec: TaskSpec, action_type: Any, name: str
-) -> ActionServer:
+) -> ActionServer[Any, Any, Any]:
     async def execute(goal_handle: Any) -> Any:
         record = await binding.run(
             goal_handle, _request(spec, goal_handle.request), action_type.Feedback

@@ -15,7 +15,7 @@ class CoroutineExecution:
 
     def __init__(self, node: Node, body: Coroutine[Any, Any, TaskEnd]) -> None:
         self._node = node
-        self.outcome: Future = Future()
+        self.outcome: Future[Any] = Future()
         assert node.executor is not None
         node.executor.create_task(self._run, body)
 

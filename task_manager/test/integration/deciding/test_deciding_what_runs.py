@@ -3,6 +3,7 @@ each decision explained, on a node started from a parameters file with real serv
 
 import json
 import time
+from typing import Any
 
 from action_msgs.msg import GoalStatus
 from task_manager_msgs.msg import TaskEvent
@@ -20,7 +21,7 @@ TIMEOUT_SEC = 15.0
 
 
 def robot(
-    ros: RosHarness, launch: LaunchTaskManager, prefix: str, **entries: dict
+    ros: RosHarness, launch: LaunchTaskManager, prefix: str, **entries: dict[str, Any]
 ) -> tuple[TaskManagerProbe, dict[str, ScriptedActionServer]]:
     """A node with a drive and a dock on `base` and a photo on `camera` (and `entries`)."""
     tasks = {

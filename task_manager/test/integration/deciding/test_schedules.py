@@ -103,7 +103,7 @@ def _started(ros: RosHarness, task_id: str) -> tuple[float, float]:
 
 
 def _seconds(stamp: Any) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
+    return float(stamp.sec + stamp.nanosec * 1e-9)
 
 
 def test_one_shot_and_periodic_schedules_start_ordinary_runs(

@@ -44,9 +44,9 @@ def _send_and_cancel_at_acceptance(
 def _cancel_at_acceptance(client: Any, goal: Any) -> tuple[Any, Any]:
     """Send a goal and cancel it from the goal response's callback, on the executor thread,
     before anything else runs; returns (goal handle, cancel response)."""
-    cancelled: Future = Future()
+    cancelled: Future[Any] = Future()
 
-    def on_response(response: Future) -> None:
+    def on_response(response: Future[Any]) -> None:
         handle = result_of(response)
         assert handle.accepted
         handle.cancel_goal_async().add_done_callback(

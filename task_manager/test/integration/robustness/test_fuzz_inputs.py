@@ -94,7 +94,7 @@ def _instant_servers(ros: RosHarness, prefix: str) -> list[Any]:
 
 
 def _launch(launch: LaunchTaskManager, prefix: str) -> TaskManagerProbe:
-    return launch(
+    probe: TaskManagerProbe = launch(
         {
             'fib': action_task('fib', f'{prefix}/fib', reentrant=True),
             'nested': action_task(
@@ -105,6 +105,7 @@ def _launch(launch: LaunchTaskManager, prefix: str) -> TaskManagerProbe:
             ),
         }
     )
+    return probe
 
 
 # ---- (a) task_data ---------------------------------------------------------------------------

@@ -189,7 +189,7 @@ class WaitSetCount:
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
         self.count = 0
-        real = rclpy.executors._rclpy
+        real = rclpy.executors._rclpy  # type: ignore[attr-defined]  # the binding it patches
         counter = self
 
         class Counting:
@@ -225,7 +225,7 @@ def turns_to_answer_a_burst(
     everything: Future[None] = Future()
     remaining = [BURST]
 
-    def one_more(_: Future) -> None:
+    def one_more(_: Future[Any]) -> None:
         remaining[0] -= 1
         if not remaining[0]:
             everything.set_result(None)

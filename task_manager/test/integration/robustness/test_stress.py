@@ -19,7 +19,7 @@ from typing import Any, TypeVar
 
 import psutil
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionClient
+from rclpy.action.client import ActionClient
 from task_manager_msgs.action import ExecuteTask
 from test_msgs.action import Fibonacci
 
@@ -66,7 +66,7 @@ class StressClient:
         self.number = number
         self.requests = requests
         self._ros = ros
-        self.client: ActionClient = execute_task_client(ros)
+        self.client: ActionClient[Any, Any, Any] = execute_task_client(ros)
         self.pending: list[tuple[Request, Any]] = []  # (request, result future)
         self.error: BaseException | None = None
         self.sent = threading.Event()

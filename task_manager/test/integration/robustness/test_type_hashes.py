@@ -62,7 +62,8 @@ def _installed_hash(type_name: str) -> str:
     )
     _, kind, name = type_name.split('/')
     description = json.loads((share / kind / f'{name}.json').read_text())
-    return next(h['hash_string'] for h in description['type_hashes'] if h['type_name'] == type_name)
+    found = (h['hash_string'] for h in description['type_hashes'] if h['type_name'] == type_name)
+    return str(next(found))
 
 
 @pytest.mark.parametrize('type_name', sorted(ORIGINAL_TYPE_HASHES))

@@ -32,9 +32,10 @@ def _decide(goal: ScriptedGoal) -> None:
 
 def _launch(ros: RosHarness, launch: LaunchTaskManager, prefix: str) -> TaskManagerProbe:
     ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib', on_goal=_decide)
-    return launch(
+    probe: TaskManagerProbe = launch(
         {'fib': action_task('math/fib', f'{prefix}/fib', reentrant=True, cancel_on_stop=True)}
     )
+    return probe
 
 
 def test_start_waits_and_exits_by_status(

@@ -33,7 +33,10 @@ def _decide(goal: ScriptedGoal) -> None:
 
 def _launch(ros: RosHarness, launch: LaunchTaskManager, prefix: str) -> TaskManagerProbe:
     ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib', on_goal=_decide)
-    return launch({'fib': action_task('math/fib', f'{prefix}/fib', reentrant=True)})
+    probe: TaskManagerProbe = launch(
+        {'fib': action_task('math/fib', f'{prefix}/fib', reentrant=True)}
+    )
+    return probe
 
 
 def _rows(output: str) -> list[dict[str, Any]]:

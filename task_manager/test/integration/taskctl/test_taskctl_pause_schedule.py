@@ -62,7 +62,10 @@ def _launch_pausable(
 def _launch_instant(ros: RosHarness, launch: LaunchTaskManager, prefix: str) -> TaskManagerProbe:
     """`math/fib` (reentrant), whose goals succeed at once."""
     ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib', on_goal=_succeed)
-    return launch({'fib': action_task('math/fib', f'{prefix}/fib', reentrant=True)})
+    probe: TaskManagerProbe = launch(
+        {'fib': action_task('math/fib', f'{prefix}/fib', reentrant=True)}
+    )
+    return probe
 
 
 def _line_with(text: str, output: str) -> str:

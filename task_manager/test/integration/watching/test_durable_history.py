@@ -34,12 +34,13 @@ def _decide(goal: ScriptedGoal) -> None:
 def _launch(
     launch: LaunchTaskManager, prefix: str, history: Path, **parameters: object
 ) -> TaskManagerProbe:
-    return launch(
+    probe: TaskManagerProbe = launch(
         {'fib': action_task('fib', f'{prefix}/fib', reentrant=True)},
         history_path=str(history),
         results_history_size=10_000,
         **parameters,
     )
+    return probe
 
 
 def test_a_killed_node_forgets_nothing_and_closes_its_running_tasks_once(

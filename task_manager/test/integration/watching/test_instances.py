@@ -11,10 +11,10 @@ from rclpy.executors import SingleThreadedExecutor
 from task_manager_msgs.msg import TaskManagerInstance
 from test_msgs.action import Fibonacci
 
+from task_manager.core.names import INSTANCES_TOPIC
 from task_manager.ros.instances import (
     INSTANCES_QOS,
     INSTANCES_SUBSCRIPTION_QOS,
-    INSTANCES_TOPIC,
     InstanceWatch,
     this_instance,
 )
@@ -38,7 +38,8 @@ TWIN_LINE = (
 
 def _first(ros: RosHarness, launch: LaunchTaskManager, prefix: str) -> TaskManagerProbe:
     ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib', on_goal=lambda g: g.succeed())
-    return launch({'fib': action_task('fib', f'{prefix}/fib')})
+    probe: TaskManagerProbe = launch({'fib': action_task('fib', f'{prefix}/fib')})
+    return probe
 
 
 def _second(tmp_path: Path, prefix: str, **parameters: object) -> NodeProcess:
@@ -48,7 +49,7 @@ def _second(tmp_path: Path, prefix: str, **parameters: object) -> NodeProcess:
 
 
 def _pid(probe: TaskManagerProbe) -> int:
-    return probe.process.process.pid  # type: ignore[attr-defined]
+    return int(probe.process.process.pid)  # type: ignore[attr-defined]
 
 
 def _refused(second: NodeProcess) -> tuple[int, list[str]]:

@@ -33,7 +33,7 @@ FEEDBACK_REPEAT_SEC = 0.2
 
 
 def _seconds(stamp: Any) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
+    return float(stamp.sec + stamp.nanosec * 1e-9)
 
 
 def _until_ended(events: TopicRecorder, task_id: str) -> list[TaskEvent]:

@@ -203,7 +203,7 @@ def test_any_json_text_gives_a_message_or_a_task_data_error(
     ),
 )
 def test_any_dict_gives_a_message_or_a_task_data_error(
-    msg_class: type[GeneratedMessage], data: dict
+    msg_class: type[GeneratedMessage], data: dict[str, Any]
 ) -> None:
     try:
         msg = message_from_dict(msg_class, data)

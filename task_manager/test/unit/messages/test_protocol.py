@@ -6,7 +6,7 @@ from typing import get_args
 
 import jsonschema
 import pytest
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskResult, TaskState
 from task_manager.core.status import ErrorCode, TaskStatus
@@ -139,7 +139,7 @@ def test_the_schema_and_the_model_agree_on_a_good_mission() -> None:
     ],
 )
 def test_control_and_reordering_characters_are_refused_at_the_door(
-    model: type[models.BaseModel], body: dict[str, object], field: str
+    model: type[BaseModel], body: dict[str, object], field: str
 ) -> None:
     with pytest.raises(ValidationError) as refused:
         model.model_validate(body)

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from rclpy.logging import LoggingSeverity
+from rclpy.impl.logging_severity import LoggingSeverity
 from rclpy.parameter import Parameter, parameter_dict_from_yaml_file
 
 from task_manager.core.admission.arbiter import DEFAULT_MAX_QUEUED
