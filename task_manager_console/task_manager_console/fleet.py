@@ -28,6 +28,7 @@ from typing import Any, Unpack
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.fleet_types import TIMEOUT_SEC, FleetError, StartOptions
 from task_manager_mqtt.settings import DEFAULT_MAX_PAYLOAD_BYTES, DEFAULT_PREFIX
+from task_manager_mqtt.topics import TopicName
 
 from task_manager.core.bounds import FLEET_RESULTS_HELD_MAX, ids_problem
 from task_manager.core.text.request_text import request_problem
@@ -104,7 +105,7 @@ class Fleet:
         self._ingest = Ingest(
             history,
             on_stored=self._on_stored,
-            on_bad=lambda robot_id, why: self._on_bad_message(robot_id, 'result', why),
+            on_bad=lambda robot_id, why: self._on_bad_message(robot_id, TopicName.RESULT, why),
             on_database=self._on_database,
         )
         self._readers = ThreadPoolExecutor(READERS, thread_name_prefix='fleet-reads')
@@ -296,11 +297,11 @@ class Fleet:
             old = self._robots.get(robot_id)
             state = old or RobotState(robot_id)
             try:
-                if name == 'connection':
+                if name == TopicName.CONNECTION:
                     state = state.with_connection(document)
-                elif name == 'tasks':
+                elif name == TopicName.TASKS:
                     state = state.with_tasks(document)
-                elif name == 'active_tasks':
+                elif name == TopicName.ACTIVE_TASKS:
                     state = state.with_active(document)
             except BadDocumentError as error:
                 why = str(error)

@@ -40,7 +40,7 @@ from task_manager_mqtt.fleet_types import (
     schedule_document,
 )
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, Tls
-from task_manager_mqtt.topics import ANY_ROBOT, Topics
+from task_manager_mqtt.topics import ANY_ROBOT, TopicName, Topics
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
 RequestCheck = Callable[[str, str, Document], None]
@@ -53,7 +53,14 @@ CLOSE_TIMEOUT_SEC = 10.0
 """How long close() waits for the MQTT thread (a connection being made, say)."""
 # the topics followed, of every robot; the connection last, so that the retained state of a
 # robot is there when it is seen ONLINE
-FOLLOWED = ('reply', 'result', 'dead_letter', 'tasks', 'active_tasks', 'connection')
+FOLLOWED = (
+    TopicName.REPLY,
+    TopicName.RESULT,
+    TopicName.DEAD_LETTER,
+    TopicName.TASKS,
+    TopicName.ACTIVE_TASKS,
+    TopicName.CONNECTION,
+)
 
 
 class FleetClient:
@@ -107,7 +114,7 @@ class FleetClient:
         """The largest request the broker takes (MQTT 5's Maximum Packet Size); None: any."""
         self._receive_maximum = receive_maximum
         self._check_request = check_request
-        self._followed = (*FOLLOWED, 'event') if events else FOLLOWED
+        self._followed = (*FOLLOWED, TopicName.EVENT) if events else FOLLOWED
         self._subscribed = threading.Event()
         self._request_numbers = itertools.count(1)
         self._session_sec = SESSION_EXPIRY_SEC if client_id else 0

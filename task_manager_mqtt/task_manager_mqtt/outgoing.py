@@ -24,13 +24,14 @@ from typing import Any
 from task_manager.core.bounds import REASON_MAX_CHARACTERS, cut_text
 from task_manager.core.text.json_text import compact_json
 from task_manager.protocol.errors import RefusalCode
+from task_manager_mqtt.topics import TopicName
 
 LOG = logging.getLogger('task_manager_mqtt')
 BULKY = ('result', 'feedback')
 """The fields of a Task document that may be of any size."""
 ESSENTIAL = ('task_id', 'task_name', 'source', 'status', 'error_code', 'mission_id', 'sequence')
 """What a Task document keeps at the last step."""
-LISTS = ('active_tasks', 'tasks')
+LISTS = (TopicName.ACTIVE_TASKS, TopicName.TASKS)
 """The topics whose documents hold a list of tasks, `tasks`, that may be cut."""
 RUNNING_FIRST = {'IN_PROGRESS': 0, 'PAUSED': 0}
 """The rank of a task when a list is cut (the others: 1)."""
@@ -53,7 +54,7 @@ class Outgoing:
         payload = _encoded(document)
         if len(payload) <= max_bytes:
             return payload
-        if topic_name == 'reply' and isinstance(document.get('tasks'), list):
+        if topic_name == TopicName.REPLY and isinstance(document.get('tasks'), list):
             self._log(topic_name, len(payload), max_bytes, 'refused: reply_too_large')
             return _too_large(document, len(payload), max_bytes)
         for step, made in enumerate(_smaller(topic_name, document, max_bytes), 1):
@@ -62,7 +63,7 @@ class Outgoing:
                 self._log(topic_name, len(payload), max_bytes, f'made smaller (step {step})')
                 return fitting
         self._log(topic_name, len(payload), max_bytes, 'nothing that fits: not sent')
-        if topic_name == 'reply':
+        if topic_name == TopicName.REPLY:
             return _too_large(document, len(payload), max_bytes)
         return None
 

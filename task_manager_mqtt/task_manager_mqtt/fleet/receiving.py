@@ -15,7 +15,7 @@ from concurrent.futures import Future
 
 from task_manager.protocol.strict_json import load_within
 from task_manager_mqtt.fleet_types import Document, RobotView
-from task_manager_mqtt.topics import ANY_ROBOT, Topics
+from task_manager_mqtt.topics import ANY_ROBOT, TopicName, Topics
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
 Acknowledge = Callable[[], None]
@@ -53,11 +53,11 @@ class FleetReceiver:
         self._replies: dict[str, Future[Document]] = {}
         # key: (robot id, task id), value: its result, once it comes
         self._results: dict[tuple[str, str], Future[Document]] = {}
-        self._handlers = {
-            'reply': self._on_reply,
-            'result': self._on_result,
-            'event': self._on_event,
-            'dead_letter': self._on_dead_letter,
+        self._handlers: dict[str, Callable[[str, Document], None]] = {
+            TopicName.REPLY: self._on_reply,
+            TopicName.RESULT: self._on_result,
+            TopicName.EVENT: self._on_event,
+            TopicName.DEAD_LETTER: self._on_dead_letter,
         }
 
     # ---- what requests wait for ---------------------------------------------------------------
@@ -104,7 +104,7 @@ class FleetReceiver:
             return False
         if not isinstance(document, dict | None):
             self._bad_message(robot_id, name, 'not a JSON object')
-        elif name == 'result' and self._hold_results and self.held_callbacks:
+        elif name == TopicName.RESULT and self._hold_results and self.held_callbacks:
             if document is not None:
                 self._on_held(robot_id, document, mid, qos)
                 return True
@@ -161,13 +161,13 @@ class FleetReceiver:
     def _on_robot_state(self, robot_id: str, name: str, document: Document | None) -> None:
         with self._changed:
             robot = self._robot(robot_id)
-            if name == 'connection':
+            if name == TopicName.CONNECTION:
                 robot.connection = document
-            elif name == 'active_tasks':
+            elif name == TopicName.ACTIVE_TASKS:
                 robot.active_tasks = (document or {}).get('tasks', [])
                 omitted = (document or {}).get('omitted')
                 robot.active_tasks_omitted = omitted if isinstance(omitted, int) else 0
-            elif name == 'tasks':
+            elif name == TopicName.TASKS:
                 robot.tasks = (document or {}).get('tasks', [])
             self._changed.notify_all()
         for state_callback in self.state_callbacks:
