@@ -32,6 +32,7 @@ from task_manager_mqtt.topics import TopicName
 
 from task_manager.core.bounds import FLEET_RESULTS_HELD_MAX, ids_problem
 from task_manager.core.text.request_text import request_problem
+from task_manager.protocol.errors import RefusalCode
 from task_manager_console.bad_messages import BadMessages
 from task_manager_console.robots import (
     BadDocumentError,
@@ -249,7 +250,7 @@ class Fleet:
                 answers[robot_id] = reply.result(max(deadline - time.monotonic(), 0.0))
             except FutureTimeout:
                 message = f'no reply of {robot_id} within {timeout_sec} s'
-                answers[robot_id] = _error(FleetError(message, 'timeout'))
+                answers[robot_id] = _error(FleetError(message, RefusalCode.TIMEOUT))
             except FleetError as error:
                 answers[robot_id] = _error(error)
         return dict(sorted(answers.items()))
@@ -272,10 +273,12 @@ class Fleet:
                 (p for i in task_ids if (p := request_problem(i, '', '') or '')), ''
             )
         if problem:
-            raise FleetError(problem, 'invalid_request')
+            raise FleetError(problem, RefusalCode.INVALID_REQUEST)
         robot = self.robot(robot_id)
         if robot is None:
-            raise FleetError(f'no robot {robot_id!r} is known on the broker', 'unknown_robot')
+            raise FleetError(
+                f'no robot {robot_id!r} is known on the broker', RefusalCode.UNKNOWN_ROBOT
+            )
         if not robot.online:
             raise _offline(robot)
 
@@ -393,7 +396,7 @@ def _offline(robot: RobotState) -> FleetError:
     if robot.connection_state == ConnectionState.ONLINE:
         state = 'ONLINE but its bridge reaches no Task Manager'
     since = f' since {robot.since.isoformat()}' if robot.since else ''
-    return FleetError(f'robot {robot.robot_id} is {state}{since}', 'robot_offline')
+    return FleetError(f'robot {robot.robot_id} is {state}{since}', RefusalCode.ROBOT_OFFLINE)
 
 
 def _error(error: FleetError) -> Document:

@@ -24,6 +24,7 @@ from typing import Any, Unpack, cast
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
+from task_manager.protocol.errors import RefusalCode
 from task_manager_mqtt.connection import RECONNECT_MIN_SEC, connect, largest_payload, new_client
 from task_manager_mqtt.fleet.receiving import FleetReceiver, HeldCallback
 from task_manager_mqtt.fleet.transport import BufferedClient, ClientLoop
@@ -350,7 +351,7 @@ class FleetClient:
         limit = self._largest_payload
         if limit is not None and len(payload) > limit:  # never sent: see largest_payload
             message = f'the request is {len(payload)} bytes; the broker takes at most {limit}'
-            reply.set_exception(FleetError(message, 'payload_too_large'))
+            reply.set_exception(FleetError(message, RefusalCode.PAYLOAD_TOO_LARGE))
             return reply
         self._receiver.expect_reply(request_id, reply)
         topic = Topics(self.prefix, robot_id).request
@@ -488,7 +489,7 @@ class FleetClient:
         reply = self._receiver.take_reply(request_id)
         if reply is not None and not reply.done():
             message = f'the broker refused the request: {reason} (too large for it, or not allowed)'
-            reply.set_exception(FleetError(message, 'refused_by_broker'))
+            reply.set_exception(FleetError(message, RefusalCode.REFUSED_BY_BROKER))
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
         """A message paho read itself (see BufferedClient); one whose topic is not UTF-8 (no

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, TypedDict
 
+from task_manager.protocol.errors import RefusalCode
+
 TIMEOUT_SEC = 10.0
 
 Document = dict[str, Any]
@@ -120,7 +122,7 @@ def outcome(future: Future[Document], timeout_sec: float, what: str) -> Document
     try:
         return _checked(future.result(timeout_sec))
     except TimeoutError:
-        raise FleetError(f'no {what} within {timeout_sec} s', 'timeout') from None
+        raise FleetError(f'no {what} within {timeout_sec} s', RefusalCode.TIMEOUT) from None
 
 
 def _checked(reply: Document) -> Document:
