@@ -14,6 +14,7 @@ from pathlib import Path
 
 import rclpy
 
+from bench.fleet import console
 from bench.gateways import mqtt, vda5050, web
 from bench.harness import config
 from bench.harness.client import BenchClient
@@ -50,6 +51,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'web': web.run,
     'mqtt': mqtt.run,
     'vda5050': vda5050.run,
+    'console': console.run,
     # last: they restart the node for each phase, then once more with the default parameters
     'admission': admission.run,
     'events': events.run,

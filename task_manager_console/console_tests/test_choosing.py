@@ -1,6 +1,7 @@
 """ "Any robot": the choice among robots' states, and why each other one was not chosen."""
 
 from datetime import UTC, datetime
+from typing import Any
 
 from task_manager_console.choosing import choose_robot
 from task_manager_console.robots import ConnectionState, RobotState
@@ -55,7 +56,7 @@ def test_only_the_requested_robots_and_none_when_none_can() -> None:
 def test_the_declared_resources_are_those_the_robots_task_manager_would_say() -> None:
     """`dock` and `drive` share `base`; `scan` is blocking and `photo` holds the camera: a robot
     docking has `base` busy, one scanning (blocking) has the camera free."""
-    tasks = [
+    tasks: list[dict[str, Any]] = [
         {'task_name': 'drive', 'resources': ['base']},
         {'task_name': 'dock', 'resources': ['base', 'charger']},
         {'task_name': 'scan', 'blocking': True, 'reentrant': True},

@@ -126,8 +126,8 @@ class ConsoleMetrics:
 
     def _on_change(self, change: Change) -> None:
         """On the Fleet's threads (prometheus_client's metrics are thread-safe)."""
-        if change.result is None:
+        if change.row is None:
             return
-        status = change.result.get('status')
+        status = change.row['status']
         label = status if status in FINAL_STATUSES else OTHER_STATUS
         self.tasks_ended.labels(change.robot.robot_id, label).inc()

@@ -23,6 +23,7 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures import TimeoutError as FutureTimeout
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Unpack
 
 from task_manager_mqtt.fleet_client import FleetClient
@@ -56,8 +57,14 @@ class Change:
     """One change of the fleet: a robot's new state, and the result just stored, if any."""
 
     robot: RobotState
-    result: Document | None = None
-    """A result newly stored (a fleet history document), when that is the change."""
+    row: Document | None = None
+    """The row of a result newly stored, when that is the change."""
+
+    @cached_property
+    def result(self) -> Document | None:
+        """The result newly stored as a fleet history document (made when first asked: most
+        changes go to no event stream)."""
+        return None if self.row is None else document_of(self.row)
 
 
 class Fleet:
@@ -335,16 +342,21 @@ class Fleet:
             self._progress.notify_all()
 
     def _on_stored(self, rows: list[Document]) -> None:
-        for row in rows:
-            document = document_of(row)
-            robot_id = row['robot_id']
-            with self._lock:
-                self.results_stored += 1
+        """A batch stored: each robot's count and last result, then a change per row."""
+        changes: list[Change] = []
+        with self._lock:
+            self.results_stored += len(rows)
+            for row in rows:
+                robot_id = row['robot_id']
                 robot = self._robots.get(robot_id) or RobotState(robot_id)
-                robot = self._robots[robot_id] = robot.with_fields(
-                    last_result=document, results_stored=robot.results_stored + 1
-                )
-            self._notify(Change(robot, document))
+                robot = robot.with_fields(results_stored=robot.results_stored + 1)
+                self._robots[robot_id] = robot
+                changes.append(Change(robot, row))
+            for change in {c.robot.robot_id: c for c in changes}.values():  # each one's last
+                robot = self._robots[change.robot.robot_id]
+                self._robots[robot.robot_id] = robot.with_fields(last_result=change.result)
+        for change in changes:
+            self._notify(change)
 
     # ---- slower reads, on the readers' threads ------------------------------------------------
 

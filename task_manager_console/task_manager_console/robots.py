@@ -136,7 +136,7 @@ class RobotState:
     def with_active(self, document: object) -> 'RobotState':
         """After its `active_tasks` document."""
         active = _model(mqtt.ActiveTasks, document, 'active_tasks')
-        tasks = [task.model_dump(mode='json', exclude_none=True) for task in active.tasks]
+        tasks = active.model_dump(mode='json', exclude_none=True, include={'tasks'})['tasks']
         return self.with_fields(active=tasks, active_omitted=active.omitted)
 
 

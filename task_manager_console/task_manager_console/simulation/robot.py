@@ -17,12 +17,15 @@ from task_manager_mqtt.topics import Topics
 from task_manager.core.text.json_text import compact_json
 from task_manager_console.simulation import documents
 from task_manager_console.simulation.documents import Document, declared, iso
-from task_manager_console.simulation.robot_loop import TIMEOUT_SEC, RobotLoop
+from task_manager_console.simulation.robot_loop import (
+    FAILURE,
+    TIMEOUT_SEC,
+    RobotClient,
+    RobotLoop,
+)
 
 EVENTS_PER_TASK = 3
 """Messages of a task from start to end (next_event): active_tasks twice, then its result."""
-IN_FLIGHT_MAX = 1000
-"""QoS 1 messages a robot sends before the broker's acknowledgements."""
 
 
 class SimulatedRobot:
@@ -59,20 +62,20 @@ class SimulatedRobot:
         self._connected = False
         self._awaited: set[int] = set()
         """Message ids a caller waits for."""
-        # key: a message id awaited, value: the broker's answer
-        self._acks: dict[int, ReasonCode] = {}
+        # key: a message id awaited, value: the broker's reason code
+        self._acks: dict[int, int] = {}
+        self._counting = False
+        """Whether wait_taken waits (it is woken at each acknowledgement then)."""
         self._templates: dict[tuple[str, str], Document] = {}
         self._step = 0
         """Of next_event: the next message of the task it runs."""
         self._running: Document = {}
-        self.mqtt = mqtt.Client(
+        self.mqtt = RobotClient(
             CallbackAPIVersion.VERSION2, client_id=robot_id, protocol=mqtt.MQTTv5
         )
         self.mqtt.username_pw_set(robot_id, password)
-        self.mqtt.max_inflight_messages_set(IN_FLIGHT_MAX)
-        self.mqtt.max_queued_messages_set(0)
         self.mqtt.on_connect = self._on_connect
-        self.mqtt.on_publish = self._on_publish
+        self.mqtt.on_acknowledged = self._on_acknowledged
         will = self.connection_document('CONNECTIONBROKEN', task_manager_connected=False)
         self.mqtt.will_set(self.topics.connection, compact_json(will), qos=1, retain=True)
 
@@ -232,25 +235,30 @@ class SimulatedRobot:
     ) -> int:
         """On the loop's thread: publish at QoS 1; its message id (awaited: its ack is kept)."""
         data = payload if isinstance(payload, bytes) else compact_json(payload).encode()
-        info = self.mqtt.publish(topic, data, qos=1, retain=retain)
+        mid = self.mqtt.publish_qos1(topic, data, retain)
         self.published += 1
         if awaited:
-            self._awaited.add(info.mid)
+            self._awaited.add(mid)
         self.loop.touch(self.mqtt)
-        return info.mid
+        return mid
 
     def wait_taken(self, count: int, timeout_sec: float = TIMEOUT_SEC) -> None:
         """Wait until the broker has acknowledged `count` of its messages in all."""
         with self._changed:
-            if not self._changed.wait_for(lambda: self.taken >= count, timeout_sec):
-                raise TimeoutError(f'{self.robot_id}: {self.taken} messages taken, not {count}')
+            self._counting = True
+            try:
+                if not self._changed.wait_for(lambda: self.taken >= count, timeout_sec):
+                    message = f'{self.robot_id}: {self.taken} messages taken, not {count}'
+                    raise TimeoutError(message)
+            finally:
+                self._counting = False
 
     def _wait_acks(self, mids: list[int]) -> None:
         with self._changed:
             done = self._changed.wait_for(lambda: all(m in self._acks for m in mids), TIMEOUT_SEC)
             if not done:
                 raise TimeoutError(f'{self.robot_id}: the broker did not take its messages')
-            failed = [str(self._acks[m]) for m in mids if self._acks[m].is_failure]
+            failed = [f'0x{self._acks[m]:02x}' for m in mids if self._acks[m] >= FAILURE]
             for mid in mids:
                 self._acks.pop(mid, None)
         if failed:
@@ -263,15 +271,17 @@ class SimulatedRobot:
             self._connected = not reason.is_failure
             self._changed.notify_all()
 
-    def _on_publish(self, _: mqtt.Client, __: Any, mid: int, reason: ReasonCode, ___: Any) -> None:
+    def _on_acknowledged(self, mid: int, reason: int) -> None:
         with self._changed:
             self.taken += 1
-            if reason.is_failure:
+            if reason >= FAILURE:
                 self.refused += 1
             if mid in self._awaited:
                 self._awaited.discard(mid)
                 self._acks[mid] = reason
-            self._changed.notify_all()
+                self._changed.notify_all()
+            elif self._counting:
+                self._changed.notify_all()
 
 
 def connect_all(robots: Sequence[SimulatedRobot], timeout_sec: float = TIMEOUT_SEC) -> None:

@@ -1,5 +1,13 @@
 """`RobotLoop`: one thread that drives the MQTT connections of many simulated robots (paho's
-external loop over a selector): every call of their clients runs on it, and timers too."""
+external loop over a selector): every call of their clients runs on it, and timers too.
+
+Their clients (RobotClient) are the FleetClient's BufferedClient, and publish at QoS 1 by
+writing their PUBLISH packets themselves (`publish_qos1`): paho's publish keeps a message, a
+lock and its properties for each, which cost a simulated robot more than the console spends on
+the message. paho still makes the connection (CONNECT, the last will), keeps it alive and reads
+the broker's acknowledgements, which go to `on_acknowledged`. What a robot publishes in one round
+of the loop goes out in one write; a lost connection is not made again (nor its messages sent
+again)."""
 
 import contextlib
 import heapq
@@ -15,6 +23,8 @@ from concurrent.futures import Future
 from typing import Any, TypeVar
 
 import paho.mqtt.client as mqtt
+from paho.mqtt.enums import MQTTErrorCode
+from task_manager_mqtt.fleet.transport import PACKETS_PER_ROUND, BufferedClient, BufferedSocket
 
 LOG = logging.getLogger('task_manager_console.simulation')
 TIMEOUT_SEC = 20.0
@@ -22,6 +32,56 @@ TIMEOUT_SEC = 20.0
 HOUSEKEEPING_SEC = 1.0
 """How often each connection's keep-alive is looked after (paho's loop_misc)."""
 T = TypeVar('T')
+PUBLISH_QOS1 = 0x32
+"""A PUBLISH packet's first byte at QoS 1 (| 1: retained)."""
+FAILURE = 0x80
+"""The smallest reason code that is a failure."""
+
+
+class RobotClient(BufferedClient):
+    """A BufferedClient that publishes at QoS 1 by writing its packets itself; every PUBACK
+    is handed to `on_acknowledged(mid, reason_code)` (paho keeps no message of them; a code of
+    FAILURE or more is a refusal). Used on its RobotLoop's thread only."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.on_acknowledged: Callable[[int, int], None] = lambda _, __: None
+        self._next_mid = 0
+
+    def publish_qos1(self, topic: str, payload: bytes, retain: bool = False) -> int:
+        """Queue a PUBLISH of QoS 1 (written with the loop's next round); its message id.
+        RuntimeError if the robot is not connected."""
+        sock = self.socket()
+        if not isinstance(sock, BufferedSocket):
+            raise RuntimeError('not connected to the broker')
+        self._next_mid = self._next_mid % 65535 + 1
+        name = topic.encode()
+        body = b'%s%s%s\x00%s' % (
+            len(name).to_bytes(2, 'big'),
+            name,
+            self._next_mid.to_bytes(2, 'big'),
+            payload,
+        )
+        sock.send(bytes([PUBLISH_QOS1 | retain]) + _remaining_length(len(body)) + body)
+        return self._next_mid
+
+    def _handle_pubackcomp(self, cmd: Any) -> MQTTErrorCode:
+        packet = self._in_packet['packet']
+        if cmd != 'PUBACK' or len(packet) < 2:
+            return super()._handle_pubackcomp(cmd)
+        mid = int.from_bytes(packet[:2], 'big')
+        self.on_acknowledged(mid, packet[2] if len(packet) > 2 else 0)
+        return mqtt.MQTT_ERR_SUCCESS
+
+
+def _remaining_length(length: int) -> bytes:
+    """MQTT's Variable Byte Integer of a packet's remaining length."""
+    encoded = bytearray()
+    while True:
+        length, byte = length >> 7, length & 0x7F
+        encoded.append(byte | (0x80 if length else 0))
+        if not length:
+            return bytes(encoded)
 
 
 class RobotLoop:
@@ -127,9 +187,21 @@ class RobotLoop:
         if client not in self._clients:  # detached by an earlier event of this round
             return
         if events & selectors.EVENT_READ:
-            self._guarded(client, client.loop_read)
-        if events & selectors.EVENT_WRITE and client in self._clients:
-            self._guarded(client, client.loop_write)
+            self._guarded(client, lambda: self._read_all(client))
+        self._touched.add(client)
+
+    @staticmethod
+    def _read_all(client: mqtt.Client) -> Any:
+        """loop_read until what one read took is handled (its last code)."""
+        code = client.loop_read()
+        for _ in range(PACKETS_PER_ROUND):
+            sock = client.socket()
+            if code != mqtt.MQTT_ERR_SUCCESS or not isinstance(sock, BufferedSocket):
+                break
+            if not sock.pending():
+                break
+            code = client.loop_read()
+        return code
 
     def _run_calls(self) -> None:
         with contextlib.suppress(BlockingIOError):
@@ -169,7 +241,12 @@ class RobotLoop:
             if attached is None:
                 continue
             sock, watched = attached
-            wanted = selectors.EVENT_READ | (selectors.EVENT_WRITE if client.want_write() else 0)
+            if isinstance(sock, BufferedSocket):
+                sock.flush()
+            waiting = client.want_write() or (
+                isinstance(sock, BufferedSocket) and sock.holds_writes
+            )
+            wanted = selectors.EVENT_READ | (selectors.EVENT_WRITE if waiting else 0)
             if wanted != watched:
                 self._selector.modify(sock, wanted, client)
                 self._clients[client] = (sock, wanted)

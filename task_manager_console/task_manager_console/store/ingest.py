@@ -22,6 +22,10 @@ from task_manager_console.store.rows import BadResultError, Document, row_of, ut
 LOG = logging.getLogger('task_manager_console.fleet')
 STORE_BATCH_MAX = 500
 """Results stored in one transaction, at most."""
+BATCH_GATHER_SEC = 0.05
+"""How long a batch waits for more results after its first (then it is stored as it is): a
+transaction, its commit (synced to disk) and its acknowledgements cost as much for one result
+as for many."""
 RETRY_MIN_SEC = 0.5
 RETRY_MAX_SEC = 5.0
 """While the database is away, a store is tried again after 0.5 s, doubling up to 5 s."""
@@ -88,6 +92,8 @@ class Ingest:
             if first is None or self._stopping.is_set():
                 return
             batch = [first]
+            if self._held.qsize() < STORE_BATCH_MAX:  # more to come: let them (one wake-up)
+                self._stopping.wait(BATCH_GATHER_SEC)
             while len(batch) < STORE_BATCH_MAX:
                 try:
                     item = self._held.get_nowait()
