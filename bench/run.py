@@ -15,7 +15,7 @@ from pathlib import Path
 import rclpy
 
 from bench.fleet import console
-from bench.gateways import mqtt, vda5050, web
+from bench.gateways import attached, mqtt, vda5050, web
 from bench.harness import config
 from bench.harness.client import BenchClient
 from bench.harness.context import BenchContext
@@ -54,6 +54,7 @@ BENCHMARKS: dict[str, Callable[[BenchContext], None]] = {
     'console': console.run,
     # last: they restart the node for each phase, then once more with the default parameters
     'admission': admission.run,
+    'attached': attached.run,
     'events': events.run,
     'history': history.run,
     'schedules': schedules.run,
