@@ -77,6 +77,7 @@ class HeldRamps:
         self._ctx = ctx
         self.shares: dict[str, list[float]] = {ALONE.name: [], ATTACHED.name: []}
         self.ramps_ms: dict[str, list[float]] = {ALONE.name: [], ATTACHED.name: []}
+        self.failures: list[str] = []
 
     def measure(self, setting: Setting, _index: int) -> None:
         count = config.CONCURRENT_TASKS
@@ -86,12 +87,22 @@ class HeldRamps:
         try:
             watcher.wait_until(bool, config.CONNECT_TIMEOUT_SEC, 'the current list')
             managed: HoldRun = managed_hold(self._ctx, watcher, count)[0]
+        except BenchError as error:  # the phase's dispatch and bursts still count
+            self.failures.append(f'{setting.name}: {error}')
+            return
         finally:
             watcher.destroy()
         self.shares[setting.name].append(ratio(managed.ramp_sec, direct.ramp_sec))
         self.ramps_ms[setting.name].append(managed.ramp_sec * 1000)
 
     def row(self) -> Row:
+        if self.failures:
+            return Row(
+                f'{ATTACHED.name} vs {ALONE.name}: {config.CONCURRENT_TASKS} held',
+                'FAILED',
+                '; '.join(self.failures),
+                '',
+            )
         attached = statistics.median(self.shares[ATTACHED.name])
         alone = statistics.median(self.shares[ALONE.name])
         return Row(
