@@ -41,7 +41,7 @@ from task_manager_mqtt.fleet_types import (
     schedule_document,
 )
 from task_manager_mqtt.settings import DEFAULT_PREFIX, Broker, Tls
-from task_manager_mqtt.topics import ANY_ROBOT, TopicName, Topics
+from task_manager_mqtt.topics import ANY_ROBOT, FOLLOWED, TopicName, Topics
 
 LOG = logging.getLogger('task_manager_mqtt.fleet')
 RequestCheck = Callable[[str, str, Document], None]
@@ -52,16 +52,6 @@ FINAL_STATUSES = ('DONE', 'ERROR', 'CANCELED')
 KEEPALIVE_SEC = 60
 CLOSE_TIMEOUT_SEC = 10.0
 """How long close() waits for the MQTT thread (a connection being made, say)."""
-# the topics followed, of every robot; the connection last, so that the retained state of a
-# robot is there when it is seen ONLINE
-FOLLOWED = (
-    TopicName.REPLY,
-    TopicName.RESULT,
-    TopicName.DEAD_LETTER,
-    TopicName.TASKS,
-    TopicName.ACTIVE_TASKS,
-    TopicName.CONNECTION,
-)
 
 
 class FleetClient:

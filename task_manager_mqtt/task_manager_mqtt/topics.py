@@ -22,6 +22,16 @@ class TopicName(StrEnum):
 
 OUTGOING = tuple(name for name in TopicName if name is not TopicName.REQUEST)
 """The topics a robot writes (its bridge); the cloud writes only `request`."""
+FOLLOWED = (
+    TopicName.REPLY,
+    TopicName.RESULT,
+    TopicName.DEAD_LETTER,
+    TopicName.TASKS,
+    TopicName.ACTIVE_TASKS,
+    TopicName.CONNECTION,
+)
+"""The topics a FleetClient follows of every robot (and `event` when it follows events); the
+connection last, so that the retained state of a robot is there when it is seen ONLINE."""
 
 
 @dataclass(frozen=True)
