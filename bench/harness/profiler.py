@@ -34,7 +34,10 @@ SPECIFIC_AREAS: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 # otherwise: the area of the innermost frame that has one of these markers
 GENERIC_AREAS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ('other Task Manager code', ('task_manager/core/', 'task_manager/ros/')),
+    (
+        'other Task Manager code',
+        ('task_manager/core/', 'task_manager/ros/', 'task_manager/messages/'),
+    ),
     ('rclpy actions, other', ('rclpy/action/',)),
     ('rclpy executor loop (pending tasks, wait sets)', ('rclpy/',)),
 )
