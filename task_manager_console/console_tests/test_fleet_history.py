@@ -203,9 +203,10 @@ def test_a_database_at_the_first_revision_is_upgraded_in_place(database_url: str
 
     history = FleetHistory.open(database_url)
     try:
-        assert history.revision() == head_revision() == '0002'
+        assert history.revision() == head_revision() == '0003'
         indexes = {i['name'] for i in inspect(history.engine).get_indexes('results')}
-        assert 'ix_results_ended_id' in indexes
+        assert {'ix_results_ended_id', 'ix_results_task_name_ended_id'} <= indexes
+        assert 'ix_results_task_name_ended' not in indexes  # 0002's, made again by 0003
         assert [d['task_id'] for d in history.query(HistoryFilter())] == ['old']
         assert history.store('robot1', task(1)) is False  # the key held across the upgrade
     finally:

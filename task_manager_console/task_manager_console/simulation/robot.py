@@ -203,21 +203,22 @@ class SimulatedRobot:
         return tasks
 
     def next_event(self) -> bool:
-        """On the loop's thread: send the next message of a robot that runs one task after
-        another, as its bridge shows them: its start (active with it running), its end (active
-        without it), its result; without waiting. Whether it was a result."""
+        """On the loop's thread: send the next message of a robot that runs its declared tasks
+        one after another, as its bridge shows them: a task's start (active with it running),
+        its end (active without it), its result; without waiting. Whether it was a result."""
         step = self._step
         self._step = (step + 1) % EVENTS_PER_TASK
         if step == 0:
-            self._running = self.running(str(uuid.uuid4()))
+            task_name = self.declared[self.sequence % len(self.declared)]['task_name']
+            self._running = self.running(str(uuid.uuid4()), task_name)
             self._publish(self.topics.active_tasks, self.active_document([self._running]),
                           retain=True, awaited=False)  # fmt: skip
         elif step == 1:
             self._publish(self.topics.active_tasks, self.active_document([]), retain=True,
                           awaited=False)  # fmt: skip
         else:
-            self._publish(self.topics.result, self.task(task_id=self._running['task_id']),
-                          awaited=False)  # fmt: skip
+            result = self.task(self._running['task_name'], task_id=self._running['task_id'])
+            self._publish(self.topics.result, result, awaited=False)
         return step == EVENTS_PER_TASK - 1
 
     def publish(

@@ -59,12 +59,14 @@ results = Table(
     UniqueConstraint('robot_id', 'sequence'),
 )
 
-# The history's queries (newest first, by robot, task, name, status, source or time range).
+# The history's queries (newest first: by ended, then id; by robot, task, name, status, source
+# or time range); a filter's index ends with the whole order, so that its newest rows come
+# first from it however they are spread.
 HISTORY_INDEXES = (
     Index(None, results.c.ended, results.c.id),
-    Index(None, results.c.robot_id, results.c.ended),
+    Index(None, results.c.robot_id, results.c.ended, results.c.id),
     Index(None, results.c.task_id),
-    Index(None, results.c.task_name, results.c.ended),
-    Index(None, results.c.status, results.c.ended),
-    Index(None, results.c.source, results.c.ended),
+    Index(None, results.c.task_name, results.c.ended, results.c.id),
+    Index(None, results.c.status, results.c.ended, results.c.id),
+    Index(None, results.c.source, results.c.ended, results.c.id),
 )
