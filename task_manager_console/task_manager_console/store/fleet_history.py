@@ -50,6 +50,10 @@ SQLITE_BUSY_TIMEOUT_MS = 5000
 FILTER_TEXTS = ('robot_id', 'task_id', 'task_name', 'status', 'source')
 
 
+class _StoredBefore(Exception):  # noqa: N818 - a signal, not an error
+    """Some rows of a batch were stored before: its transaction is rolled back."""
+
+
 class DatabaseUnavailable(Exception):  # noqa: N818 - reads as a state, like TaskManagerUnavailable
     """The database cannot be reached or used; the message is one line saying why."""
 
@@ -88,8 +92,21 @@ class FleetHistory:
         self.engine = engine
         self.url = engine.url.render_as_string(hide_password=True)
         """The database's URL, without its password."""
-        dialect = engine.dialect.name
-        self._insert = postgresql.insert if dialect == 'postgresql' else sqlite.insert
+        dialect = engine.dialect
+        self._insert = postgresql.insert if dialect.name == 'postgresql' else sqlite.insert
+        columns = [column for column in results.columns if column.name != 'id']
+        # key: a column of a row, value: what makes its value the driver's (None: as it is)
+        self._to_driver = [
+            (column.name, column.type.dialect_impl(dialect).bind_processor(dialect))
+            for column in columns
+        ]
+        mark = '?' if dialect.paramstyle == 'qmark' else '%s'
+        self._insert_rows = (
+            f'INSERT INTO results ({", ".join(column.name for column in columns)}) '
+            f'VALUES ({", ".join([mark] * len(columns))}) '
+            'ON CONFLICT (robot_id, sequence) DO NOTHING'
+        )
+        """The rows' INSERT in the driver's own terms (executemany, no statement to compile)."""
 
     @classmethod
     def open(cls, url: str) -> 'FleetHistory':
@@ -127,6 +144,13 @@ class FleetHistory:
         the database cannot be reached (nothing stored), BadResultError when it refuses a value."""
         if not rows:
             return []
+        try:
+            if self._stored_all_new(rows):
+                return [True] * len(rows)
+        except (OperationalError, InterfaceError) as error:  # the database, not the rows
+            raise DatabaseUnavailable(f'cannot store in {self.url}: {_why(error)}') from error
+        except SQLAlchemyError:  # a value the database refuses: said below, row by row
+            pass
         statement = (
             self._insert(results)
             .on_conflict_do_nothing(index_elements=['robot_id', 'sequence'])
@@ -145,6 +169,23 @@ class FleetHistory:
             new.append(key in inserted)
             inserted.discard(key)
         return new
+
+    def _stored_all_new(self, rows: Sequence[Document]) -> bool:
+        """Store the rows if none was stored before (one executemany, the driver's fastest:
+        a third of the time of the INSERT ... RETURNING of store_rows on PostgreSQL); False,
+        and nothing stored, if one was (it inserted fewer rows than given)."""
+        values = [
+            tuple(row[name] if to_driver is None else to_driver(row[name])
+                  for name, to_driver in self._to_driver)
+            for row in rows
+        ]  # fmt: skip
+        try:
+            with self.engine.begin() as connection:
+                if connection.exec_driver_sql(self._insert_rows, values).rowcount != len(rows):
+                    raise _StoredBefore
+        except _StoredBefore:  # rolled back: RETURNING tells which are new
+            return False
+        return True
 
     def query(self, where: HistoryFilter) -> list[Document]:
         """The stored results `where` selects, newest first (Task documents with `robot_id`
