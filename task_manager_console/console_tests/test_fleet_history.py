@@ -67,6 +67,15 @@ def test_a_result_is_stored_once_by_robot_and_sequence(history: FleetHistory) ->
     assert history.count('robot1') == 2
 
 
+def test_a_batch_partly_stored_before_says_which_of_it_are_new(history: FleetHistory) -> None:
+    """A batch none of which was stored goes in one insert; one that holds results stored
+    before is stored again in the way that says which are new."""
+    assert history.store_many([('robot1', task(n)) for n in (1, 2)]) == [True, True]
+    again = [('robot1', task(n)) for n in range(1, 6)]
+    assert history.store_many(again) == [False, False, True, True, True]
+    assert history.count() == 5
+
+
 def test_a_stored_result_reads_back_as_it_came(history: FleetHistory) -> None:
     sent = task(7, mission_id='mission-1', error_message='', duration_sec=1.5, paused_sec=0.0)
     history.store('robot1', sent)
