@@ -21,6 +21,11 @@ SERVER_USER = 'postgres'
 """Who runs the server when root starts it."""
 READY_LINE = 'database system is ready to accept connections'
 """What the server logs once it answers (on stderr, when it runs in the foreground)."""
+RANDOM_PAGE_COST = 1.1
+"""The planner's cost of reading a page out of order, for a solid-state disk (PostgreSQL's 4.0
+is a spinning disk's). With 4.0, a history query filtered by a source none of the newest
+results have read the newest first and filtered them (18 ms at 1,000,000 results), rather than
+the source's own index (0.3 ms)."""
 
 
 class PostgresError(RuntimeError):
@@ -127,7 +132,10 @@ class PostgresServer:
         return [*switch, '--pdeathsig', 'TERM', *server]
 
     def _server_options(self) -> str:
-        return f'-p {self.port} -k {self.folder} -c listen_addresses=127.0.0.1'
+        return (
+            f'-p {self.port} -k {self.folder} -c listen_addresses=127.0.0.1 '
+            f'-c random_page_cost={RANDOM_PAGE_COST}'
+        )
 
     def stop(self) -> None:
         """A fast shutdown (sessions ended, data kept); nothing if it is not running."""
