@@ -136,6 +136,10 @@ class ActionServicesClient:
         else:
             self._cancel.remove_pending_request(future)
 
+    def result_request_waits(self, future: Future[Any]) -> bool:
+        """Whether a GetResult request asked again still waits its turn in the window."""
+        return self._windows is not None and self._windows[1].waits(future)
+
     def forget_result_request(self, future: Future[Any]) -> None:
         """Stop waiting for the response to a GetResult request (asked again, or answered).
 

@@ -43,6 +43,8 @@ class RequestWindow:
         self._size = size
         self._slot_timeout_sec = slot_timeout_sec
         self._waiting: deque[tuple[Any, Future[Any]]] = deque()
+        # the caller's futures of the requests in `_waiting` not forgotten
+        self._unsent: set[Future[Any]] = set()
         # key: the caller's future of a request holding a place, value: when it was sent
         self._in_flight: OrderedDict[Future[Any], float] = OrderedDict()
         # key: the caller's future, value: the client's future of the request sent
@@ -53,15 +55,21 @@ class RequestWindow:
         """A future of the response, as Client.call_async's; the request waits its turn."""
         future: Future[Any] = Future()
         self._waiting.append((request, future))
+        self._unsent.add(future)
         self._pump()
         return future
 
     def holds(self, future: Future[Any]) -> bool:
         """Whether this future is of a request of this window (sent or waiting its turn)."""
-        return future in self._sent or any(mine is future for _, mine in self._waiting)
+        return future in self._sent or future in self._unsent
+
+    def waits(self, future: Future[Any]) -> bool:
+        """Whether this future's request still waits its turn, not sent yet."""
+        return future in self._unsent
 
     def forget(self, future: Future[Any]) -> None:
         """The caller waits no more for this request's response (sent or not)."""
+        self._unsent.discard(future)
         sent = self._sent.pop(future, None)
         if sent is not None and not sent.done():
             self._client.remove_pending_request(sent)
@@ -81,6 +89,7 @@ class RequestWindow:
             request, future = self._waiting.popleft()
             if future.done():  # forgotten while it waited
                 continue
+            self._unsent.discard(future)
             sent = self._client.call_async(request)
             self._sent[future] = sent
             self._in_flight[future] = now

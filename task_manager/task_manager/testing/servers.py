@@ -139,6 +139,8 @@ class ScriptedActionServer:
 
     With `hold_goal_requests`, each goal request waits in `held` until the test accepts or
     rejects it (the moment a client's goal is sent but not yet accepted by the server).
+    `result_timeout`: how long (s) the server keeps a goal's result once it ended (rclpy's
+    default 10; 0: it answers only the result requests waiting as the goal ends).
     """
 
     def __init__(
@@ -151,6 +153,7 @@ class ScriptedActionServer:
         cancel_policy: CancelPolicy = CancelPolicy.END,
         on_goal: Callable[[ScriptedGoal], None] | None = None,
         hold_goal_requests: bool = False,
+        result_timeout: int = 10,
     ) -> None:
         self.action_type = action_type
         self.accept_goals = accept_goals
@@ -173,6 +176,7 @@ class ScriptedActionServer:
             goal_callback=self._hold_goal if hold_goal_requests else self._goal,  # type: ignore[arg-type]
             cancel_callback=self._cancel,
             callback_group=ReentrantCallbackGroup(),
+            result_timeout=result_timeout,
         )
 
     async def _hold_goal(self, request: Any) -> GoalResponse:

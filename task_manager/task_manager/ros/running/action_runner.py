@@ -33,20 +33,25 @@ def server_outcome(goal_status: int) -> ServerOutcome:
 
 # How long a cancel request may go unanswered before it is sent again.
 CANCEL_AGAIN_SEC = 1.0
-# The longest wait between two requests for a goal's result, in ticks of the server watch.
-RESULT_ASK_INTERVAL_MAX_TICKS = 8
+# The longest wait between two requests for a goal's result, in ticks of the server watch
+# (about a minute at the default server_check_period).
+RESULT_ASK_INTERVAL_MAX_TICKS = 64
 
 
 class ActionExecution:
     """A goal accepted by a task's action server.
 
-    Its result is asked for at once, and again while none comes: a busy server's result
-    service keeps only its last few unread requests (10 by default, rclpy's and rclcpp's) and
-    drops older ones unanswered, which would leave the task waiting for ever. The watch's tick
-    asks again once the last request has waited 1, then 2, 4, up to
-    RESULT_ASK_INTERVAL_MAX_TICKS ticks: a long goal costs its server one request per 8 ticks.
-    A server that no longer knows the goal (STATUS_UNKNOWN: it restarted, or let the result
-    expire) ends the task ERROR.
+    Its result is asked for at once, and that request stays awaited until the task ends: a
+    server holds it while the goal runs and answers it as the goal ends, even one that keeps
+    no result afterwards (rclpy's result_timeout, 10 s by default; 0 on some servers). It is
+    asked again while no answer comes, since a busy server's result service keeps only its
+    last few unread requests (10 by default, rclpy's and rclcpp's) and drops older ones
+    unanswered: the watch's tick asks again once the last request has waited 1, then 2, 4, up
+    to RESULT_ASK_INTERVAL_MAX_TICKS ticks, one such request at a time (a newer one replaces
+    it; one still waiting its turn in the request window keeps its place). A long goal costs
+    its server one request a minute; 1,000 goals held at once cost the node no more than a
+    round of such requests now and then. A server that no longer knows the goal
+    (STATUS_UNKNOWN: it restarted, or let the result expire) ends the task ERROR.
     """
 
     def __init__(
@@ -59,7 +64,8 @@ class ActionExecution:
         self.outcome: Future[Any] = Future()
         self._ticks_since_ask = 0
         self._ticks_between_asks = 1
-        self._result_request = self._ask_for_result()
+        self._first_request = self._ask_for_result()
+        self._asked_again: Future[Any] | None = None
         self.outcome.add_done_callback(lambda _: self._forget())
 
     def _ask_for_result(self, again: bool = False) -> Future[Any]:
@@ -76,13 +82,17 @@ class ActionExecution:
             return
         self._ticks_since_ask = 0
         self._ticks_between_asks = min(2 * self._ticks_between_asks, RESULT_ASK_INTERVAL_MAX_TICKS)
-        self._client.forget_result_request(self._result_request)
-        self._result_request = self._ask_for_result(again=True)
+        if self._asked_again is not None:
+            if self._client.result_request_waits(self._asked_again):
+                return
+            self._client.forget_result_request(self._asked_again)
+        self._asked_again = self._ask_for_result(again=True)
 
     def _forget(self) -> None:
         self._client.forget(self._goal_id)
-        if not self._result_request.done():
-            self._client.forget_result_request(self._result_request)
+        for request in (self._first_request, self._asked_again):
+            if request is not None and not request.done():
+                self._client.forget_result_request(request)
 
     def _on_result(self, future: Future[Any]) -> None:
         response = future.result()

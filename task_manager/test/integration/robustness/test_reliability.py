@@ -26,6 +26,10 @@ TIMEOUT_SEC = 15.0
 WATCH = {'server_check_period': 0.2, 'server_loss_timeout': 1.0}
 # more goals than an action server's result service keeps unread requests (10 by default)
 GOALS_IN_FLIGHT = 30
+# goals running 20 ticks of a 0.1 s server watch, many times more than the node asks for
+# results at a time (8)
+LONG_GOALS = 60
+LONG_GOAL_SEC = 2.0
 
 
 @pytest.fixture
@@ -190,6 +194,39 @@ def test_every_result_comes_back_when_a_busy_server_drops_the_requests_for_them(
     assert statuses == ['DONE'] * GOALS_IN_FLIGHT
     tm.wait_active(lambda tasks: tasks == [], 'no active task left')
     assert [len(tm.results_for(task_id)) for task_id in ids] == [1] * GOALS_IN_FLIGHT
+
+
+def test_every_result_comes_back_from_a_server_that_keeps_none_once_its_goal_ended(
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    busy_server_node: rclpy.node.Node,
+) -> None:
+    """A server holds each GetResult request until its goal ends and answers them then; one
+    that keeps no result afterwards (result_timeout 0) answers "unknown goal" to any asked
+    later. Goals running through many of the node's watch ticks (each may ask again, paced 8
+    at a time) must still end DONE: the first request is awaited until the task ends."""
+    tm = launch_task_manager(
+        {'drive': action_task('drive', f'{topic_prefix}/drive', reentrant=True)},
+        server_check_period=0.1,
+        server_loss_timeout=30.0,
+    )
+    server = ScriptedActionServer(
+        busy_server_node, Fibonacci, f'{topic_prefix}/drive', result_timeout=0
+    )
+    ids = [f'drive-{index}' for index in range(LONG_GOALS)]
+    handles = [tm.send('drive', {'order': 1}, task_id=task_id) for task_id in ids]
+    goals = server.wait_for_goals(LONG_GOALS, TIMEOUT_SEC)
+    tm.wait_active(lambda tasks: sum(status == 'IN_PROGRESS' for _, status in tasks) == len(ids))
+
+    def end_all() -> None:
+        for goal in goals:
+            goal.succeed()
+
+    threading.Timer(LONG_GOAL_SEC, end_all).start()  # the goals run that long more
+
+    statuses = [tm.result_of(handle).result.task_status for handle in handles]
+
+    assert statuses == ['DONE'] * LONG_GOALS
 
 
 def test_a_goal_its_restarted_server_no_longer_knows_ends_error(
