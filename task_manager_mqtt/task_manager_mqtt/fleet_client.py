@@ -24,8 +24,8 @@ from typing import Any, Unpack, cast
 import paho.mqtt.client as mqtt
 from paho.mqtt.reasoncodes import ReasonCode
 
-from task_manager.protocol.errors import RefusalCode
 from task_manager_mqtt.connection import RECONNECT_MIN_SEC, connect, largest_payload, new_client
+from task_manager_mqtt.fleet.publishing import RequestPublisher
 from task_manager_mqtt.fleet.receiving import FleetReceiver, HeldCallback
 from task_manager_mqtt.fleet.transport import BufferedClient, ClientLoop
 from task_manager_mqtt.fleet_types import (
@@ -96,13 +96,6 @@ class FleetClient:
         self.broker = replace(broker, password=password) if password else broker
         self.prefix = prefix
         self.source = source
-        self._lock = threading.Lock()
-        # key: message id of a request not acknowledged yet, value: its request id
-        self._unacknowledged: dict[int, str] = {}
-        # key: message id, value: the broker's answer, come before publish() returned
-        self._early_acks: dict[int, ReasonCode] = {}
-        self._largest_payload: int | None = None
-        """The largest request the broker takes (MQTT 5's Maximum Packet Size); None: any."""
         self._receive_maximum = receive_maximum
         self._check_request = check_request
         self._followed = (*FOLLOWED, TopicName.EVENT) if events else FOLLOWED
@@ -127,6 +120,7 @@ class FleetClient:
             hold_results=hold_results,
             max_message_bytes=max_message_bytes,
         )
+        self._publisher = RequestPublisher(self._mqtt, self._receiver)
         self.robots: dict[str, RobotView] = self._receiver.robots
         """What is known of each robot, by id (kept up to date as their documents come)."""
         self._all = Topics(prefix, ANY_ROBOT)
@@ -134,7 +128,7 @@ class FleetClient:
         self._mqtt.on_subscribe = lambda *_: self._subscribed.set()
         self._mqtt.on_message = self._on_message
         self._mqtt.on_received = self._on_received
-        self._mqtt.on_publish = self._on_publish
+        self._mqtt.on_publish = self._publisher.on_publish
 
     def __enter__(self) -> 'FleetClient':
         self.connect()
@@ -337,22 +331,8 @@ class FleetClient:
         request_id = request_id or f'{uuid.uuid4().hex[:12]}-{next(self._request_numbers)}'
         reply: Future[Document] = Future()
         document = {'request_id': request_id, 'op': op, **fields}
-        payload = json.dumps(document).encode()
-        limit = self._largest_payload
-        if limit is not None and len(payload) > limit:  # never sent: see largest_payload
-            message = f'the request is {len(payload)} bytes; the broker takes at most {limit}'
-            reply.set_exception(FleetError(message, RefusalCode.PAYLOAD_TOO_LARGE))
-            return reply
-        self._receiver.expect_reply(request_id, reply)
         topic = Topics(self.prefix, robot_id).request
-        # not under self._lock: paho calls on_publish holding a lock publish() takes too
-        info = self._mqtt.publish(topic, payload, qos=1)
-        with self._lock:
-            early = self._early_acks.pop(info.mid, None)
-            if early is None:
-                self._unacknowledged[info.mid] = request_id
-        if early is not None:
-            self._refused(request_id, early)
+        self._publisher.publish(topic, request_id, json.dumps(document).encode(), reply)
         return reply
 
     def _answer(self, robot_id: str, op: str, wait_sec: float, /, **fields: Any) -> Reply:
@@ -461,25 +441,8 @@ class FleetClient:
         if reason.is_failure:
             LOG.warning('the broker refused the connection: %s', reason)
             return
-        self._largest_payload = largest_payload(properties, None)
+        self._publisher.largest_payload = largest_payload(properties, None)
         client.subscribe([(self._all.topic(name), 1) for name in self._followed])
-
-    def _on_publish(self, _: mqtt.Client, __: Any, mid: int, reason: ReasonCode, ___: Any) -> None:
-        """A request the broker refused (too large for it, not allowed) fails at once."""
-        with self._lock:
-            request_id = self._unacknowledged.pop(mid, None)
-            if request_id is None:  # publish() has not returned its id yet
-                self._early_acks[mid] = reason
-                return
-        self._refused(request_id, reason)
-
-    def _refused(self, request_id: str, reason: ReasonCode) -> None:
-        if not reason.is_failure:
-            return
-        reply = self._receiver.take_reply(request_id)
-        if reply is not None and not reply.done():
-            message = f'the broker refused the request: {reason} (too large for it, or not allowed)'
-            reply.set_exception(FleetError(message, RefusalCode.REFUSED_BY_BROKER))
 
     def _on_message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
         """A message paho read itself (see BufferedClient); one whose topic is not UTF-8 (no
