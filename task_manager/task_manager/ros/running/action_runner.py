@@ -1,6 +1,7 @@
 """Running tasks on existing ROS 2 action servers."""
 
 import uuid
+from collections import deque
 from typing import Any
 
 from action_msgs.msg import GoalStatus
@@ -36,6 +37,8 @@ CANCEL_AGAIN_SEC = 1.0
 # The longest wait between two requests for a goal's result, in ticks of the server watch
 # (about a minute at the default server_check_period).
 RESULT_ASK_INTERVAL_MAX_TICKS = 64
+# How many of a goal's latest requests asked again stay awaited (with its first request).
+RESULT_ASKS_KEPT = 3
 
 
 class ActionExecution:
@@ -47,10 +50,11 @@ class ActionExecution:
     asked again while no answer comes, since a busy server's result service keeps only its
     last few unread requests (10 by default, rclpy's and rclcpp's) and drops older ones
     unanswered: the watch's tick asks again once the last request has waited 1, then 2, 4, up
-    to RESULT_ASK_INTERVAL_MAX_TICKS ticks, one such request at a time (a newer one replaces
-    it; one still waiting its turn in the request window keeps its place). A long goal costs
-    its server one request a minute; 1,000 goals held at once cost the node no more than a
-    round of such requests now and then. A server that no longer knows the goal
+    to RESULT_ASK_INTERVAL_MAX_TICKS ticks; one still waiting its turn in the request window
+    keeps its place (none is added behind it). The latest RESULT_ASKS_KEPT of them stay
+    awaited too: forgetting one costs a scan of the client's pending requests (rclpy's), so
+    the node forgets them only once a long goal has asked RESULT_ASKS_KEPT times or at its end.
+    A long goal costs its server one request a minute. A server that no longer knows the goal
     (STATUS_UNKNOWN: it restarted, or let the result expire) ends the task ERROR.
     """
 
@@ -65,7 +69,8 @@ class ActionExecution:
         self._ticks_since_ask = 0
         self._ticks_between_asks = 1
         self._first_request = self._ask_for_result()
-        self._asked_again: Future[Any] | None = None
+        # the latest requests asked again, oldest first
+        self._asked_again: deque[Future[Any]] = deque()
         self.outcome.add_done_callback(lambda _: self._forget())
 
     def _ask_for_result(self, again: bool = False) -> Future[Any]:
@@ -82,16 +87,16 @@ class ActionExecution:
             return
         self._ticks_since_ask = 0
         self._ticks_between_asks = min(2 * self._ticks_between_asks, RESULT_ASK_INTERVAL_MAX_TICKS)
-        if self._asked_again is not None:
-            if self._client.result_request_waits(self._asked_again):
-                return
-            self._client.forget_result_request(self._asked_again)
-        self._asked_again = self._ask_for_result(again=True)
+        if self._asked_again and self._client.result_request_waits(self._asked_again[-1]):
+            return
+        if len(self._asked_again) == RESULT_ASKS_KEPT:
+            self._client.forget_result_request(self._asked_again.popleft())
+        self._asked_again.append(self._ask_for_result(again=True))
 
     def _forget(self) -> None:
         self._client.forget(self._goal_id)
-        for request in (self._first_request, self._asked_again):
-            if request is not None and not request.done():
+        for request in (self._first_request, *self._asked_again):
+            if not request.done():
                 self._client.forget_result_request(request)
 
     def _on_result(self, future: Future[Any]) -> None:
