@@ -2,6 +2,11 @@
 
 The venv with the ROS 2 wheels is the underlay: colcon, CMake and the console scripts use
 its python, and CMake finds ament_cmake and the rosidl generators under its prefix.
+
+The build base is the workspace's `build/`, colcon's default, where `make install` has built
+the interfaces with CMake already: colcon configures each package again (forced) into a new
+install space, and what is compiled is not compiled twice (10 s instead of 130-280 s for the
+interfaces' C and C++; on a fresh workspace it builds them all).
 """
 
 import json
@@ -28,7 +33,7 @@ PROBE_TIMEOUT_SEC = 30.0
 START_TIMEOUT_SEC = 20.0
 LOG_TAIL_LINES = 60
 
-# The build comes first in the module's first test, and it takes most of a minute.
+# The build comes first in the module's first test: seconds after `make install`, minutes alone.
 pytestmark = pytest.mark.timeout(BUILD_TIMEOUT_SEC + 60)
 
 # Where the sourced install space resolves the package from, as JSON on one line.
@@ -73,7 +78,8 @@ def _in_sourced_shell(install: Path, *command: str) -> list[str]:
 
 @pytest.fixture(scope='module')
 def colcon_build(tmp_path_factory: pytest.TempPathFactory) -> ColconBuild:
-    """Build the workspace's packages once, with every colcon folder in a tmp dir."""
+    """Build the workspace's packages once into an install space in a tmp dir (the build
+    base is the workspace's own, as a user's `colcon build` has it)."""
     base = tmp_path_factory.mktemp('colcon')
     output = base / 'colcon_output.log'
     command = [
@@ -81,9 +87,10 @@ def colcon_build(tmp_path_factory: pytest.TempPathFactory) -> ColconBuild:
         '--log-base', str(base / 'log'),
         'build',
         '--base-paths', str(REPO),
-        '--build-base', str(base / 'build'),
+        '--build-base', str(REPO / 'build'),
         '--install-base', str(base / 'install'),
         '--packages-select', *PACKAGES,
+        '--cmake-force-configure',
         '--executor', 'sequential',
         '--cmake-args', f'-DPython3_EXECUTABLE={sys.executable}', '-DBUILD_TESTING=OFF',
     ]  # fmt: skip
