@@ -13,10 +13,11 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
+from task_manager_msgs.msg import TaskEventArray
 
 from task_manager.client.listeners import Listeners
 from task_manager.client.records import TaskEvent
-from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENTS_TOPIC
+from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.log import NodeLog
@@ -121,9 +122,12 @@ class Connection:
 
 
 class EventFeed:
-    """/task_manager/task_events: subscribed to once, on first use, and who listens to it."""
+    """The task events, as /task_manager/task_event_batches carries them (the node's events
+    of a turn in one message, in order): subscribed to once, on first use, and who listens."""
 
-    def __init__(self, connection: Connection, on_message: Callable[[Any], None]) -> None:
+    def __init__(
+        self, connection: Connection, on_message: Callable[[TaskEventMessage], None]
+    ) -> None:
         self._connection = connection
         self._on_message = on_message
         self._subscribed = False
@@ -132,17 +136,21 @@ class EventFeed:
 
     @property
     def connected(self) -> bool:
-        return self._connection.is_matched(TASK_EVENTS_TOPIC)
+        return self._connection.is_matched(TASK_EVENT_BATCHES_TOPIC)
 
     def subscribe(self) -> None:
-        """Subscribe to /task_manager/task_events, once."""
+        """Subscribe to the events, once."""
         with self._connection.lock:
             subscribe = not self._subscribed
             self._subscribed = True
         if subscribe:
             self._connection.subscribe(
-                TaskEventMessage, TASK_EVENTS_TOPIC, qos.TASK_EVENTS, self._on_message
+                TaskEventArray, TASK_EVENT_BATCHES_TOPIC, qos.TASK_EVENTS, self._on_batch
             )
+
+    def _on_batch(self, batch: TaskEventArray) -> None:
+        for message in batch.events:
+            self._on_message(message)
 
     def follow(self, timeout_sec: float | None = None) -> None:
         """Subscribe (once); wait until connected, if the Task Manager publishes the events.
@@ -152,7 +160,7 @@ class EventFeed:
         published just then can be missed (the stream is volatile): the handles cope.
         """
         self.subscribe()
-        if self._connection.node.count_publishers(TASK_EVENTS_TOPIC) == 0:
+        if self._connection.node.count_publishers(TASK_EVENT_BATCHES_TOPIC) == 0:
             return
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
-        self._connection.wait_matched({TASK_EVENTS_TOPIC}, timeout_sec)
+        self._connection.wait_matched({TASK_EVENT_BATCHES_TOPIC}, timeout_sec)

@@ -40,7 +40,7 @@ from task_manager.core.names import (
     MISSION_SOURCE,
     RESULTS_TOPIC,
     START_TASK_ACTION,
-    TASK_EVENTS_TOPIC,
+    TASK_EVENT_BATCHES_TOPIC,
 )
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.messages.task_messages import task_options_msg
@@ -351,7 +351,9 @@ class Tasks:
             state = tracking.state
             # the events reach us if one of this task's did, or the stream is connected (a
             # result can overtake the events of a short task: they queue behind others')
-            events_reach_us = state is not None or self._connection.is_matched(TASK_EVENTS_TOPIC)
+            events_reach_us = state is not None or self._connection.is_matched(
+                TASK_EVENT_BATCHES_TOPIC
+            )
             if (
                 not final
                 and events_reach_us

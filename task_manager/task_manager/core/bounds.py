@@ -15,6 +15,7 @@ __all__ = [
     'DELAY_SECONDS',
     'ECHO_MAX_CHARACTERS',
     'EPOCH_SECONDS',
+    'EVENT_BATCH_MAX_BYTES',
     'FLEET_HISTORY_ROWS_DEFAULT',
     'FLEET_HISTORY_ROWS_MAX',
     'FLEET_RESULTS_HELD_MAX',
@@ -131,6 +132,9 @@ HISTORY_PAGE_MAX_BYTES = 8_388_608
 it are refused with `reply_too_large`, as MQTT refuses a reply over its message size."""
 SCHEDULES_MAX = 1000
 """The schedules one Task Manager keeps."""
+EVENT_BATCH_MAX_BYTES = 1_048_576
+"""The most of one message on /task_manager/task_event_batches, counted as its events' text
+(feedback, result, decisions, pauses); an event larger than it goes in a message alone."""
 ECHO_MAX_CHARACTERS = 200
 """The most of a caller's own text (an unknown name, a bad value) an error message repeats."""
 TOKEN_MIN_CHARACTERS = 16

@@ -16,6 +16,8 @@ START_TASK_ACTION = '/task_manager/start_task'
 ACTIVE_TASKS_TOPIC = '/task_manager/active_tasks'
 RESULTS_TOPIC = '/task_manager/results'
 TASK_EVENTS_TOPIC = '/task_manager/task_events'
+TASK_EVENT_BATCHES_TOPIC = '/task_manager/task_event_batches'
+"""The events of TASK_EVENTS_TOPIC, in order, one TaskEventArray per turn of the node."""
 INSTANCES_TOPIC = '/task_manager/instances'
 GET_TASK_RESULTS_SERVICE = '/task_manager/get_task_results'
 GET_TASK_STATES_SERVICE = '/task_manager/get_task_states'

@@ -53,7 +53,7 @@ class HistoryWriter:
         self,
         node: Node,
         history: TaskHistory,
-        announce: Callable[[TaskRecord], None],
+        announce: Callable[[list[TaskRecord]], None],
     ) -> None:
         self.history = history
         self._node = node
@@ -87,8 +87,8 @@ class HistoryWriter:
             self.history.flush()
         except sqlite3.Error as error:
             self._write_failed(error)
-        for record in announce:
-            self._announce(record)
+        if announce:
+            self._announce(announce)
         if flushed is not None:
             flushed.set_result(None)
 

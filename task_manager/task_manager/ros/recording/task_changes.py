@@ -58,7 +58,7 @@ class TaskChanges:
         """`listed`: the tasks active_tasks shows now."""
         self._events = events
         self._reporter = reporter
-        self._history = HistoryWriter(node, history, self._announce_end)
+        self._history = HistoryWriter(node, history, self._announce_ends)
         self._active = ActiveTasksPublication(node, listed, reporter)
 
     def changed(self, record: TaskRecord, change: TaskChange, reason: str = '') -> None:
@@ -90,7 +90,11 @@ class TaskChanges:
             self._active.ended(record)
         return self._history.ended(record)
 
-    def _announce_end(self, record: TaskRecord) -> None:
-        """ENDED on the event stream and the result on /task_manager/results."""
-        self._events.ended(record)
-        self._reporter.publish_result(record)
+    def _announce_ends(self, records: list[TaskRecord]) -> None:
+        """ENDED on the event stream (the batch out at once), then each result on
+        /task_manager/results."""
+        for record in records:
+            self._events.ended(record)
+        self._events.flush()
+        for record in records:
+            self._reporter.publish_result(record)

@@ -1,4 +1,7 @@
-"""/task_manager/task_events: one TaskEvent per change of a task, feedback rate-limited.
+"""/task_manager/task_events: one TaskEvent per change of a task, feedback rate-limited; and
+/task_manager/task_event_batches: the same events in the same order, those of one executor turn
+in one TaskEventArray (at most EVENTS_MAX of them, EVENT_BATCH_MAX_BYTES of their text), which
+the client and the gateways follow. Each topic is written only while someone subscribes to it.
 
 Every task gets RECEIVED, then STARTED (unless it ends before starting), FEEDBACK updates
 (PAUSED and RESUMED for each pause), and ENDED, in that order, each with the task's whole
@@ -13,15 +16,18 @@ import time
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.timer import Timer
-from task_manager_msgs.msg import TaskEvent
+from task_manager_msgs.msg import TaskEvent, TaskEventArray
 
 from task_manager.core.admission.decisions import DecisionKind
+from task_manager.core.bounds import EVENT_BATCH_MAX_BYTES
+from task_manager.core.event_batch import EventBatch
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
-from task_manager.core.names import TASK_EVENTS_TOPIC
+from task_manager.core.names import TASK_EVENT_BATCHES_TOPIC, TASK_EVENTS_TOPIC
 from task_manager.core.task import TaskRecord
 from task_manager.messages.task_messages import task_event_msg
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_timer
+from task_manager.ros.parking_executor import spawn_after_turn
 
 _ENDING_DECISIONS = (DecisionKind.REFUSED, DecisionKind.PREEMPTED, DecisionKind.TIMEOUT)
 
@@ -41,6 +47,10 @@ class TaskEventStream:
         self._node = node
         self._min_interval_sec = 1.0 / feedback_rate_hz
         self._publisher: Publisher[TaskEvent] | None = None
+        self._batches: Publisher[TaskEventArray] | None = None
+        # the events of this turn not published on the batch topic yet
+        self._batch = EventBatch[TaskEvent](TaskEventArray.EVENTS_MAX, EVENT_BATCH_MAX_BYTES)
+        self._flush_after_turn = False
         # key: task id, value: its feedback rate limit, while the task is active
         self._gates: dict[str, FeedbackGate] = {}
         # key: task id, value: the one-shot timer that sends its held feedback
@@ -53,6 +63,9 @@ class TaskEventStream:
         if self.enabled:
             self._publisher = self._node.create_publisher(
                 TaskEvent, TASK_EVENTS_TOPIC, qos.TASK_EVENTS
+            )
+            self._batches = self._node.create_publisher(
+                TaskEventArray, TASK_EVENT_BATCHES_TOPIC, qos.TASK_EVENTS
             )
 
     def received(self, record: TaskRecord) -> None:
@@ -121,8 +134,39 @@ class TaskEventStream:
         if gate is not None and gate.release(time.monotonic()):
             self._publish(TaskEvent.FEEDBACK, record)
 
+    def flush(self) -> None:
+        """Publish the batch of events gathered so far (at the end of a turn, and before the
+        results of the tasks whose ENDED it holds)."""
+        events = self._batch.take()
+        if events and self._batches is not None:
+            self._batches.publish(TaskEventArray(events=events))
+
     def _publish(self, event: str, record: TaskRecord, reason: str = '') -> None:
-        assert self._publisher is not None
-        if not self._publisher.get_subscription_count():
+        assert self._publisher is not None and self._batches is not None
+        one_by_one = self._publisher.get_subscription_count() > 0
+        batched = self._batches.get_subscription_count() > 0
+        if not (one_by_one or batched):
             return  # nobody listens: building the message is the larger part of the cost
-        self._publisher.publish(task_event_msg(event, record, reason, time.time()))
+        message = task_event_msg(event, record, reason, time.time())
+        if one_by_one:
+            self._publisher.publish(message)
+        if batched:
+            self._add_to_batch(message)
+
+    def _add_to_batch(self, message: TaskEvent) -> None:
+        full = self._batch.add(message, _text_size(message))
+        if full and self._batches is not None:
+            self._batches.publish(TaskEventArray(events=full))
+        if not self._flush_after_turn:
+            self._flush_after_turn = True
+            spawn_after_turn(self._node, self._end_of_turn())
+
+    async def _end_of_turn(self) -> None:
+        self._flush_after_turn = False
+        self.flush()
+
+
+def _text_size(message: TaskEvent) -> int:
+    """About what an event weighs on the wire: its text fields, in characters."""
+    task = message.task
+    return len(task.feedback) + len(task.task_result) + len(task.decisions) + len(task.pauses)

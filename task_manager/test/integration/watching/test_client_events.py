@@ -6,6 +6,8 @@ from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import pytest
+from task_manager_msgs.msg import TaskEvent as TaskEventMessage
+from task_manager_msgs.msg import TaskEventArray
 from test_msgs.action import Fibonacci
 
 from task_manager.client import (
@@ -15,7 +17,9 @@ from task_manager.client import (
     TaskResult,
     TaskState,
 )
+from task_manager.core.names import TASK_EVENT_BATCHES_TOPIC, TASK_EVENTS_TOPIC
 from task_manager.core.status import TaskStatus
+from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import (
@@ -25,6 +29,8 @@ from task_manager.testing.servers import (
 )
 
 TIMEOUT_SEC = 15.0
+BURST = 500
+BURST_TIMEOUT_SEC = 60.0
 
 
 class FeedbackLog:
@@ -216,3 +222,73 @@ def test_recent_results_stamp_only_the_newest_task_of_an_id_used_again(
 
     assert (older.result, older.ended_at) == ({'sequence': [1]}, None)
     assert newer.result == {'sequence': [2]} and newer.ended_at == newest.ended_at
+
+
+def test_every_event_of_500_tasks_at_once_reaches_the_client_in_order_in_fewer_messages(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    """The node publishes a turn's events as one TaskEventArray on
+    /task_manager/task_event_batches, which the client follows: of 500 tasks started at once,
+    each has RECEIVED, STARTED and ENDED, in that order, the same events in the same order as
+    /task_manager/task_events carries one by one, in fewer messages than events."""
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=lambda g: g.succeed())
+    launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib', reentrant=True)})
+    one_by_one = ros.record(TaskEventMessage, TASK_EVENTS_TOPIC, qos.TASK_EVENTS)
+    batches = ros.record(TaskEventArray, TASK_EVENT_BATCHES_TOPIC, qos.TASK_EVENTS)
+    client.wait_until_available(events=True)
+    client.start_task('fib', {'order': 1}, task_id='first').result(TIMEOUT_SEC)
+    for recorder in (one_by_one, batches):  # both reach the node: it publishes on both
+        recorder.wait_until(lambda messages: len(messages) > 0, TIMEOUT_SEC, 'the first events')
+    events_before = len(one_by_one.snapshot())
+    batches_before = len(batches.snapshot())
+    received: list[tuple[str, str]] = []
+    client.on_task_event(lambda event: received.append((event.task.task_id, str(event.kind))))
+    ids = [f'burst-{index:03d}' for index in range(BURST)]
+
+    handles = [client.start_task('fib', {'order': 1}, task_id=task_id) for task_id in ids]
+    statuses = [handle.result(BURST_TIMEOUT_SEC).status for handle in handles]
+    one_by_one.wait_until(
+        lambda messages: (
+            sum(m.task.task_id != 'first' for m in messages[events_before:]) >= 3 * BURST
+        ),
+        TIMEOUT_SEC,
+        'every event',
+    )
+    batches.wait_until(
+        lambda messages: (
+            sum(
+                event.task.task_id != 'first'
+                for m in messages[batches_before:]
+                for event in m.events
+            )
+            >= 3 * BURST
+        ),
+        TIMEOUT_SEC,
+        'every batched event',
+    )
+    batched = [
+        (event.task.task_id, event.event)
+        for batch in batches.snapshot()[batches_before:]
+        for event in batch.events
+        if event.task.task_id != 'first'
+    ]
+    published = [
+        (m.task.task_id, m.event)
+        for m in one_by_one.snapshot()[events_before:]
+        if m.task.task_id != 'first'
+    ]
+
+    assert statuses == [TaskStatus.DONE] * BURST
+    for task_id in ids:
+        assert [kind for mine, kind in received if mine == task_id] == [
+            'RECEIVED',
+            'STARTED',
+            'ENDED',
+        ], task_id
+    assert batched == published
+    assert [pair for pair in received if pair[0] != 'first'] == published
+    assert len(batches.snapshot()) - batches_before < len(published)
+    assert len(published) == 3 * BURST

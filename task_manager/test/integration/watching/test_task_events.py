@@ -14,7 +14,7 @@ from task_manager_msgs.srv import GetTaskStates
 from test_msgs.action import Fibonacci
 from test_msgs.srv import BasicTypes
 
-from task_manager.core.names import TASK_EVENTS_TOPIC
+from task_manager.core.names import TASK_EVENT_BATCHES_TOPIC, TASK_EVENTS_TOPIC
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,
@@ -250,8 +250,9 @@ def test_the_event_stream_can_be_switched_off(
     _launch(ros, launch_task_manager, topic_prefix, publish_task_events=False)
 
     publishers = ros.node.get_publishers_info_by_topic(TASK_EVENTS_TOPIC)
+    batch_publishers = ros.node.get_publishers_info_by_topic(TASK_EVENT_BATCHES_TOPIC)
 
-    assert publishers == []
+    assert (publishers, batch_publishers) == ([], [])
 
 
 def test_a_result_json_cannot_hold_is_converted_and_the_node_goes_on(
