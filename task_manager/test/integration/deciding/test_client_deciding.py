@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from task_manager_msgs.msg import ActiveTask, ActiveTaskArray
+from task_manager_msgs.msg import ActiveTask, ActiveTaskArray, TaskEventArray
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskState as TaskStateMessage
 from test_msgs.action import Fibonacci
@@ -18,7 +18,7 @@ from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
     EXECUTE_TASK_ACTION,
     START_TASK_ACTION,
-    TASK_EVENTS_TOPIC,
+    TASK_EVENT_BATCHES_TOPIC,
 )
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.rclpy_tools import qos
@@ -266,7 +266,7 @@ def test_an_unknown_event_kind_or_status_from_a_newer_node_stops_nothing(
     ros: RosHarness, client: TaskManagerClient
 ) -> None:
     """No Task Manager here: the test plays a newer one on its topics."""
-    events = ros.node.create_publisher(TaskEventMessage, TASK_EVENTS_TOPIC, qos.TASK_EVENTS)
+    events = ros.node.create_publisher(TaskEventArray, TASK_EVENT_BATCHES_TOPIC, qos.TASK_EVENTS)
     active = ros.node.create_publisher(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.LATEST_ACTIVE_TASKS)
     log = EventLog()
     client.on_task_event(log)
@@ -277,8 +277,9 @@ def test_an_unknown_event_kind_or_status_from_a_newer_node_stops_nothing(
             task_id=task_id, task_name='x', task_status=status, error_code=error_code
         )
 
-    events.publish(TaskEventMessage(event='TELEPORTED', task=state('new', 'HOVERING')))
-    events.publish(TaskEventMessage(event='ENDED', task=state('ok', 'DONE', 'out_of_ink')))
+    strange_event = TaskEventMessage(event='TELEPORTED', task=state('new', 'HOVERING'))
+    ended_event = TaskEventMessage(event='ENDED', task=state('ok', 'DONE', 'out_of_ink'))
+    events.publish(TaskEventArray(events=[strange_event, ended_event]))
     active.publish(ActiveTaskArray(active_tasks=[ActiveTask(task_id='a', task_status='HOVERING')]))
 
     strange = log.wait_for('new', TaskEventKind.DECIDED)
