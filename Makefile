@@ -139,9 +139,10 @@ $(STAMPS)/postgresql: | $(PY)
 	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
 # `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain).
-# The layers' contracts (.importlinter), run outside the repository's root: there the colcon
-# folder task_manager/ would pass for the package.
-LINT_IMPORTS := cd $(BUILD) && $(VENV)/bin/lint-imports --config $(CURDIR)/.importlinter
+# The layers' contracts (.importlinter), run in an empty folder: in the repository's root the
+# colcon folder task_manager/ would pass for the package, and so would build/task_manager/ (the
+# colcon check's build of it) in build/.
+LINT_IMPORTS := mkdir -p $(BUILD)/lint-imports && cd $(BUILD)/lint-imports && $(VENV)/bin/lint-imports --config $(CURDIR)/.importlinter
 
 # Each part says how long it took (bash's `time`, on stderr): install, lint, the tests.
 TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; time
