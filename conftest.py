@@ -3,8 +3,9 @@
 import os
 
 # Keep this run's DDS traffic apart from other runs on the machine, and on it: each run its
-# own four domains (1-100), each pytest-xdist worker (gw0 to gw3) one of them.
-os.environ.setdefault('TASK_MANAGER_TEST_DOMAIN', str(1 + os.getpid() % 25 * 4))
+# own six domains (1-96), each pytest-xdist worker (gw0 to gw3) one of the first four, the
+# console tests' demo robots the last two (task_manager_console/console_tests/conftest.py).
+os.environ.setdefault('TASK_MANAGER_TEST_DOMAIN', str(1 + os.getpid() % 16 * 6))
 os.environ['ROS_DOMAIN_ID'] = str(
     int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
     + int(os.environ.get('PYTEST_XDIST_WORKER', 'gw0').removeprefix('gw')) % 4

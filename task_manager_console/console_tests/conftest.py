@@ -123,13 +123,13 @@ def demo_robot(
 @pytest.fixture
 def two_demo_robots(broker: BrokerProcess, tmp_path: Path) -> Iterator[None]:
     """robot1 and robot2, each the demo's robot, Task Manager and bridge in a ROS domain of its
-    own: this run's domains 2 and 3 (the root conftest.py gives each test process its own of
-    the four, `make test`'s two processes the first two)."""
+    own: this run's domains 5 and 6 (the root conftest.py gives each run six, its test
+    processes the first four)."""
     first = int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
     processes = [
         process
         for number, robot_id in enumerate(('robot1', 'robot2'))
-        for process in demo_robot(robot_id, first + 2 + number, broker, tmp_path)
+        for process in demo_robot(robot_id, first + 4 + number, broker, tmp_path)
     ]
     try:
         ready_lines = [ROBOT_READY.pattern, TASK_MANAGER_READY.pattern, CONNECTED_LINE] * 2
