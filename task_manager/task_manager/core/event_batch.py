@@ -20,8 +20,8 @@ class EventBatch(Generic[T]):
         return len(self._events)
 
     def add(self, event: T, size: int) -> list[T]:
-        """Add `event` (`size`: the bytes of its text); the events to send before it, when the
-        batch had no room left for it (else [])."""
+        """Add `event` (`size`: its text, as `max_bytes` counts it); the events to send before
+        it, when the batch had no room left for it (else [])."""
         full: list[T] = []
         if self._events and (
             len(self._events) >= self.max_events or self._bytes + size > self.max_bytes

@@ -137,9 +137,7 @@ class TaskEventStream:
     def flush(self) -> None:
         """Publish the batch of events gathered so far (at the end of a turn, and before the
         results of the tasks whose ENDED it holds)."""
-        events = self._batch.take()
-        if events and self._batches is not None:
-            self._batches.publish(TaskEventArray(events=events))
+        self._send_batch(self._batch.take())
 
     def _publish(self, event: str, record: TaskRecord, reason: str = '') -> None:
         assert self._publisher is not None and self._batches is not None
@@ -154,9 +152,7 @@ class TaskEventStream:
             self._add_to_batch(message)
 
     def _add_to_batch(self, message: TaskEvent) -> None:
-        full = self._batch.add(message, _text_size(message))
-        if full and self._batches is not None:
-            self._batches.publish(TaskEventArray(events=full))
+        self._send_batch(self._batch.add(message, _text_size(message)))
         if not self._flush_after_turn:
             self._flush_after_turn = True
             spawn_after_turn(self._node, self._end_of_turn())
@@ -164,6 +160,10 @@ class TaskEventStream:
     async def _end_of_turn(self) -> None:
         self._flush_after_turn = False
         self.flush()
+
+    def _send_batch(self, events: list[TaskEvent]) -> None:
+        if events and self._batches is not None:
+            self._batches.publish(TaskEventArray(events=events))
 
 
 def _text_size(message: TaskEvent) -> int:
