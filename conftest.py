@@ -2,13 +2,18 @@
 
 import os
 
-# Keep this run's DDS traffic apart from other runs on the machine, and on it: each run its
-# own six domains (1-96), each pytest-xdist worker (gw0 to gw3) one of the first four, the
-# console tests' demo robots the last two (task_manager_console/console_tests/conftest.py).
-os.environ.setdefault('TASK_MANAGER_TEST_DOMAIN', str(1 + os.getpid() % 16 * 6))
+# Keep this run's DDS traffic apart from other runs on the machine, and on it: each run claims
+# six domains (1-96) no other run holds, each pytest-xdist worker (gw0 to gw3) one of the first
+# four, the console tests' demo robots the last two (console_tests/conftest.py). The workers
+# inherit the controller's claim through the environment.
+from task_manager.testing.domains import claim_run_domains, worker_domain
+
+if 'TASK_MANAGER_TEST_DOMAIN' not in os.environ:
+    os.environ['TASK_MANAGER_TEST_DOMAIN'] = str(claim_run_domains(os.getpid()))
 os.environ['ROS_DOMAIN_ID'] = str(
-    int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
-    + int(os.environ.get('PYTEST_XDIST_WORKER', 'gw0').removeprefix('gw')) % 4
+    worker_domain(
+        int(os.environ['TASK_MANAGER_TEST_DOMAIN']), os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
+    )
 )
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 # ROS logs and the Task Manager's default history go inside the repository (git-ignored),
