@@ -2,10 +2,10 @@
 
 import os
 
-# Keep this run's DDS traffic apart from other runs on the machine, and on it: each run claims
-# six domains (1-96) no other run holds, each pytest-xdist worker (gw0 to gw3) one of the first
-# four, the console tests' demo robots the last two (console_tests/conftest.py). The workers
-# inherit the controller's claim through the environment.
+# Keep this run's DDS traffic apart from other runs on the machine, and on it: each run claims a
+# group of domains no other run holds (task_manager.testing.domains), each pytest-xdist worker
+# (gw0 to gw3) one of its first four, tests that start nodes in domains of their own the rest.
+# The workers inherit the controller's claim through the environment.
 from task_manager.testing.domains import claim_run_domains, worker_domain
 
 if 'TASK_MANAGER_TEST_DOMAIN' not in os.environ:

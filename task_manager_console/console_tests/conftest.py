@@ -3,7 +3,6 @@
 one for the console, the console as users run it, and two of the demo's robots on the broker."""
 
 import itertools
-import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -12,6 +11,7 @@ import pytest
 from task_manager_mqtt.broker import CLOUD_USER
 from task_manager_mqtt.testing import BRIDGE_EXECUTABLE, CONNECTED_LINE, BrokerProcess
 
+from task_manager.testing.domains import CONSOLE_ROBOTS, run_domains
 from task_manager.testing.process import NodeProcess
 from task_manager_console.doors_testing import ConsoleProcess
 from task_manager_console.fleet import Fleet
@@ -123,13 +123,11 @@ def demo_robot(
 @pytest.fixture
 def two_demo_robots(broker: BrokerProcess, tmp_path: Path) -> Iterator[None]:
     """robot1 and robot2, each the demo's robot, Task Manager and bridge in a ROS domain of its
-    own: this run's domains 5 and 6 (the root conftest.py gives each run six, its test
-    processes the first four)."""
-    first = int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
+    own: two of this run's domains (task_manager.testing.domains)."""
     processes = [
         process
-        for number, robot_id in enumerate(('robot1', 'robot2'))
-        for process in demo_robot(robot_id, first + 4 + number, broker, tmp_path)
+        for robot_id, domain in zip(('robot1', 'robot2'), run_domains(CONSOLE_ROBOTS), strict=True)
+        for process in demo_robot(robot_id, domain, broker, tmp_path)
     ]
     try:
         ready_lines = [ROBOT_READY.pattern, TASK_MANAGER_READY.pattern, CONNECTED_LINE] * 2

@@ -41,7 +41,7 @@ NOT_AUTHORIZED = 'Not authorized'
 
 
 def fleet_command(folder: Path, *options: str) -> list[str]:
-    # domains apart from those of the test processes (1-100, see conftest.py)
+    # domains apart from those of the test runs (1-90, task_manager.testing.domains)
     first_domain = 120 + int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
     return [
         str(Path(sys.executable).with_name('task-manager-fleet')),

@@ -1,15 +1,20 @@
 """ROS domains for a test run, claimed on the machine so two runs never share one.
 
-A run takes a group of DOMAINS_PER_RUN consecutive domains (its pytest-xdist workers the first
-four, the console tests' demo robots the last two). The claim is an abstract Unix socket bound
-for the life of the process that claimed it: no file is written, and the kernel releases it
-however the run ends (SIGKILL included).
+A run takes a group of DOMAINS_PER_RUN consecutive domains: its pytest-xdist workers the first
+four (WORKERS), then those of tests that start nodes in domains of their own. The claim is an
+abstract Unix socket bound for the life of the process that claimed it: no file is written, and
+the kernel releases it however the run ends (SIGKILL included).
 """
 
+import os
 import socket
 
-DOMAINS_PER_RUN = 6
-RUN_GROUPS = 16  # domains 1-96; a fleet test adds 120 to its run's first domain (max 232)
+DOMAINS_PER_RUN = 9
+RUN_GROUPS = 10  # domains 1-90; the fleet test adds 120 to its run's first domain (max 232)
+# offsets in a run's group
+WORKERS = range(0, 4)
+CONSOLE_ROBOTS = range(4, 6)  # the console tests' two demo robots
+HISTORY_PER_DOMAIN = range(6, 9)  # two Task Managers and a third that is refused
 _CLAIM_PREFIX = '\0task_manager_test_domains_'
 
 _claims: list[socket.socket] = []
@@ -35,4 +40,10 @@ def claim_run_domains(start: int) -> int:
 
 def worker_domain(first: int, worker: str) -> int:
     """The domain of a pytest-xdist worker (`gw0`...; the controller is gw0)."""
-    return first + int(worker.removeprefix('gw')) % 4
+    return first + WORKERS[int(worker.removeprefix('gw')) % len(WORKERS)]
+
+
+def run_domains(offsets: range) -> list[int]:
+    """The domains at `offsets` in this run's group (its first domain is in the environment)."""
+    first = int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
+    return [first + offset for offset in offsets]

@@ -1,6 +1,7 @@
 """An in-process ROS node spun in a background thread, with bounded waits for tests."""
 
 import threading
+import weakref
 from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
@@ -79,6 +80,24 @@ class TopicRecorder:
             return list(self.messages)
 
 
+# The harness spinning each node, for destroy_on_executor.
+_HARNESSES: 'weakref.WeakValueDictionary[int, RosHarness]' = weakref.WeakValueDictionary()
+
+
+def destroy_on_executor(node: Node, entity: Any) -> None:
+    """Destroy `entity` (an action client or server of `node`) on the thread spinning `node`.
+
+    rclpy frees an action entity's handle before it leaves the node's waitables: destroyed on
+    another thread, a turn of the executor in between adds the freed handle to its wait set and
+    raises ('action client pointer is invalid'). Where no harness spins `node`, destroys at once.
+    """
+    harness = _HARNESSES.get(id(node))
+    if harness is None or harness.node is not node:
+        entity.destroy()
+    else:
+        harness.destroy(entity)
+
+
 class CallbackError(AssertionError):
     """A callback on the harness's executor (a test double's) raised; raised at close."""
 
@@ -99,6 +118,7 @@ class RosHarness:
         self.executor.add_node(self.node)
         self.callback_errors: list[Exception] = []
         self._closing = False
+        _HARNESSES[id(self.node)] = self
         self._thread = threading.Thread(target=self._spin, name=f'{node_name}-spin', daemon=True)
         self._thread.start()
 
@@ -124,6 +144,14 @@ class RosHarness:
     def action_client(self, action_type: type, name: str, **options: Any) -> Any:
         """An rclpy ActionClient on this node, built on the executor thread (see on_executor)."""
         return self.on_executor(lambda: ActionClient(self.node, action_type, name, **options))
+
+    def destroy(self, *entities: Any) -> None:
+        """Destroy action clients and servers of this node (see destroy_on_executor)."""
+        for entity in entities:
+            if self._closing or threading.current_thread() is self._thread:
+                entity.destroy()
+            else:
+                self.on_executor(entity.destroy)
 
     def record(self, msg_type: type, topic: str, qos: QoSProfile | int = 10) -> TopicRecorder:
         return TopicRecorder(self.node, msg_type, topic, qos)

@@ -197,8 +197,8 @@ class TaskManagerProbe:
         self.wait_active(lambda tasks: (task_id, 'IN_PROGRESS') in tasks, f'{task_id} active')
 
     def destroy(self) -> None:
-        self.client.destroy()
+        self.ros.destroy(self.client)
         if self._start_client is not None:
-            self._start_client.destroy()
+            self.ros.destroy(self._start_client)
         for recorder in (self.results, self.active):
             self.ros.node.destroy_subscription(recorder.subscription)

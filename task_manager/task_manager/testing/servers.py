@@ -18,7 +18,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from task_manager.rclpy_tools.futures import result_of
-from task_manager.testing.harness import WaitTimeoutError
+from task_manager.testing.harness import WaitTimeoutError, destroy_on_executor
 
 
 class CancelPolicy(Enum):
@@ -163,6 +163,7 @@ class ScriptedActionServer:
         self.goals = _Arrivals()
         self.rejected = _Arrivals()
         self._on_goal = on_goal
+        self._node = node
         self._hop = _ExecutorHop(node)
         self._goals_by_id: dict[bytes, ScriptedGoal] = {}
         # ids of goals cancelled between their acceptance and their execute callback
@@ -238,7 +239,7 @@ class ScriptedActionServer:
         return self.held.wait_for(count, timeout_sec, 'held goal requests')
 
     def destroy(self) -> None:
-        self.server.destroy()
+        destroy_on_executor(self._node, self.server)
 
 
 class ScriptedCall:

@@ -42,8 +42,7 @@ def test_execute_task_goal_and_result_cross_dds(ros: RosHarness) -> None:
         'DONE',
         '',
     )
-    client.destroy()
-    server.destroy()
+    ros.destroy(client, server)
 
 
 def test_cancel_tasks_request_and_response_cross_dds(ros: RosHarness) -> None:

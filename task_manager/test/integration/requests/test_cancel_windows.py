@@ -137,7 +137,7 @@ def test_a_cancel_sent_as_a_task_servers_goal_is_accepted_cancels_the_task(
     assert [m.task_status for m in ended] == ['CANCELED'] * ATTEMPTS
     for goal in server.goals.items:
         assert goal.cancel_requested.is_set()
-    client.destroy()
+    ros.destroy(client)
 
 
 def test_a_cancel_while_the_task_waits_for_a_conflicting_task_to_end(

@@ -134,4 +134,4 @@ def test_wait_publishes_remaining_time_through_its_task_server(
     assert len(feedback) >= 1
     assert all(0.0 <= remaining <= 1.5 for remaining in feedback)
     assert feedback == sorted(feedback, reverse=True)
-    client.destroy()
+    ros.destroy(client)

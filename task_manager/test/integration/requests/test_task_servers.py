@@ -64,7 +64,7 @@ def test_task_servers_run_tasks_through_the_task_manager(
         ('math/fib', 'DONE', 'task_server'),
         ('set', 'DONE', 'task_server'),
     ]
-    action_client.destroy()
+    ros.destroy(action_client)
 
 
 def test_feedback_of_an_action_task_reaches_the_task_servers_client(

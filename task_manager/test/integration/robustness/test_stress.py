@@ -232,8 +232,7 @@ def test_concurrent_mixed_requests_are_each_answered_once_and_consistently(
         threads_at_end = watch.sample_threads()
     finally:
         watch.stop()
-        for client in clients:
-            client.destroy()
+        ros.destroy(*clients)
 
     actives = tm.active.snapshot()
     max_in_flight = max(watch.max_in_flight, *(len(m.active_tasks) for m in actives))

@@ -13,13 +13,14 @@ from task_manager.core.history.store import TaskHistory
 from task_manager.core.status import TaskStatus
 from task_manager.core.task import TaskRecord
 from task_manager.core.task_spec import InterfaceName, TaskKind, TaskSpec
+from task_manager.testing.domains import HISTORY_PER_DOMAIN, run_domains
 from task_manager.testing.process import NodeProcess, action_task, taskctl, write_params_file
 
 START_TIMEOUT_SEC = 20.0
 EXIT_TIMEOUT_SEC = 20.0
 EXIT_CONFIGURATION_ERROR = 2
-DOMAINS = (91, 92)
-OTHER_DOMAIN = 93
+# three domains of this run's own, where no other test's node serves
+*DOMAINS, OTHER_DOMAIN = run_domains(HISTORY_PER_DOMAIN)
 WAIT = '{"duration": 0.01}'  # system/wait's goal: a task that needs no server
 
 
@@ -85,7 +86,7 @@ def test_one_parameters_file_in_two_domains_both_serve_each_with_its_own_history
         assert run.returncode == 0, run.stderr
         assert json.loads(run.stdout)['status'] == 'DONE'
     ids = [[json.loads(line)['task_id'] for line in h.stdout.splitlines()] for h in histories]
-    assert ids == [['wait-91', 'from-before'], ['wait-92']]
+    assert ids == [[f'wait-{DOMAINS[0]}', 'from-before'], [f'wait-{DOMAINS[1]}']]
     moved = f'moved the task history of an earlier version from {before} to '
     assert any(moved in line for line in serving[0].log_lines), serving[0].log_lines
     assert not before.exists()
