@@ -5,6 +5,8 @@ SHELL := /bin/bash
 VENV := $(CURDIR)/.venv
 PY := $(VENV)/bin/python
 PIP := $(PY) -m pip --disable-pip-version-check
+# Our packages, editable, built with the venv's setuptools (requirements/build.txt).
+PIP_EDITABLE := $(PIP) install --quiet --no-build-isolation
 STAMPS := $(VENV)/.stamps
 BUILD := $(CURDIR)/build
 CONSTRAINTS := requirements/ros-constraints.txt
@@ -50,62 +52,64 @@ $(BUILD)/COLCON_IGNORE:
 $(PY):
 	python3 -m venv $(VENV)
 
-$(STAMPS)/ros-wheels: requirements/ros.txt $(CONSTRAINTS) | $(PY)
-	$(PIP) install --quiet -r requirements/ros.txt -c $(CONSTRAINTS)
+$(STAMPS)/ros-wheels: requirements/ros.txt requirements/build.txt $(CONSTRAINTS) | $(PY)
+	$(PIP) install --quiet -r requirements/ros.txt -r requirements/build.txt -c $(CONSTRAINTS)
 	@mkdir -p $(STAMPS) && touch $@
 
-# Builds an ament_cmake interface package with plain CMake into the venv.
+# Builds an ament_cmake interface package with plain CMake into the venv, as a unity build
+# (cmake/unity_interfaces.cmake: 139 s -> 81 s for task_manager_msgs on 2 cores).
 # $(1): package folder. The venv specifics stay here, not in the CMakeLists.
 define build_interfaces
 	@echo "building interface package $(1)"
 	cmake -S $(1) -B $(BUILD)/$(1) -DCMAKE_PREFIX_PATH=$(VENV) \
 	  -DCMAKE_INSTALL_PREFIX=$(VENV) -DPython3_EXECUTABLE=$(PY) \
-	  -DBUILD_TESTING=OFF > $(BUILD)/$(1).configure.log 2>&1 \
+	  -DBUILD_TESTING=OFF -DCMAKE_PROJECT_INCLUDE=$(CURDIR)/cmake/unity_interfaces.cmake \
+	  > $(BUILD)/$(1).configure.log 2>&1 \
 	  || { cat $(BUILD)/$(1).configure.log; exit 1; }
 	cmake --build $(BUILD)/$(1) -j2 --target install > $(BUILD)/$(1).build.log 2>&1 \
 	  || { tail -50 $(BUILD)/$(1).build.log; exit 1; }
 	@touch $@
 endef
 
-$(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels $(shell find task_manager_msgs -type f)
+$(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels cmake/unity_interfaces.cmake $(shell find task_manager_msgs -type f)
 	@mkdir -p $(BUILD)
 	$(call build_interfaces,task_manager_msgs)
 
 $(STAMPS)/task_manager: $(STAMPS)/task_manager_msgs task_manager/pyproject.toml task_manager/setup.py task_manager/setup.cfg
-	$(PIP) install --quiet -e 'task_manager[dev]' -c $(CONSTRAINTS)
+	$(PIP_EDITABLE) -e 'task_manager[dev]' -c $(CONSTRAINTS)
 	@touch $@
 
 # The demo: a simulated robot's interfaces, and the robot plus the `task-manager-demo` launcher.
-$(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels $(shell find task_manager_demo_msgs -type f)
+$(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels cmake/unity_interfaces.cmake $(shell find task_manager_demo_msgs -type f)
 	@mkdir -p $(BUILD)
 	$(call build_interfaces,task_manager_demo_msgs)
 
 # Order-only on task_manager (which brings the ROS wheels): only its own files reinstall it.
 $(STAMPS)/task_manager_demo: task_manager_demo/pyproject.toml task_manager_demo/setup.py task_manager_demo/setup.cfg | $(STAMPS)/task_manager
-	$(PIP) install --quiet -e task_manager_demo -c $(CONSTRAINTS)
+	$(PIP_EDITABLE) -e task_manager_demo -c $(CONSTRAINTS)
 	@touch $@
 
 # The web gateway (a separate process and package: the node never loads a web stack).
 $(STAMPS)/task_manager_web: task_manager_web/pyproject.toml task_manager_web/setup.py task_manager_web/setup.cfg | $(STAMPS)/task_manager
-	$(PIP) install --quiet -e 'task_manager_web[dev]' -c $(CONSTRAINTS)
+	$(PIP_EDITABLE) -e 'task_manager_web[dev]' -c $(CONSTRAINTS)
 	@touch $@
 
 # The bridge to an MQTT broker (a separate process and package, like the web gateway).
 $(STAMPS)/task_manager_mqtt: task_manager_mqtt/pyproject.toml task_manager_mqtt/setup.py task_manager_mqtt/setup.cfg | $(STAMPS)/task_manager
-	$(PIP) install --quiet -e 'task_manager_mqtt[dev]' -c $(CONSTRAINTS)
+	$(PIP_EDITABLE) -e 'task_manager_mqtt[dev]' -c $(CONSTRAINTS)
 	@touch $@
 
 # The VDA 5050 adapter (a separate process and package; it shares the MQTT bridge's broker
 # settings and client).
 $(STAMPS)/task_manager_vda5050: task_manager_vda5050/pyproject.toml task_manager_vda5050/setup.py task_manager_vda5050/setup.cfg | $(STAMPS)/task_manager_mqtt
-	$(PIP) install --quiet -e task_manager_vda5050 -c $(CONSTRAINTS)
+	$(PIP_EDITABLE) -e task_manager_vda5050 -c $(CONSTRAINTS)
 	@touch $@
 
 # The fleet console (a separate process and package, cloud-side: no rclpy; it reaches the robots
 # through the broker with the MQTT bridge's FleetClient, its doors are the web gateway's code).
 # Its tests start a PostgreSQL server.
 $(STAMPS)/task_manager_console: task_manager_console/pyproject.toml task_manager_console/setup.py | $(STAMPS)/task_manager_mqtt $(STAMPS)/task_manager_web $(STAMPS)/postgresql
-	$(PIP) install --quiet -e 'task_manager_console[dev]' -c $(CONSTRAINTS)
+	$(PIP_EDITABLE) -e 'task_manager_console[dev]' -c $(CONSTRAINTS)
 	@touch $@
 
 # The independent master control of the adapter's tests (npm's vda-5050-lib), installed from
