@@ -37,6 +37,7 @@ class TopicRecorder:
     def __init__(self, node: Node, msg_type: type, topic: str, qos: QoSProfile | int) -> None:
         self.messages: list[Any] = []
         self.matched_publishers = 0
+        self._node = node
         self._changed = threading.Condition()
         self.subscription = node.create_subscription(
             msg_type,
@@ -78,6 +79,10 @@ class TopicRecorder:
     def snapshot(self) -> list[Any]:
         with self._changed:
             return list(self.messages)
+
+    def destroy(self) -> None:
+        """Destroy its subscription (on the thread spinning the node: see RosHarness.destroy)."""
+        self._node.destroy_subscription(self.subscription)
 
 
 # The harness spinning each node, for destroy_on_executor.
@@ -146,7 +151,8 @@ class RosHarness:
         return self.on_executor(lambda: ActionClient(self.node, action_type, name, **options))
 
     def destroy(self, *entities: Any) -> None:
-        """Destroy action clients and servers of this node (see destroy_on_executor)."""
+        """Destroy action clients and servers, recorders (what has `destroy()`) of this node on
+        the thread spinning it (see destroy_on_executor)."""
         for entity in entities:
             if self._closing or threading.current_thread() is self._thread:
                 entity.destroy()

@@ -197,8 +197,10 @@ class TaskManagerProbe:
         self.wait_active(lambda tasks: (task_id, 'IN_PROGRESS') in tasks, f'{task_id} active')
 
     def destroy(self) -> None:
+        """Destroy its clients and subscriptions on the thread spinning them (see
+        RosHarness.destroy)."""
         self.ros.destroy(self.client)
         if self._start_client is not None:
             self.ros.destroy(self._start_client)
         for recorder in (self.results, self.active):
-            self.ros.node.destroy_subscription(recorder.subscription)
+            self.ros.destroy(recorder)

@@ -232,7 +232,8 @@ def test_concurrent_mixed_requests_are_each_answered_once_and_consistently(
         threads_at_end = watch.sample_threads()
     finally:
         watch.stop()
-        ros.destroy(*clients)
+        for client in clients:
+            client.destroy()
 
     actives = tm.active.snapshot()
     max_in_flight = max(watch.max_in_flight, *(len(m.active_tasks) for m in actives))
