@@ -8,8 +8,9 @@ after 2.8 s in half of 10 starts and 0.14 s in the others; taskctl took 0.8 or 2
 0.5 s, but still one in 8 to 16 after 2.3-3 s: the running process answers a newcomer's first
 announcement once, and when that answer is missed the newcomer learns of it at its next
 periodic announcement. Announcing each second bounds that wait to 1 s (16 gateway starts:
-at most 1.14 s; 2.88 s with the 3 s period). Call `use_quick_discovery()` before rclpy starts a participant; a profile file the
-user gives Fast DDS (FASTDDS_DEFAULT_PROFILES_FILE) is left alone.
+at most 1.14 s; 2.88 s with the 3 s period). Call `use_quick_discovery()` before rclpy starts a
+participant; a profile file the user gives Fast DDS (FASTDDS_DEFAULT_PROFILES_FILE) is left
+alone.
 """
 
 import os

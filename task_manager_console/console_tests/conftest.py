@@ -11,7 +11,7 @@ import pytest
 from task_manager_mqtt.broker import CLOUD_USER
 from task_manager_mqtt.testing import BRIDGE_EXECUTABLE, CONNECTED_LINE, BrokerProcess
 
-from task_manager.testing.domains import CONSOLE_ROBOTS, run_domains
+from task_manager.testing.domains import console_robot_domains
 from task_manager.testing.process import NodeProcess
 from task_manager_console.doors_testing import ConsoleProcess
 from task_manager_console.fleet import Fleet
@@ -123,10 +123,10 @@ def demo_robot(
 @pytest.fixture
 def two_demo_robots(broker: BrokerProcess, tmp_path: Path) -> Iterator[None]:
     """robot1 and robot2, each the demo's robot, Task Manager and bridge in a ROS domain of its
-    own: two of this run's domains (task_manager.testing.domains)."""
+    own: two of this run's domains, this worker's (task_manager.testing.domains)."""
     processes = [
         process
-        for robot_id, domain in zip(('robot1', 'robot2'), run_domains(CONSOLE_ROBOTS), strict=True)
+        for robot_id, domain in zip(('robot1', 'robot2'), console_robot_domains(), strict=True)
         for process in demo_robot(robot_id, domain, broker, tmp_path)
     ]
     try:

@@ -9,12 +9,15 @@ the kernel releases it however the run ends (SIGKILL included).
 import os
 import socket
 
-DOMAINS_PER_RUN = 9
-RUN_GROUPS = 10  # domains 1-90; the fleet test adds 120 to its run's first domain (max 232)
+DOMAINS_PER_RUN = 15
+RUN_GROUPS = 6  # domains 1-90; the fleet test adds 120 to its run's first domain (max 232)
 # offsets in a run's group
 WORKERS = range(0, 4)
-CONSOLE_ROBOTS = range(4, 6)  # the console tests' two demo robots
-HISTORY_PER_DOMAIN = range(6, 9)  # two Task Managers and a third that is refused
+# the console tests' two demo robots, two for each worker: two test files that start them may
+# run at once, in two workers
+CONSOLE_ROBOTS = range(4, 12)
+CONSOLE_ROBOTS_PER_WORKER = 2
+HISTORY_PER_DOMAIN = range(12, 15)  # two Task Managers and a third that is refused
 _CLAIM_PREFIX = '\0task_manager_test_domains_'
 
 _claims: list[socket.socket] = []
@@ -38,12 +41,25 @@ def claim_run_domains(start: int) -> int:
     raise RuntimeError(f'all {RUN_GROUPS} groups of test ROS domains are taken by other runs')
 
 
+def worker_index(worker: str) -> int:
+    """Which of WORKERS a pytest-xdist worker (`gw0`...; the controller is gw0) is."""
+    return int(worker.removeprefix('gw')) % len(WORKERS)
+
+
 def worker_domain(first: int, worker: str) -> int:
-    """The domain of a pytest-xdist worker (`gw0`...; the controller is gw0)."""
-    return first + WORKERS[int(worker.removeprefix('gw')) % len(WORKERS)]
+    """The domain of a pytest-xdist worker."""
+    return first + WORKERS[worker_index(worker)]
 
 
 def run_domains(offsets: range) -> list[int]:
     """The domains at `offsets` in this run's group (its first domain is in the environment)."""
     first = int(os.environ['TASK_MANAGER_TEST_DOMAIN'])
     return [first + offset for offset in offsets]
+
+
+def console_robot_domains() -> list[int]:
+    """The two domains of this worker's console demo robots."""
+    start = CONSOLE_ROBOTS.start + CONSOLE_ROBOTS_PER_WORKER * worker_index(
+        os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
+    )
+    return run_domains(range(start, start + CONSOLE_ROBOTS_PER_WORKER))
