@@ -82,10 +82,15 @@ MQTT_OUTAGE_TASKS = 1000
 STARTUP_SAMPLES = 5
 IDLE_SEC = 10.0
 
-# rclpy's ActionServer keeps each finished goal for result_timeout (10 s by default) and
-# every event of the server walks all the goals it keeps: the node's ExecuteTask server
-# does so. Benchmarks (and throughput bursts) start once the previous one's goals are gone.
+# The node's ExecuteTask server keeps each finished goal 10 s, as rclpy's: measurements of the
+# node's memory and idle CPU wait until they are gone (ctx.wait_kept_goals_gone).
 KEPT_GOALS_SEC = 10.5
+# A pause between timed measurements (ctx.settle). It was KEPT_GOALS_SEC, for rclpy's
+# ActionServer, which walks every goal it keeps on each event; the node's ExecuteTask server
+# (ros/serving/action_services_server.py) and the bench's instant server
+# (harness/lean_action.py) do not: the burst's share of direct was 41-43 % with either pause
+# (2026-11-27, ABBA, `--only throughput`), and the whole bench ~10 minutes shorter.
+SETTLE_SEC = 2.0
 
 # Bounds on every wait, so that a broken node fails the bench instead of hanging it.
 SAMPLE_TIMEOUT_SEC = 10.0

@@ -139,8 +139,14 @@ class BenchContext:
             self.profiles[title] = profile
 
     def settle(self) -> None:
-        """Let the node's ExecuteTask server drop the finished goals it keeps (a fixed pause)."""
-        print(f'[bench] settling {config.KEPT_GOALS_SEC} s', flush=True)
+        """A short pause between timed measurements (config.SETTLE_SEC)."""
+        print(f'[bench] settling {config.SETTLE_SEC} s', flush=True)
+        time.sleep(config.SETTLE_SEC)
+
+    def wait_kept_goals_gone(self) -> None:
+        """Let the node's ExecuteTask server drop the finished goals it keeps (a fixed pause),
+        before a measurement of its memory or idle CPU."""
+        print(f'[bench] waiting {config.KEPT_GOALS_SEC} s for the kept goals to go', flush=True)
         time.sleep(config.KEPT_GOALS_SEC)
 
     def task_latency_ms(

@@ -101,7 +101,7 @@ def settled_rss(
         if time.monotonic() > deadline:
             raise BenchError('memory: tasks still active after the last one ended')
         time.sleep(0.1)
-    ctx.settle()
+    ctx.wait_kept_goals_gone()
     return rss_mib(ctx.node.pid), rss_mib(gateway.process.pid)
 
 

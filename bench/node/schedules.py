@@ -302,13 +302,13 @@ def idle_benchmark(ctx: BenchContext, stored_path: Path) -> tuple[Startup, Start
     """Idle CPU and start-up with an empty store, then with the stored schedules (rows); returns
     both starts (stored, empty). The node is left running on the stored schedules."""
     empty = restart_timed(ctx, 'task_manager_schedules_empty')
-    ctx.settle()
+    ctx.wait_kept_goals_gone()
     empty_idle = cpu_percent(ctx.node.pid, config.IDLE_SEC)
     full = restart_timed(ctx, 'task_manager_schedules_10k', history_path=str(stored_path))
     loaded = loaded_schedules(ctx)
     if loaded != STORED_SCHEDULES:
         raise BenchError(f'the node loaded {loaded} schedules, expected {STORED_SCHEDULES}')
-    ctx.settle()
+    ctx.wait_kept_goals_gone()
     full_idle = cpu_percent(ctx.node.pid, config.IDLE_SEC)
     ctx.report.add(
         Row(

@@ -45,7 +45,7 @@ def run(ctx: BenchContext) -> None:
     samples = [replied for replied, _ in pairs]
     startup = Summary.of(samples)
     ready = Summary.of([ready for _, ready in pairs])
-    ctx.settle()
+    ctx.wait_kept_goals_gone()
     idle = cpu_percent(ctx.node.pid, config.IDLE_SEC)
     ctx.report.add(
         Row(
