@@ -138,8 +138,8 @@ def main(argv: list[str] | None = None) -> int:
     with running_bench(log_dir, profiling) as ctx:
         ok = True
         for index, name in enumerate(names):
-            if index > 0:
-                ctx.settle()
+            if index > 0:  # each starts once the previous one's goals are gone
+                ctx.wait_kept_goals_gone()
             ok = run_benchmark(ctx, name) and ok
     lines = [
         *machine,

@@ -81,7 +81,7 @@ class HeldRamps:
 
     def measure(self, setting: Setting, _index: int) -> None:
         count = config.CONCURRENT_TASKS
-        self._ctx.settle()
+        self._ctx.wait_kept_goals_gone()  # rclpy's hold server walks the goals it keeps
         direct = direct_hold(self._ctx, count)
         watcher = ActiveTasksWatcher(self._ctx.client.harness)
         try:
