@@ -142,9 +142,10 @@ $(STAMPS)/mosquitto: | $(PY)
 $(STAMPS)/postgresql: | $(PY)
 	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
-# `make test` runs the suite in 3 processes (pytest-xdist, each its own ROS domain): its tests
-# wait more than they compute. On 2 cores: pytest 784 s with 2, 614 s with 3, 549-599 s with 4
-# (where a bound on the time the web gateway takes to answer a stop under load was missed).
+# `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain). On 2 cores:
+# pytest 784 s with 2, 603-614 s with 3, 549-599 s with 4; but with 3 a web gateway stopped
+# right after its start once took over 10 s to exit, and with 4 a bound on the time the gateway
+# takes to answer a stop under load was missed: 2 until those are understood.
 # The layers' contracts (.importlinter), run in an empty folder: in the repository's root the
 # colcon folder task_manager/ would pass for the package, and so would build/task_manager/ (the
 # colcon check's build of it) in build/.
@@ -155,7 +156,7 @@ TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; ti
 test:
 	$(call TIMED,install) $(MAKE) --no-print-directory install
 	$(call TIMED,lint (ruff, mypy, import contracts)) { $(VENV)/bin/ruff check . && $(VENV)/bin/mypy && $(LINT_IMPORTS); }
-	$(call TIMED,pytest) $(VENV)/bin/pytest -n 3 --dist loadfile --durations=10
+	$(call TIMED,pytest) $(VENV)/bin/pytest -n 2 --dist loadfile --durations=10
 
 lint: install
 	$(VENV)/bin/ruff check .
