@@ -5,8 +5,8 @@
    in STORED_ZONE, half one-shots a year ahead: none fires during the bench), restarts the node
    on it and, after the pause the other idle measurement takes, measures its CPU over IDLE_SEC;
    the baseline is the same measurement with an empty store, just before (a restart of its
-   own). The start-up of both (spawn to
-   the "Task Manager ready" line, and to the first ExecuteTask reply) is reported too.
+   own). The start-up of both (spawn to the "Task Manager ready" line, and to the first
+   ExecuteTask reply) is reported too.
 2. Lateness: with the stored schedules loaded, BURST_SCHEDULES one-shot schedules of the
    instant reentrant action task are created through ExecuteTask (system/schedule), due at
    T + i * BURST_SPACING_SEC with T BURST_LEAD_SEC after the first is sent. Once every run's

@@ -9,15 +9,16 @@ the kernel releases it however the run ends (SIGKILL included).
 import os
 import socket
 
-DOMAINS_PER_RUN = 15
-RUN_GROUPS = 6  # domains 1-90; the fleet test adds 120 to its run's first domain (max 232)
 # offsets in a run's group
 WORKERS = range(0, 4)
 # the console tests' two demo robots, two for each worker: two test files that start them may
 # run at once, in two workers
-CONSOLE_ROBOTS = range(4, 12)
 CONSOLE_ROBOTS_PER_WORKER = 2
-HISTORY_PER_DOMAIN = range(12, 15)  # two Task Managers and a third that is refused
+CONSOLE_ROBOTS = range(WORKERS.stop, WORKERS.stop + CONSOLE_ROBOTS_PER_WORKER * len(WORKERS))
+# two Task Managers and a third that is refused
+HISTORY_PER_DOMAIN = range(CONSOLE_ROBOTS.stop, CONSOLE_ROBOTS.stop + 3)
+DOMAINS_PER_RUN = HISTORY_PER_DOMAIN.stop  # 15
+RUN_GROUPS = 6  # domains 1-90; the fleet test adds 120 to its run's first domain (max 232)
 _CLAIM_PREFIX = '\0task_manager_test_domains_'
 
 _claims: list[socket.socket] = []
