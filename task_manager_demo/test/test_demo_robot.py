@@ -53,6 +53,7 @@ class RobotClient:
 
     def __init__(self, ros: RosHarness) -> None:
         node = ros.node
+        self._ros = ros
         self.navigate = ros.action_client(NavigateToPose, NAVIGATE_ACTION)
         self.spin = ros.action_client(Spin, SPIN_ACTION)
         self.dock = ros.action_client(Dock, DOCK_ACTION)
@@ -69,7 +70,7 @@ class RobotClient:
 
     def send(self, client: ActionClient[Any, Any, Any], goal: Any) -> tuple[Any, FeedbackRecorder]:
         feedback = FeedbackRecorder()
-        future = client.send_goal_async(goal, feedback_callback=feedback)
+        future = self._ros.send_goal(client, goal, feedback)
         handle = wait_for_future(future, TIMEOUT_SEC, 'goal response')
         assert handle.accepted
         return handle, feedback

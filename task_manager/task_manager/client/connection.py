@@ -68,13 +68,20 @@ class Connection:
                 raise
 
     def subscribe(
-        self, msg_type: type, topic: str, profile: QoSProfile, callback: Callable[[Any], None]
+        self,
+        msg_type: type,
+        topic: str,
+        profile: QoSProfile,
+        callback: Callable[[Any], None],
+        key: str = '',
     ) -> None:
-        """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us.
+        """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us
+        (under `key`, the topic unless told: a second reader of a topic has a key of its own).
 
         What `callback` raises is logged, not spread: it would end the executor thread, and
         with it every call of the client.
         """
+        key = key or topic
 
         def guarded(message: Any) -> None:
             try:
@@ -88,9 +95,9 @@ class Connection:
             with self.lock:
                 was_connected = ACTIVE_TASKS_TOPIC in self._matched
                 if info.current_count > 0:
-                    self._matched.add(topic)
+                    self._matched.add(key)
                 else:
-                    self._matched.discard(topic)
+                    self._matched.discard(key)
                 connected = ACTIVE_TASKS_TOPIC in self._matched
                 listeners = self.changes.copy() if connected != was_connected else []
                 self.lock.notify_all()
@@ -105,15 +112,15 @@ class Connection:
             event_callbacks=SubscriptionEventCallbacks(matched=matched),
         )
 
-    def is_matched(self, topic: str) -> bool:
-        """Whether a publisher of `topic` reaches this client."""
+    def is_matched(self, key: str) -> bool:
+        """Whether a publisher reaches this client's reader of `key` (a topic, see subscribe)."""
         with self.lock:
-            return topic in self._matched
+            return key in self._matched
 
-    def wait_matched(self, topics: set[str], timeout_sec: float | None) -> bool:
-        """Wait until a publisher of each of `topics` reaches this client; whether one did."""
+    def wait_matched(self, keys: set[str], timeout_sec: float | None) -> bool:
+        """Wait until a publisher reaches each reader of `keys`; whether one did."""
         with self.lock:
-            return self.lock.wait_for(lambda: topics <= self._matched, timeout_sec)
+            return self.lock.wait_for(lambda: keys <= self._matched, timeout_sec)
 
     @property
     def connected(self) -> bool:

@@ -20,16 +20,27 @@ from task_manager.rclpy_tools.log import NodeLog
 
 T = TypeVar('T')
 
+# The key of the deep reader of the active lists, beside the topic's own (the latest list).
+EVERY_ACTIVE_LIST = f'{ACTIVE_TASKS_TOPIC} (every list)'
+
 
 class ActiveTasks:
-    """The latest /task_manager/active_tasks, and who listens for the next."""
+    """The latest /task_manager/active_tasks, and who listens for every list.
+
+    Two readers of the topic: the latest list comes from one that keeps only the newest (a
+    client that joins gets the current list, not the publisher's history); the listeners get
+    every list from a deep volatile one, made on first use, so that a list shown for a moment
+    (a task that starts and ends within a tick) is not overwritten before they see it.
+    """
 
     def __init__(self, connection: Connection) -> None:
         self._connection = connection
         self._latest: list[ActiveTaskInfo] | None = None
+        self._following = False
         self.listeners = Listeners[list[ActiveTaskInfo]](connection.lock)
+        """Who gets every list from `follow()` on."""
         connection.subscribe(
-            ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.LATEST_ACTIVE_TASKS, self._on_active
+            ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.LATEST_ACTIVE_TASKS, self._on_latest
         )
 
     def latest(self, timeout_sec: float | None = None) -> list[ActiveTaskInfo]:
@@ -45,15 +56,37 @@ class ActiveTasks:
         """Whether the latest list has this task."""
         return any(t.task_id == task_id for t in self._latest or [])
 
-    def _on_active(self, message: ActiveTaskArray) -> None:
-        active = [
-            ActiveTaskInfo(t.task_id, t.task_name, status_of(t.task_status, ended=False), t.source)
-            for t in message.active_tasks
-        ]
+    def follow(self) -> None:
+        """Subscribe (once) to every list; wait until the Task Manager's publisher reaches
+        it, if a Task Manager is there (bounded by the client's timeout)."""
         with self._connection.lock:
-            self._latest = active
-            self.listeners.put(active)
+            subscribe = not self._following
+            self._following = True
+        if subscribe:
+            self._connection.subscribe(
+                ActiveTaskArray,
+                ACTIVE_TASKS_TOPIC,
+                qos.ACTIVE_TASK_CHANGES,
+                self._on_change,
+                key=EVERY_ACTIVE_LIST,
+            )
+        if self._connection.connected:
+            self._connection.wait_matched({EVERY_ACTIVE_LIST}, self._connection.timeout_sec)
+
+    def _on_latest(self, message: ActiveTaskArray) -> None:
+        with self._connection.lock:
+            self._latest = _infos(message)
             self._connection.lock.notify_all()
+
+    def _on_change(self, message: ActiveTaskArray) -> None:
+        self.listeners.put(_infos(message))
+
+
+def _infos(message: ActiveTaskArray) -> list[ActiveTaskInfo]:
+    return [
+        ActiveTaskInfo(t.task_id, t.task_name, status_of(t.task_status, ended=False), t.source)
+        for t in message.active_tasks
+    ]
 
 
 class Watching:
@@ -78,6 +111,7 @@ class Watching:
         Stops after `timeout_sec` without an update (None: never), or once `until` completes.
         """
         inbox: Inbox[list[ActiveTaskInfo]] = queue.SimpleQueue()
+        self._active.follow()
         with self._active.listeners.listening(inbox):
             yield from drain(inbox, timeout_sec, until)
 
@@ -94,6 +128,7 @@ class Watching:
     ) -> Iterator[list[ActiveTaskInfo] | TaskResult]:
         """Active task lists and results, in the order they arrive; stops as above."""
         inbox: Inbox[list[ActiveTaskInfo] | TaskResult] = queue.SimpleQueue()
+        self._active.follow()
         with self._active.listeners.listening(inbox), self._results.listening(inbox):
             # annotated: mypy infers no T from `A | B | End` against `T | End` by itself
             arrivals: Iterator[list[ActiveTaskInfo] | TaskResult] = drain(inbox, timeout_sec, until)

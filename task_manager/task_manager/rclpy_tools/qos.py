@@ -34,6 +34,10 @@ LATEST_ACTIVE_TASKS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
+# A subscriber that wants every list from now on: volatile (no history of lists that are
+# over), deep enough that a burst of changes waits for it rather than being overwritten.
+ACTIVE_TASK_CHANGES = DEEP_RELIABLE
+
 
 def without_qos_events() -> PublisherEventCallbacks:
     """For a publisher whose every reader is made with its QoS (an action's status and

@@ -150,6 +150,23 @@ class RosHarness:
         """An rclpy ActionClient on this node, built on the executor thread (see on_executor)."""
         return self.on_executor(lambda: ActionClient(self.node, action_type, name, **options))
 
+    def send_goal(
+        self, client: Any, goal: Any, feedback_callback: Callable[[Any], None] | None = None
+    ) -> Future[Any]:
+        """`client.send_goal_async(goal)` on the executor thread; the goal response's future.
+
+        rclpy 9.1's ActionClient.send_goal_async registers its future a second time outside its
+        lock: sent from another thread, a response handled in between raises ValueError
+        ('list.remove(x): x not in list'). Send goals of the harness's clients through this.
+        """
+        if threading.current_thread() is self._thread:
+            return cast(
+                Future[Any], client.send_goal_async(goal, feedback_callback=feedback_callback)
+            )
+        return self.on_executor(
+            lambda: client.send_goal_async(goal, feedback_callback=feedback_callback)
+        )
+
     def destroy(self, *entities: Any) -> None:
         """Destroy action clients and servers, recorders (what has `destroy()`) of this node on
         the thread spinning it (see destroy_on_executor)."""

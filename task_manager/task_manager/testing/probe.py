@@ -122,7 +122,7 @@ class TaskManagerProbe:
         """Send a goal (task_data as a dict, or a raw string); return the accepted goal handle."""
         data = task_data if isinstance(task_data, str) else json.dumps(task_data or {})
         goal = ExecuteTask.Goal(task_id=task_id, task_name=task_name, source=source, task_data=data)
-        handle = wait_for_future(self.client.send_goal_async(goal), self.timeout_sec, 'goal')
+        handle = wait_for_future(self.ros.send_goal(self.client, goal), self.timeout_sec, 'goal')
         assert handle.accepted
         return handle
 
@@ -149,7 +149,9 @@ class TaskManagerProbe:
             task_data=data,
             options=TaskOptions(**options),
         )
-        handle = wait_for_future(self._start_client.send_goal_async(goal), self.timeout_sec, 'goal')
+        handle = wait_for_future(
+            self.ros.send_goal(self._start_client, goal), self.timeout_sec, 'goal'
+        )
         assert handle.accepted
         return handle
 

@@ -31,7 +31,7 @@ def test_execute_task_goal_and_result_cross_dds(ros: RosHarness) -> None:
     goal = ExecuteTask.Goal(
         task_id='id-1', task_name='example/fibonacci', source='CLI', task_data='{"order": 1}'
     )
-    goal_handle = wait_for_future(client.send_goal_async(goal), TIMEOUT_SEC, 'goal response')
+    goal_handle = wait_for_future(ros.send_goal(client, goal), TIMEOUT_SEC, 'goal response')
     assert goal_handle.accepted
     result = wait_for_future(goal_handle.get_result_async(), TIMEOUT_SEC, 'result').result
 

@@ -271,6 +271,12 @@ def test_an_unknown_event_kind_or_status_from_a_newer_node_stops_nothing(
     log = EventLog()
     client.on_task_event(log)
     wait_until(lambda: client.connected and client.events_connected, 'the client connected')
+    # The client seeing the publishers is not enough: each publisher matches the client's
+    # subscription in its own time, and a volatile message sent before is never delivered.
+    wait_until(
+        lambda: events.get_subscription_count() > 0 and active.get_subscription_count() > 0,
+        'the publishers matched the client',
+    )
 
     def state(task_id: str, status: str, error_code: str = '') -> TaskStateMessage:
         return TaskStateMessage(

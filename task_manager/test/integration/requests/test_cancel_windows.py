@@ -38,10 +38,10 @@ def _send_and_cancel_at_acceptance(
     goal = ExecuteTask.Goal(
         task_id=task_id, task_name=task_name, source='test', task_data=json.dumps(task_data)
     )
-    return _cancel_at_acceptance(tm.client, goal)
+    return _cancel_at_acceptance(tm.ros, tm.client, goal)
 
 
-def _cancel_at_acceptance(client: Any, goal: Any) -> tuple[Any, Any]:
+def _cancel_at_acceptance(ros: RosHarness, client: Any, goal: Any) -> tuple[Any, Any]:
     """Send a goal and cancel it from the goal response's callback, on the executor thread,
     before anything else runs; returns (goal handle, cancel response)."""
     cancelled: Future[Any] = Future()
@@ -53,7 +53,7 @@ def _cancel_at_acceptance(client: Any, goal: Any) -> tuple[Any, Any]:
             lambda done: cancelled.set_result((handle, done.result()))
         )
 
-    client.send_goal_async(goal).add_done_callback(on_response)
+    ros.send_goal(client, goal).add_done_callback(on_response)
     result: tuple[Any, Any] = wait_for_future(cancelled, TIMEOUT_SEC, 'cancel at acceptance')
     return result
 
@@ -122,7 +122,7 @@ def test_a_cancel_sent_as_a_task_servers_goal_is_accepted_cancels_the_task(
     client = ros.action_client(Fibonacci, '/task_manager/task/math/fib')
     assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
     for _ in range(ATTEMPTS):
-        handle, cancel = _cancel_at_acceptance(client, Fibonacci.Goal(order=6))
+        handle, cancel = _cancel_at_acceptance(ros, client, Fibonacci.Goal(order=6))
 
         assert len(cancel.goals_canceling) == 1, 'the cancel was not accepted'
         response = wait_for_future(handle.get_result_async(), TIMEOUT_SEC, 'result')

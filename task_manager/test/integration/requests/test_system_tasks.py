@@ -122,9 +122,10 @@ def test_wait_publishes_remaining_time_through_its_task_server(
     feedback: list[float] = []
 
     goal_handle = wait_for_future(
-        client.send_goal_async(
+        ros.send_goal(
+            client,
             Wait.Goal(duration=1.5),
-            feedback_callback=lambda m: feedback.append(m.feedback.remaining_time),
+            lambda m: feedback.append(m.feedback.remaining_time),
         ),
         TIMEOUT_SEC,
         'goal',

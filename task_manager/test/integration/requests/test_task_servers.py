@@ -45,7 +45,7 @@ def test_task_servers_run_tasks_through_the_task_manager(
     assert service_client.wait_for_service(timeout_sec=TIMEOUT_SEC)
 
     goal_handle = wait_for_future(
-        action_client.send_goal_async(Fibonacci.Goal(order=4)), TIMEOUT_SEC, 'goal'
+        ros.send_goal(action_client, Fibonacci.Goal(order=4)), TIMEOUT_SEC, 'goal'
     )
     action_result = wait_for_future(goal_handle.get_result_async(), TIMEOUT_SEC, 'result')
     response = wait_for_future(
@@ -84,7 +84,7 @@ def test_feedback_of_an_action_task_reaches_the_task_servers_client(
         got_feedback.set()
 
     goal_handle = wait_for_future(
-        client.send_goal_async(Fibonacci.Goal(order=2), feedback_callback=on_feedback),
+        ros.send_goal(client, Fibonacci.Goal(order=2), on_feedback),
         TIMEOUT_SEC,
         'goal',
     )

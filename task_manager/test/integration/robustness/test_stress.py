@@ -93,7 +93,9 @@ class StressClient:
                     task_data=request.task_data,
                 )
                 handle = wait_for_future(
-                    self.client.send_goal_async(goal), SEND_TIMEOUT_SEC, f'goal {request.index}'
+                    self._ros.send_goal(self.client, goal),
+                    SEND_TIMEOUT_SEC,
+                    f'goal {request.index}',
                 )
                 assert handle.accepted, f'goal {request.index} not accepted'
                 self.pending.append((request, handle.get_result_async()))

@@ -292,3 +292,63 @@ def test_every_event_of_500_tasks_at_once_reaches_the_client_in_order_in_fewer_m
     assert [pair for pair in received if pair[0] != 'first'] == published
     assert len(batches.snapshot()) - batches_before < len(published)
     assert len(published) == 3 * BURST
+
+
+class ListLog:
+    """Collects what an active_task_updates iterator yields, from a thread of its own."""
+
+    def __init__(self, client: TaskManagerClient) -> None:
+        self.lists: list[list[tuple[str, TaskStatus]]] = []
+        self._changed = threading.Condition()
+        self._client = client
+        self._thread = threading.Thread(target=self._watch, daemon=True)
+        self._thread.start()
+
+    def _watch(self) -> None:
+        for update in self._client.active_task_updates(timeout_sec=TIMEOUT_SEC):
+            with self._changed:
+                self.lists.append([(t.task_id, t.status) for t in update])
+                self._changed.notify_all()
+
+    def wait_for(self, entry: tuple[str, TaskStatus]) -> bool:
+        with self._changed:
+            return self._changed.wait_for(
+                lambda: any(entry in listed for listed in self.lists), TIMEOUT_SEC
+            )
+
+
+def test_a_listener_gets_every_active_list_even_when_the_client_is_held_up(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    """A task that starts and ends while the client's executor is busy still reaches
+    active_task_updates as IN_PROGRESS: of the lists published meanwhile, the newest alone (what
+    active_tasks() needs) would show only the empty list."""
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=lambda g: g.succeed())
+    tm = launch_task_manager({'fib': action_task('fib', f'{topic_prefix}/fib', reentrant=True)})
+    client.wait_until_available(events=True)
+    released = threading.Event()
+    held = threading.Event()
+
+    def hold_the_executor(event: Any) -> None:
+        if event.task.task_id == 'hold':
+            held.set()
+            released.wait(TIMEOUT_SEC)
+
+    client.on_task_event(hold_the_executor)
+    log = ListLog(client)
+    tm.run('fib', {'order': 1}, task_id='listening')
+    assert log.wait_for(('listening', TaskStatus.IN_PROGRESS)), log.lists
+    try:
+        tm.run('fib', {'order': 1}, task_id='hold')
+        assert held.wait(TIMEOUT_SEC), 'the client never got the events of hold'
+        assert tm.run('fib', {'order': 1}, task_id='quick').task_status == 'DONE'
+        tm.active.wait_until(
+            lambda messages: [t.task_id for t in messages[-1].active_tasks] == [], TIMEOUT_SEC
+        )
+    finally:
+        released.set()
+
+    assert log.wait_for(('quick', TaskStatus.IN_PROGRESS)), log.lists
