@@ -19,7 +19,7 @@ from rclpy.subscription import Subscription
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
-from task_manager.rclpy_tools.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.qos import DEEP_RELIABLE, RESULT_REPLIES
 from task_manager.rclpy_tools.request_window import RequestWindow
 
 
@@ -49,7 +49,7 @@ class ActionServicesClient:
         self._get_result: Client[Any, Any] = node.create_client(
             impl.GetResultService,
             action_service_name(action_name, 'get_result'),
-            qos_profile=DEEP_RELIABLE,
+            qos_profile=RESULT_REPLIES,
         )
         self._cancel: Client[Any, Any] = node.create_client(
             impl.CancelGoalService,
@@ -64,11 +64,20 @@ class ActionServicesClient:
                 RequestWindow(node, self._cancel, requests_in_flight),
             )
         self._feedback_topic = f'{action_name.rstrip("/")}/_action/feedback'
+        self._status_topic = f'{action_name.rstrip("/")}/_action/status'
         # key: goal id (bytes), value: called with each feedback message of that goal
         self._feedback_callbacks: dict[bytes, Callable[[Any], None]] = {}
         # made with the first feedback callback: a client that wants none (the Task Manager's
         # client of ExecuteTask) does not take every goal's feedback messages
         self._feedback: Subscription[Any] | None = None
+
+    def server_ids(self) -> frozenset[bytes]:
+        """The DDS ids of the action's servers now (of their status publishers, which every
+        action server has): a server that restarted has new ones."""
+        return frozenset(
+            bytes(info.endpoint_gid)
+            for info in self._node.get_publishers_info_by_topic(self._status_topic)
+        )
 
     def server_is_ready(self) -> bool:
         return all(c.service_is_ready() for c in (self._send_goal, self._get_result, self._cancel))

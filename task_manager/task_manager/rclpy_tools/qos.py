@@ -13,6 +13,17 @@ DEEP_RELIABLE = QoSProfile(
     durability=DurabilityPolicy.VOLATILE,
 )
 
+# The replies to the node's GetResult requests: a server answers every request it holds as
+# its goal ends, up to 8 per goal (the first and the asks again), so 1,000 goals ending at once
+# may send 8,000 while the node is busy ending their tasks; a reader overwrites the oldest it
+# has not read. Memory is taken as replies wait, not reserved for the depth.
+RESULT_REPLIES = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=10 * DEEP_QUEUE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+
 ACTIVE_TASKS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST,
     depth=10,

@@ -2,6 +2,7 @@
 
 import uuid
 from collections import deque
+from collections.abc import Callable
 from typing import Any
 
 from action_msgs.msg import GoalStatus
@@ -34,9 +35,10 @@ def server_outcome(goal_status: int) -> ServerOutcome:
 
 # How long a cancel request may go unanswered before it is sent again.
 CANCEL_AGAIN_SEC = 1.0
-# The longest wait between two requests for a goal's result, in ticks of the server watch
-# (about a minute at the default server_check_period).
-RESULT_ASK_INTERVAL_MAX_TICKS = 64
+# How many times a goal's result is asked for again while none comes: after 1, 2, 4, ... 64
+# ticks of the server watch (about two minutes at the default server_check_period), then no
+# more unless its server restarts.
+RESULT_ASKS_AGAIN_MAX = 7
 # How many of a goal's latest requests asked again stay awaited (with its first request).
 RESULT_ASKS_KEPT = 3
 
@@ -50,24 +52,37 @@ class ActionExecution:
     asked again while no answer comes, since a busy server's result service keeps only its
     last few unread requests (10 by default, rclpy's and rclcpp's) and drops older ones
     unanswered: the watch's tick asks again once the last request has waited 1, then 2, 4, up
-    to RESULT_ASK_INTERVAL_MAX_TICKS ticks; one still waiting its turn in the request window
-    keeps its place (none is added behind it). The latest RESULT_ASKS_KEPT of them stay
-    awaited too: forgetting one costs a scan of the client's pending requests (rclpy's), so
-    the node forgets them only once a long goal has asked RESULT_ASKS_KEPT times or at its end.
-    A long goal costs its server one request a minute. A server that no longer knows the goal
-    (STATUS_UNKNOWN: it restarted, or let the result expire) ends the task ERROR.
+    to 64 ticks, RESULT_ASKS_AGAIN_MAX times in all; one still waiting its turn in the request
+    window keeps its place (none is added behind it). Then no more: the server holds every
+    request it took and answers each as the goal ends, so asking on for hours would pile up
+    answers that, for a thousand goals ending at once, overflow the node's reader and lose
+    the only ones that count (their goal's result then expired on the server before the next
+    ask). A server that restarted is noticed by its new DDS ids (`server_ids`, checked at each
+    tick): the result is asked for again at once. The latest RESULT_ASKS_KEPT requests asked
+    again stay awaited too: forgetting one costs a scan of the client's pending requests
+    (rclpy's). A server that no longer knows the goal (STATUS_UNKNOWN: it restarted, or let
+    the result expire) ends the task ERROR.
     """
 
     def __init__(
-        self, node: Node, client: ActionServicesClient, goal_id: bytes, spec: TaskSpec
+        self,
+        node: Node,
+        client: ActionServicesClient,
+        goal_id: bytes,
+        spec: TaskSpec,
+        server_ids: Callable[[], frozenset[bytes]],
     ) -> None:
+        """`server_ids`: the DDS ids of the action's servers as of the watch's last tick."""
         self._node = node
         self._client = client
         self._goal_id = goal_id
         self._spec = spec
+        self._server_ids = server_ids
+        self._servers_of_goal = server_ids()
         self.outcome: Future[Any] = Future()
         self._ticks_since_ask = 0
         self._ticks_between_asks = 1
+        self._asks_again = 0
         self._first_request = self._ask_for_result()
         # the latest requests asked again, oldest first
         self._asked_again: deque[Future[Any]] = deque()
@@ -79,16 +94,36 @@ class ActionExecution:
         return request
 
     def on_watch_tick(self) -> None:
-        """Ask for the result again if the last request has waited its interval unanswered."""
+        """Ask for the result again if the last request has waited its interval unanswered
+        (RESULT_ASKS_AGAIN_MAX times), or at once if the server restarted."""
         if self.outcome.done():
+            return
+        if self._server_restarted():
+            self._ask_again()
+            return
+        if self._asks_again == RESULT_ASKS_AGAIN_MAX:
             return
         self._ticks_since_ask += 1
         if self._ticks_since_ask < self._ticks_between_asks:
             return
         self._ticks_since_ask = 0
-        self._ticks_between_asks = min(2 * self._ticks_between_asks, RESULT_ASK_INTERVAL_MAX_TICKS)
+        self._ticks_between_asks *= 2
         if self._asked_again and self._client.result_request_waits(self._asked_again[-1]):
             return
+        self._asks_again += 1
+        self._ask_again()
+
+    def _server_restarted(self) -> bool:
+        """Whether none of the servers known when the goal was accepted is there any more,
+        and others are (a server gone without another is the watch's to notice)."""
+        now = self._server_ids()
+        if not now or now == self._servers_of_goal:
+            return False
+        restarted = bool(self._servers_of_goal) and not (now & self._servers_of_goal)
+        self._servers_of_goal = now
+        return restarted
+
+    def _ask_again(self) -> None:
         if len(self._asked_again) == RESULT_ASKS_KEPT:
             self._client.forget_result_request(self._asked_again.popleft())
         self._asked_again.append(self._ask_for_result(again=True))
@@ -159,12 +194,14 @@ class ActionTaskRunner(TaskRunner):
         self._client = ActionServicesClient(
             node, action_type, spec.topic, timeouts.server_requests_in_flight
         )
+        self._server_ids: frozenset[bytes] = frozenset()
         self._watch = ServerWatch(
             node,
             self._probe,
             WatchSettings(timeouts.server_check_period_sec, timeouts.server_loss_timeout_sec),
             loss=f'action server {spec.topic} stopped answering for more than '
             f'{timeouts.server_loss_timeout_sec} s',
+            on_tick=self._note_server_ids,
         )
 
     def parse(self, task_data: str, task_id: str) -> Any:
@@ -199,7 +236,11 @@ class ActionTaskRunner(TaskRunner):
                 ErrorCode.TASK_START_FAILED, f'action server {topic} rejected the goal'
             )
         try:
-            execution = ActionExecution(self._node, self._client, goal_id, self.spec)
+            if not self._watch.watching:  # the ids of the last tick may be of long ago
+                self._note_server_ids()
+            execution = ActionExecution(
+                self._node, self._client, goal_id, self.spec, lambda: self._server_ids
+            )
             self._watch.track(execution)
         except Exception as error:  # a bug of ours must not leave the goal running untracked
             raise TaskRequestError(
@@ -221,6 +262,9 @@ class ActionTaskRunner(TaskRunner):
             f'its cancel was not confirmed within cancel_timeout {timeout_sec:g} s: '
             'the goal may still run'
         )
+
+    def _note_server_ids(self) -> None:
+        self._server_ids = self._client.server_ids()
 
     def _probe(self) -> bool | Future[Any]:
         """A cancel request for a goal id that does not exist: a live server answers at

@@ -46,10 +46,19 @@ class WatchSettings:
 class ServerWatch:
     """Watches one server while tasks run on it; once it is lost, they end ERROR."""
 
-    def __init__(self, node: Node, probe: Probe, settings: WatchSettings, loss: str) -> None:
-        """`loss` says what happened, e.g. 'service /x left the ROS graph'."""
+    def __init__(
+        self,
+        node: Node,
+        probe: Probe,
+        settings: WatchSettings,
+        loss: str,
+        on_tick: Callable[[], None] | None = None,
+    ) -> None:
+        """`loss` says what happened, e.g. 'service /x left the ROS graph'; `on_tick` is
+        called at each check, before the running tasks' on_watch_tick."""
         self._node = node
         self._probe = probe
+        self._on_tick = on_tick
         self._settings = settings
         self._loss = loss
         self._in_flight: set[FailableExecution] = set()
@@ -59,6 +68,11 @@ class ServerWatch:
 
     def _now_ns(self) -> int:
         return self._node.get_clock().now().nanoseconds
+
+    @property
+    def watching(self) -> bool:
+        """Whether tasks run on the server (its checks are on)."""
+        return self._timer is not None
 
     def track(self, execution: FailableExecution) -> None:
         """Watch the server while `execution` runs."""
@@ -83,6 +97,8 @@ class ServerWatch:
     def _check(self) -> None:
         if self._probe_in_flight is None or self._probe_in_flight.done():
             self._send_probe()
+        if self._on_tick is not None:
+            self._on_tick()
         for execution in list(self._in_flight):
             execution.on_watch_tick()
         silent_sec = (self._now_ns() - self._last_alive_ns) / 1e9
