@@ -131,6 +131,15 @@ class ActionServicesClient:
             return self._windows[2].call_async(request)
         return self._cancel.call_async(request)
 
+    def goal_sent(self, future: Future[Any]) -> Future[None]:
+        """A future done once a SendGoal request is sent to the server: at once, or once it
+        has had its turn in the request window."""
+        if self._windows is not None:
+            return self._windows[0].sent(future)
+        sent: Future[None] = Future()
+        sent.set_result(None)
+        return sent
+
     def forget_request(self, future: Future[Any]) -> None:
         """Stop waiting for the response to a SendGoal request (it was answered otherwise)."""
         if self._windows is not None:

@@ -49,6 +49,8 @@ class RequestWindow:
         self._in_flight: OrderedDict[Future[Any], float] = OrderedDict()
         # key: the caller's future, value: the client's future of the request sent
         self._sent: dict[Future[Any], Future[Any]] = {}
+        # key: the caller's future of a request waiting its turn, value: done when it is sent
+        self._sending: dict[Future[Any], Future[None]] = {}
         self._timer: Timer | None = None
 
     def call_async(self, request: Any) -> Future[Any]:
@@ -63,6 +65,16 @@ class RequestWindow:
         """Whether this future is of a request of this window (sent or waiting its turn)."""
         return future in self._sent or future in self._unsent
 
+    def sent(self, future: Future[Any]) -> Future[None]:
+        """A future done once this request has left the window (at once if it has; cancelled
+        if it is forgotten first): the time it waited its turn is the node's, not the
+        server's."""
+        if future not in self._unsent:
+            signal: Future[None] = Future()
+            signal.set_result(None)
+            return signal
+        return self._sending.setdefault(future, Future())
+
     def waits(self, future: Future[Any]) -> bool:
         """Whether this future's request still waits its turn, not sent yet."""
         return future in self._unsent
@@ -70,6 +82,9 @@ class RequestWindow:
     def forget(self, future: Future[Any]) -> None:
         """The caller waits no more for this request's response (sent or not)."""
         self._unsent.discard(future)
+        signal = self._sending.pop(future, None)
+        if signal is not None:
+            signal.cancel()
         sent = self._sent.pop(future, None)
         if sent is not None and not sent.done():
             self._client.remove_pending_request(sent)
@@ -94,6 +109,9 @@ class RequestWindow:
             self._sent[future] = sent
             self._in_flight[future] = now
             sent.add_done_callback(functools.partial(self._answered, future))
+            signal = self._sending.pop(future, None)
+            if signal is not None:
+                signal.set_result(None)
         self._arm(bool(self._waiting))
 
     def _answered(self, future: Future[Any], sent: Future[Any]) -> None:

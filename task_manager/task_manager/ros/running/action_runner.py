@@ -16,7 +16,12 @@ from task_manager.core.task import TaskEnd, TaskRecord, status_for_action_outcom
 from task_manager.core.task_spec import TaskSpec
 from task_manager.messages.json_codec import message_from_json, message_to_dict
 from task_manager.rclpy_tools.action_services import ActionServicesClient
-from task_manager.rclpy_tools.futures import first_completed, wait_for, wait_until_ready
+from task_manager.rclpy_tools.futures import (
+    first_completed,
+    resolved,
+    wait_for,
+    wait_until_ready,
+)
 from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
@@ -222,6 +227,9 @@ class ActionTaskRunner(TaskRunner):
                 record.record_feedback(message_to_dict(feedback))
 
         goal_id, goal_future = self._client.send_goal(message, feedback_callback=on_feedback)
+        # goal_response_timeout is the server's time: from when the goal left the request
+        # window (a burst waits there its turn, 8 at a time), not from when it was queued
+        await resolved(self._node, self._client.goal_sent(goal_future))
         if not await wait_for(self._node, goal_future, self._timeouts.goal_response_sec):
             goal_future.add_done_callback(lambda f: self._cancel_late_goal(goal_id, f))
             raise TaskRequestError(

@@ -8,11 +8,13 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import psutil
 import pytest
 import rclpy
 from action_msgs.msg import GoalStatus
+from rclpy.action import ActionServer, GoalResponse
 from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
@@ -30,6 +32,9 @@ GOALS_IN_FLIGHT = 30
 # results at a time (8)
 LONG_GOALS = 60
 LONG_GOAL_SEC = 2.0
+# goals at a server slow to accept each: all are sent only after twice goal_response_timeout
+SLOW_GOALS = 200
+SLOW_ACCEPTANCE_SEC = 0.01
 
 
 @pytest.fixture
@@ -287,3 +292,40 @@ def test_a_stop_cancels_every_goal_of_a_server_that_keeps_only_ten_requests(
     assert stopped.task_status == 'DONE', stopped.task_result
     assert all(goal.cancel_requested.is_set() for goal in server.goals.items)
     assert [tm.result_of(h).result.task_status for h in handles] == ['CANCELED'] * len(ids)
+
+
+def test_goals_waiting_their_turn_in_the_node_are_not_timed_out_as_the_servers_delay(
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    busy_server_node: rclpy.node.Node,
+) -> None:
+    """goal_response_timeout is the time an action server takes to answer a goal. A burst
+    waits its turn in the node (8 goals unanswered at a time): 200 goals at a server taking
+    10 ms over each are all sent within 2 s, twice the timeout, and each is answered in
+    80 ms at most once sent; none may fail as if the server had not answered."""
+
+    def slow_acceptance(_goal: Any) -> GoalResponse:
+        time.sleep(SLOW_ACCEPTANCE_SEC)  # the server's own slowness, not a wait of the test
+        return GoalResponse.ACCEPT
+
+    def succeed(goal_handle: Any) -> Fibonacci.Result:
+        goal_handle.succeed()
+        return Fibonacci.Result()
+
+    server = ActionServer(
+        busy_server_node,
+        Fibonacci,
+        f'{topic_prefix}/drive',
+        execute_callback=succeed,
+        goal_callback=slow_acceptance,
+    )
+    tm = launch_task_manager(
+        {'drive': action_task('drive', f'{topic_prefix}/drive', reentrant=True)},
+        goal_response_timeout=1.0,
+    )
+    handles = [tm.send('drive', {'order': 1}, task_id=f'queued-{n}') for n in range(SLOW_GOALS)]
+
+    statuses = [tm.result_of(handle).result.task_status for handle in handles]
+
+    assert statuses == ['DONE'] * SLOW_GOALS
+    server.destroy()
