@@ -14,7 +14,7 @@ import psutil
 import pytest
 import rclpy
 from action_msgs.msg import GoalStatus
-from rclpy.action import ActionServer, GoalResponse
+from rclpy.action.server import ActionServer, GoalResponse
 from rclpy.executors import SingleThreadedExecutor
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
