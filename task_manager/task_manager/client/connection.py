@@ -11,7 +11,9 @@ import rclpy
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskEventArray
 
@@ -40,7 +42,14 @@ class Connection:
         """How long a call waits when not told (the client's `timeout_sec`)."""
         self._context = Context()
         rclpy.init(context=self._context)
-        self.node = rclpy.create_node(f'{node_name}_{uuid.uuid4().hex[:8]}', context=self._context)
+        self.node = rclpy.create_node(
+            f'{node_name}_{uuid.uuid4().hex[:8]}',
+            context=self._context,
+            # a client's node has no parameters of its own to serve: its 7 parameter services
+            # and its type description service were 8 of the 20 entities of every wait set
+            start_parameter_services=False,
+            parameter_overrides=[Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)],
+        )
         self.lock = threading.Condition()
         self.changes = Listeners[bool](self.lock)
         """Who is told each change of `connected`."""
@@ -109,7 +118,10 @@ class Connection:
             topic,
             guarded,
             profile,
-            event_callbacks=SubscriptionEventCallbacks(matched=matched),
+            # the node's writers are made with the QoS asked: no incompatible-QoS handlers
+            event_callbacks=SubscriptionEventCallbacks(
+                matched=matched, use_default_callbacks=False
+            ),
         )
 
     def is_matched(self, key: str) -> bool:
