@@ -21,6 +21,7 @@ from bench.gateways.web import HTTP_TIMEOUT_SEC, running_gateway
 from bench.harness import config
 from bench.harness.client import ActiveTasksWatcher
 from bench.harness.context import BenchContext
+from bench.harness.processes import cpu_seconds_by_role
 from bench.harness.replies import BenchError
 from bench.harness.report import Row
 from bench.harness.stats import ratio
@@ -33,6 +34,7 @@ ATTACHED = Setting('gateways attached', {})
 TARGETS = Targets(latency=1.10, throughput=0.85)
 """Issue 40: at most 10 % slower at dispatch, at most 15 % fewer tasks/s on the burst."""
 DASHBOARD_STREAMS = 1
+CPU_SAMPLE_TASKS = 200
 
 
 @contextlib.contextmanager
@@ -68,6 +70,39 @@ def _beside(ctx: BenchContext) -> Beside:
             return stack.pop_all()
 
     return beside
+
+
+class CpuPerTask:
+    """Per setting, each process's CPU ms per instant task, over CPU_SAMPLE_TASKS in a row."""
+
+    def __init__(self, ctx: BenchContext) -> None:
+        self._ctx = ctx
+        # key: setting's name, value: per role, ms of CPU per task in each phase
+        self.ms: dict[str, dict[str, list[float]]] = {ALONE.name: {}, ATTACHED.name: {}}
+
+    def measure(self, setting: Setting) -> None:
+        before = cpu_seconds_by_role()
+        for _ in range(CPU_SAMPLE_TASKS):
+            self._ctx.fibonacci_task_ms()
+        after = cpu_seconds_by_role()
+        for role, seconds in after.items():
+            per_task_ms = (seconds - before.get(role, 0.0)) * 1000 / CPU_SAMPLE_TASKS
+            self.ms[setting.name].setdefault(role, []).append(per_task_ms)
+
+    def note(self) -> str:
+        def line(setting: Setting) -> str:
+            by_role = sorted(
+                ((statistics.median(ms), role) for role, ms in self.ms[setting.name].items()),
+                reverse=True,
+            )
+            total = sum(ms for ms, _ in by_role)
+            parts = ', '.join(f'{role} {ms:.1f}' for ms, role in by_role if ms >= 0.05)
+            return f'{setting.name} {total:.1f} ({parts})'
+
+        return (
+            f'CPU ms per instant action task by process, {CPU_SAMPLE_TASKS} tasks one by one, '
+            f'median of the phases: {line(ALONE)}; {line(ATTACHED)}'
+        )
 
 
 class HeldRamps:
@@ -118,9 +153,16 @@ class HeldRamps:
 
 def run(ctx: BenchContext) -> None:
     held = HeldRamps(ctx)
+    cpu = CpuPerTask(ctx)
+
+    def in_phase(setting: Setting, index: int) -> None:
+        cpu.measure(setting)
+        held.measure(setting, index)
+
     started = time.perf_counter()
-    compare(ctx, ALONE, ATTACHED, beside=_beside(ctx), in_phase=held.measure, targets=TARGETS)
+    compare(ctx, ALONE, ATTACHED, beside=_beside(ctx), in_phase=in_phase, targets=TARGETS)
     ctx.report.add(held.row())
+    ctx.report.note(cpu.note())
     ctx.report.note(
         f'attached: the web gateway with {DASHBOARD_STREAMS} event stream open and the MQTT '
         f'bridge on a local mosquitto, a FleetClient following; 4 phases in '

@@ -156,3 +156,32 @@ class OtherLoad:
         elapsed_sec = time.perf_counter() - started_at
         others_sec = (self._machine_busy_sec() - busy) - (self._our_sec() - ours)
         return max(others_sec, 0.0) / elapsed_sec if elapsed_sec > 0 else 0.0
+
+
+# What each of the bench's processes is, by a piece of its command line (the first that fits).
+PROCESS_ROLES = (
+    ('task-manager-web', 'web gateway'),
+    ('task-manager-mqtt', 'MQTT bridge'),
+    ('mosquitto', 'mosquitto'),
+    ('stream_readers', 'event stream reader'),
+    ('bench.harness.servers', 'servers'),
+    ('task-manager ', 'node'),
+)
+
+
+def cpu_seconds_by_role() -> dict[str, float]:
+    """CPU time (user + system) so far of the bench and each of its running children, by role
+    (PROCESS_ROLES; 'bench' for the bench's own, with its clients and the FleetClient)."""
+    bench = psutil.Process(os.getpid())
+    used: dict[str, float] = {}
+    for process in [bench, *bench.children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):
+            command = ' '.join(process.cmdline())
+            times = process.cpu_times()
+            role = 'bench' if process.pid == bench.pid else _role(command)
+            used[role] = used.get(role, 0.0) + times.user + times.system
+    return used
+
+
+def _role(command: str) -> str:
+    return next((role for piece, role in PROCESS_ROLES if piece in command), 'other')
