@@ -113,7 +113,7 @@ def profile_lines(title: str, profile: Profile) -> list[str]:
         return [f'  {profile.share(n):6.1%}  {name}' for name, n in counts.most_common(limit)]
 
     return [
-        f'profile of the node, {title} (py-spy record --function, {profile.samples} samples)',
+        f'profile of the node, {title} (py-spy record --function --gil, {profile.samples} samples)',
         '  where the time goes:',
         *rows(profile.areas(), limit=len(profile.areas())),
         '  top functions by own time (self):',

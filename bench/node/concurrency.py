@@ -86,8 +86,8 @@ def managed_hold(
         for index in range(count)
     ]
     ramp_sec = watcher.wait_in_progress(count, config.BURST_TIMEOUT_SEC) - started
-    # measured unprofiled: py-spy stops the node at each of its 100 samples a second, which
-    # cost it 10-20 % of a core here (1.4-3 % without)
+    # measured unprofiled: py-spy stops the node at each of its 400 samples a second, which
+    # cost it 10-20 % of a core here (1.2-3 % without)
     waiting_cpu = cpu_percent(ctx.node.pid, config.WAITING_CPU_SEC)
     if ctx.profiling:
         with ctx.profiled(f'{count} tasks waiting on their server'):
