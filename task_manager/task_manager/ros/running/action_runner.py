@@ -76,9 +76,12 @@ class ActionExecution:
         goal_id: bytes,
         spec: TaskSpec,
         server_ids: Callable[[], frozenset[bytes]],
+        server_alive: Callable[[], None],
     ) -> None:
-        """`server_ids`: the DDS ids of the action's servers as of the watch's last tick."""
+        """`server_ids`: the DDS ids of the action's servers as of the watch's last tick;
+        `server_alive` is told each answer of the server."""
         self._node = node
+        self._server_alive = server_alive
         self._client = client
         self._goal_id = goal_id
         self._spec = spec
@@ -141,6 +144,8 @@ class ActionExecution:
 
     def _on_result(self, future: Future[Any]) -> None:
         response = future.result()
+        if response is not None:
+            self._server_alive()
         if self.outcome.done() or response is None:
             return
         if response.status == GoalStatus.STATUS_UNKNOWN:
@@ -238,6 +243,8 @@ class ActionTaskRunner(TaskRunner):
                 f'{self._timeouts.goal_response_sec} s',
             )
         response = goal_future.result()
+        if response is not None:
+            self._watch.mark_alive()
         if response is None or not response.accepted:
             self._client.forget(goal_id)
             raise TaskRequestError(
@@ -247,7 +254,12 @@ class ActionTaskRunner(TaskRunner):
             if not self._watch.watching:  # the ids of the last tick may be of long ago
                 self._note_server_ids()
             execution = ActionExecution(
-                self._node, self._client, goal_id, self.spec, lambda: self._server_ids
+                self._node,
+                self._client,
+                goal_id,
+                self.spec,
+                lambda: self._server_ids,
+                self._watch.mark_alive,
             )
             self._watch.track(execution)
         except Exception as error:  # a bug of ours must not leave the goal running untracked

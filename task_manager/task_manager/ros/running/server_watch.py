@@ -2,8 +2,10 @@
 
 While a runner has tasks in flight, a timer checks its server every `check_period_sec`:
 an action server must answer a harmless probe (a cancel request for a goal id that does
-not exist), a service must still be on the ROS graph. A server that has given no sign of
-life for `loss_timeout_sec` is lost, and its tasks end ERROR. A killed service process
+not exist; one each check, so that an answer lost does not stop the probing), or give
+another sign of life (a goal's response, feedback, a result); a service must still be on
+the ROS graph. A server that has given no sign of life for `loss_timeout_sec` is lost, and
+its tasks end ERROR. A killed service process
 leaves the graph only when its DDS lease expires, so for services the bound counts from
 that moment, the moment the loss becomes visible.
 """
@@ -64,7 +66,6 @@ class ServerWatch:
         self._in_flight: set[FailableExecution] = set()
         self._timer: Timer | None = None
         self._last_alive_ns = 0
-        self._probe_in_flight: Future[Any] | None = None
 
     def _now_ns(self) -> int:
         return self._node.get_clock().now().nanoseconds
@@ -88,15 +89,14 @@ class ServerWatch:
             self._timer.cancel()
             destroy_timer(self._node, self._timer)
             self._timer = None
-            self._probe_in_flight = None
 
     def mark_alive(self) -> None:
-        """The server gave a sign of life (an answer, feedback, a result)."""
+        """The server gave a sign of life (a probe's answer, a goal's response, feedback, a
+        result): under a burst a probe's answer waits its turn behind the rest."""
         self._last_alive_ns = self._now_ns()
 
     def _check(self) -> None:
-        if self._probe_in_flight is None or self._probe_in_flight.done():
-            self._send_probe()
+        self._send_probe()  # each tick: an answer lost must not leave the server unprobed
         if self._on_tick is not None:
             self._on_tick()
         for execution in list(self._in_flight):
@@ -115,5 +115,4 @@ class ServerWatch:
             if answer:
                 self.mark_alive()
             return
-        self._probe_in_flight = answer
-        answer.add_done_callback(lambda _: self.mark_alive())
+        answer.add_done_callback(lambda done: None if done.cancelled() else self.mark_alive())

@@ -15,7 +15,9 @@ import pytest
 import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action.server import ActionServer, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.task import Future
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
 
@@ -35,6 +37,8 @@ LONG_GOAL_SEC = 2.0
 # goals at a server slow to accept each: all are sent only after twice goal_response_timeout
 SLOW_GOALS = 200
 SLOW_ACCEPTANCE_SEC = 0.01
+HOLD_ORDER = 100  # goals of this order or more wait for the test's release
+LOSS_TIMEOUT_SEC = 0.5
 
 
 @pytest.fixture
@@ -328,4 +332,55 @@ def test_goals_waiting_their_turn_in_the_node_are_not_timed_out_as_the_servers_d
     statuses = [tm.result_of(handle).result.task_status for handle in handles]
 
     assert statuses == ['DONE'] * SLOW_GOALS
+    server.destroy()
+
+
+class NoCancelAnswers(ActionServer[Any, Any, Any]):
+    """A live action server whose cancel service takes every request and answers none: the
+    node's probe (a cancel of a goal that does not exist) stays unanswered, as one does whose
+    answer is lost or waits behind a burst."""
+
+    async def _execute_cancel_request(self, _request_header_and_message: Any) -> None:
+        return None
+
+
+def test_a_server_that_answers_no_probe_but_ends_goals_is_not_lost(
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    busy_server_node: rclpy.node.Node,
+) -> None:
+    """A goal's response and a result are signs of life as much as the probe's answer: a task
+    held for four loss timeouts ends DONE while others end one after another (before, the
+    unanswered probe alone counted, and every task of the server ended ERROR as lost)."""
+    release: Future[None] = Future()
+
+    async def execute(goal_handle: Any) -> Fibonacci.Result:
+        if goal_handle.request.order >= HOLD_ORDER:
+            await release
+        goal_handle.succeed()
+        return Fibonacci.Result()
+
+    server = NoCancelAnswers(
+        busy_server_node,
+        Fibonacci,
+        f'{topic_prefix}/drive',
+        execute_callback=execute,
+        callback_group=ReentrantCallbackGroup(),
+    )
+    tm = launch_task_manager(
+        {'drive': action_task('drive', f'{topic_prefix}/drive', reentrant=True)},
+        server_check_period=0.1,
+        server_loss_timeout=LOSS_TIMEOUT_SEC,
+    )
+    held = tm.send('drive', {'order': HOLD_ORDER}, task_id='held')
+    tm.wait_in_progress('held')
+    others = 0
+    until = time.monotonic() + 4 * LOSS_TIMEOUT_SEC  # the scenario's length, not a wait
+    while time.monotonic() < until:
+        assert tm.run('drive', {'order': 1}, task_id=f'other-{others}').task_status == 'DONE'
+        others += 1
+    assert busy_server_node.executor is not None
+    busy_server_node.executor.create_task(lambda: release.set_result(None))
+
+    assert tm.result_of(held).result.task_status == 'DONE'
     server.destroy()

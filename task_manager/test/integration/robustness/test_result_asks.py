@@ -7,6 +7,7 @@ each on `<action>/_action/get_result/_service_event`.
 import json
 import threading
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from rclpy.qos import qos_profile_services_default
@@ -16,8 +17,9 @@ from test_msgs.action import Fibonacci
 
 from task_manager.ros.running.action_runner import RESULT_ASKS_AGAIN_MAX
 from task_manager.testing.harness import RosHarness
+from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task
-from task_manager.testing.servers import ScriptedActionServer
+from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
 
 TIMEOUT_SEC = 15.0
 # a fast watch: the asks again (after 1, 2, 4, ... 64 ticks) are over within 2.6 s
@@ -60,28 +62,43 @@ class ResultRequests:
             return self._by_goal.get(goal_id, 0)
 
 
+@dataclass
+class LongGoal:
+    """A goal held by its server until the node has asked for its result for the last time."""
+
+    server: ScriptedActionServer
+    requests: ResultRequests
+    tm: TaskManagerProbe
+    handle: Any
+    goal: ScriptedGoal
+    goal_id: bytes
+
+
+def _past_its_asks(ros: RosHarness, launch: LaunchTaskManager, topic: str) -> LongGoal:
+    server = ScriptedActionServer(ros.node, Fibonacci, topic)
+    requests = ResultRequests(ros, server, topic)
+    tm = launch({'drive': action_task('drive', topic)}, **WATCH)
+    handle = tm.send('drive', {'order': 1}, task_id='long')
+    goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
+    goal_id = bytes(goal.goal_handle.goal_id.uuid)
+    requests.wait_for(goal_id, 1 + RESULT_ASKS_AGAIN_MAX)
+    return LongGoal(server, requests, tm, handle, goal, goal_id)
+
+
 def test_a_long_goals_result_is_asked_for_a_bounded_number_of_times(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     """The server holds every request it took and answers each as the goal ends: asking on
     for as long as a goal runs would pile up answers (for a thousand goals ending at once,
     more than the node's reader keeps, losing the ones that count)."""
-    topic = f'{topic_prefix}/drive'
-    server = ScriptedActionServer(ros.node, Fibonacci, topic)
-    requests = ResultRequests(ros, server, topic)
-    tm = launch_task_manager({'drive': action_task('drive', topic)}, **WATCH)
-    handle = tm.send('drive', {'order': 1}, task_id='long')
-    goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
-    goal_id = bytes(goal.goal_handle.goal_id.uuid)
-    asks = 1 + RESULT_ASKS_AGAIN_MAX
-    requests.wait_for(goal_id, asks)
+    long = _past_its_asks(ros, launch_task_manager, f'{topic_prefix}/drive')
     # what must not happen takes a while to show: another 128 ticks (2.6 s), in which the
     # node used to ask twice more (each 64 ticks, for as long as the goal ran)
     time.sleep(128 * WATCH['server_check_period'])
-    goal.succeed()
+    long.goal.succeed()
 
-    assert tm.result_of(handle).result.task_status == 'DONE'
-    assert requests.of(goal_id) == asks
+    assert long.tm.result_of(long.handle).result.task_status == 'DONE'
+    assert long.requests.of(long.goal_id) == 1 + RESULT_ASKS_AGAIN_MAX
 
 
 def test_a_goal_whose_server_restarted_after_the_last_ask_ends_error(
@@ -90,17 +107,11 @@ def test_a_goal_whose_server_restarted_after_the_last_ask_ends_error(
     """Once the node no longer asks, a server that restarts is noticed by its new DDS ids,
     and the result is asked for at once: the new server knows no such goal."""
     topic = f'{topic_prefix}/drive'
-    first = ScriptedActionServer(ros.node, Fibonacci, topic)
-    requests = ResultRequests(ros, first, topic)
-    tm = launch_task_manager({'drive': action_task('drive', topic)}, **WATCH)
-    handle = tm.send('drive', {'order': 1}, task_id='forgotten')
-    goal = first.wait_for_goals(1, TIMEOUT_SEC)[0]
-    goal_id = bytes(goal.goal_handle.goal_id.uuid)
-    requests.wait_for(goal_id, 1 + RESULT_ASKS_AGAIN_MAX)
-    ros.destroy(first)
+    long = _past_its_asks(ros, launch_task_manager, topic)
+    ros.destroy(long.server)
     ScriptedActionServer(ros.node, Fibonacci, topic)  # knows no goal
 
-    result = tm.result_of(handle).result
+    result = long.tm.result_of(long.handle).result
 
     assert result.task_status == 'ERROR'
     assert 'no longer knows the goal' in json.loads(result.task_result)['error']
