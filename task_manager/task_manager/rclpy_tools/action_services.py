@@ -19,6 +19,7 @@ from rclpy.subscription import Subscription
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
+from task_manager.rclpy_tools.futures import completed_future
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, RESULT_REPLIES
 from task_manager.rclpy_tools.request_window import RequestWindow
 
@@ -136,9 +137,7 @@ class ActionServicesClient:
         has had its turn in the request window."""
         if self._windows is not None:
             return self._windows[0].sent(future)
-        sent: Future[None] = Future()
-        sent.set_result(None)
-        return sent
+        return completed_future()
 
     def forget_request(self, future: Future[Any]) -> None:
         """Stop waiting for the response to a SendGoal request (it was answered otherwise)."""

@@ -23,6 +23,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
 
+from task_manager.rclpy_tools.futures import completed_future
+
 # Below the 10 unread requests rclpy's and rclcpp's servers keep by default.
 DEFAULT_SIZE = 8
 DEFAULT_SLOT_TIMEOUT_SEC = 0.5
@@ -70,9 +72,7 @@ class RequestWindow:
         if it is forgotten first): the time it waited its turn is the node's, not the
         server's."""
         if future not in self._unsent:
-            signal: Future[None] = Future()
-            signal.set_result(None)
-            return signal
+            return completed_future()
         return self._sending.setdefault(future, Future())
 
     def waits(self, future: Future[Any]) -> bool:

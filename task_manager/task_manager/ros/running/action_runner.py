@@ -144,9 +144,10 @@ class ActionExecution:
 
     def _on_result(self, future: Future[Any]) -> None:
         response = future.result()
-        if response is not None:
-            self._server_alive()
-        if self.outcome.done() or response is None:
+        if response is None:  # forgotten
+            return
+        self._server_alive()
+        if self.outcome.done():
             return
         if response.status == GoalStatus.STATUS_UNKNOWN:
             self.fail(
