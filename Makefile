@@ -40,9 +40,8 @@ help:
 	@echo "make lint     ruff and mypy"
 	@echo "make bench    benchmarks (not part of make test)"
 
-install: $(STAMPS)/task_manager $(STAMPS)/task_manager_demo_msgs $(STAMPS)/task_manager_demo \
-  $(STAMPS)/task_manager_web $(STAMPS)/task_manager_mqtt $(STAMPS)/chromium $(STAMPS)/mosquitto \
-  $(STAMPS)/task_manager_vda5050 $(STAMPS)/vda5050_master $(STAMPS)/task_manager_console
+install: $(STAMPS)/packages $(STAMPS)/task_manager_msgs $(STAMPS)/task_manager_demo_msgs \
+  $(STAMPS)/chromium $(STAMPS)/mosquitto $(STAMPS)/postgresql $(STAMPS)/vda5050_master
 
 # build/ holds our build trees and scratch clones: colcon, crawling the workspace, skips it.
 install: $(BUILD)/COLCON_IGNORE
@@ -57,13 +56,13 @@ $(STAMPS)/ros-wheels: requirements/ros.txt requirements/build.txt $(CONSTRAINTS)
 	@mkdir -p $(STAMPS) && touch $@
 
 # Builds an ament_cmake interface package with plain CMake into the venv, as a unity build
-# (cmake/unity_interfaces.cmake: 139 s -> 81 s for task_manager_msgs on 2 cores).
+# and with only the generators Python needs (cmake/venv_interfaces.cmake).
 # $(1): package folder. The venv specifics stay here, not in the CMakeLists.
 define build_interfaces
 	@echo "building interface package $(1)"
 	cmake -S $(1) -B $(BUILD)/$(1) -DCMAKE_PREFIX_PATH=$(VENV) \
 	  -DCMAKE_INSTALL_PREFIX=$(VENV) -DPython3_EXECUTABLE=$(PY) \
-	  -DBUILD_TESTING=OFF -DCMAKE_PROJECT_INCLUDE=$(CURDIR)/cmake/unity_interfaces.cmake \
+	  -DBUILD_TESTING=OFF -DCMAKE_PROJECT_INCLUDE=$(CURDIR)/cmake/venv_interfaces.cmake \
 	  > $(BUILD)/$(1).configure.log 2>&1 \
 	  || { cat $(BUILD)/$(1).configure.log; exit 1; }
 	cmake --build $(BUILD)/$(1) -j2 --target install > $(BUILD)/$(1).build.log 2>&1 \
@@ -71,46 +70,28 @@ define build_interfaces
 	@touch $@
 endef
 
-$(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels cmake/unity_interfaces.cmake $(shell find task_manager_msgs -type f)
+$(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels cmake/venv_interfaces.cmake $(shell find task_manager_msgs -type f)
 	@mkdir -p $(BUILD)
 	$(call build_interfaces,task_manager_msgs)
 
-$(STAMPS)/task_manager: $(STAMPS)/task_manager_msgs task_manager/pyproject.toml task_manager/setup.py task_manager/setup.cfg
-	$(PIP_EDITABLE) -e 'task_manager[dev]' -c $(CONSTRAINTS)
+# Our packages, editable, in one pip call (one resolution, no two pips writing the venv at
+# once): the node and its client (task_manager), the demo, the web gateway, the MQTT bridge,
+# the VDA 5050 adapter (it shares the bridge's broker settings and client), the fleet console
+# (cloud-side: no rclpy). They need the ROS wheels, not the interfaces built: under `make -j`
+# (`make test`) this runs while CMake builds them.
+PACKAGES := task_manager task_manager_demo task_manager_web task_manager_mqtt \
+  task_manager_vda5050 task_manager_console
+PACKAGE_FILES := $(wildcard $(foreach p,$(PACKAGES),$(p)/pyproject.toml $(p)/setup.py $(p)/setup.cfg))
+$(STAMPS)/packages: $(PACKAGE_FILES) $(CONSTRAINTS) | $(STAMPS)/ros-wheels
+	$(PIP_EDITABLE) -c $(CONSTRAINTS) -e 'task_manager[dev]' -e task_manager_demo \
+	  -e 'task_manager_web[dev]' -e 'task_manager_mqtt[dev]' -e task_manager_vda5050 \
+	  -e 'task_manager_console[dev]'
 	@touch $@
 
-# The demo: a simulated robot's interfaces, and the robot plus the `task-manager-demo` launcher.
-$(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels cmake/unity_interfaces.cmake $(shell find task_manager_demo_msgs -type f)
+# The demo's interfaces: a simulated robot's.
+$(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels cmake/venv_interfaces.cmake $(shell find task_manager_demo_msgs -type f)
 	@mkdir -p $(BUILD)
 	$(call build_interfaces,task_manager_demo_msgs)
-
-# Order-only on task_manager (which brings the ROS wheels): only its own files reinstall it.
-$(STAMPS)/task_manager_demo: task_manager_demo/pyproject.toml task_manager_demo/setup.py task_manager_demo/setup.cfg | $(STAMPS)/task_manager
-	$(PIP_EDITABLE) -e task_manager_demo -c $(CONSTRAINTS)
-	@touch $@
-
-# The web gateway (a separate process and package: the node never loads a web stack).
-$(STAMPS)/task_manager_web: task_manager_web/pyproject.toml task_manager_web/setup.py task_manager_web/setup.cfg | $(STAMPS)/task_manager
-	$(PIP_EDITABLE) -e 'task_manager_web[dev]' -c $(CONSTRAINTS)
-	@touch $@
-
-# The bridge to an MQTT broker (a separate process and package, like the web gateway).
-$(STAMPS)/task_manager_mqtt: task_manager_mqtt/pyproject.toml task_manager_mqtt/setup.py task_manager_mqtt/setup.cfg | $(STAMPS)/task_manager
-	$(PIP_EDITABLE) -e 'task_manager_mqtt[dev]' -c $(CONSTRAINTS)
-	@touch $@
-
-# The VDA 5050 adapter (a separate process and package; it shares the MQTT bridge's broker
-# settings and client).
-$(STAMPS)/task_manager_vda5050: task_manager_vda5050/pyproject.toml task_manager_vda5050/setup.py task_manager_vda5050/setup.cfg | $(STAMPS)/task_manager_mqtt
-	$(PIP_EDITABLE) -e task_manager_vda5050 -c $(CONSTRAINTS)
-	@touch $@
-
-# The fleet console (a separate process and package, cloud-side: no rclpy; it reaches the robots
-# through the broker with the MQTT bridge's FleetClient, its doors are the web gateway's code).
-# Its tests start a PostgreSQL server.
-$(STAMPS)/task_manager_console: task_manager_console/pyproject.toml task_manager_console/setup.py | $(STAMPS)/task_manager_mqtt $(STAMPS)/task_manager_web $(STAMPS)/postgresql
-	$(PIP_EDITABLE) -e 'task_manager_console[dev]' -c $(CONSTRAINTS)
-	@touch $@
 
 # The independent master control of the adapter's tests (npm's vda-5050-lib), installed from
 # its lock file into the package's test_tools/node_modules (never globally).
@@ -118,7 +99,8 @@ $(STAMPS)/vda5050_master: task_manager_vda5050/test_tools/package.json task_mana
 	cd task_manager_vda5050/test_tools && npm ci --no-audit --no-fund --loglevel=error
 	@mkdir -p $(STAMPS) && touch $@
 
-# A Debian package, installed with apt-get when its program is missing.
+# A Debian package, installed with apt-get when its program is missing. One at a time (each
+# waits for the one before it): apt-get holds dpkg's lock.
 # $(1): package, $(2): a program it installs, $(3): what it is for.
 define debian_package
 	@mkdir -p $(BUILD)
@@ -134,12 +116,12 @@ $(STAMPS)/chromium: | $(PY)
 	$(call debian_package,chromium,chromium,dashboard tests)
 
 # Debian's mosquitto: the broker of the MQTT tests, `make fleet` and the bench (started by them).
-$(STAMPS)/mosquitto: | $(PY)
+$(STAMPS)/mosquitto: | $(PY) $(STAMPS)/chromium
 	$(call debian_package,mosquitto,mosquitto,MQTT tests and make fleet)
 
 # Debian's PostgreSQL: the fleet console's tests and `make fleet FLEET_DB=postgres` start a
 # server of their own from its binaries (Debian keeps them in /usr/lib/postgresql/<version>/bin).
-$(STAMPS)/postgresql: | $(PY)
+$(STAMPS)/postgresql: | $(PY) $(STAMPS)/mosquitto
 	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
 # `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain). On 2 cores:
@@ -151,10 +133,12 @@ $(STAMPS)/postgresql: | $(PY)
 # colcon check's build of it) in build/.
 LINT_IMPORTS := mkdir -p $(BUILD)/lint-imports && cd $(BUILD)/lint-imports && $(VENV)/bin/lint-imports --config $(CURDIR)/.importlinter
 
-# Each part says how long it took (bash's `time`, on stderr): install, lint, the tests.
+# Each part says how long it took (bash's `time`, on stderr): install, lint, the tests. The
+# install runs its independent parts side by side (pip, CMake, npm, apt-get), each part's output
+# printed whole when it ends.
 TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; time
 test:
-	$(call TIMED,install) $(MAKE) --no-print-directory install
+	$(call TIMED,install) $(MAKE) --no-print-directory -j4 --output-sync=target install
 	$(call TIMED,lint (ruff, mypy, import contracts)) { $(VENV)/bin/ruff check . && $(VENV)/bin/mypy && $(LINT_IMPORTS); }
 	$(call TIMED,pytest) $(VENV)/bin/pytest -n 2 --dist loadfile --durations=10
 
