@@ -226,7 +226,8 @@ def test_the_access_log_has_every_request_and_no_token(
 ESCAPED_QUOTES = b'"' + b'\\"' * (TASK_DATA_MAX_BYTES // 2 - 1)
 """1 MiB of `"\\"\\"...`, a string never closed: the door's depth check of old took 36 s for 128
 kB of it (issue 37, item 4), the event loop blocked all along."""
-STOP_MAX_SEC = 2.0
+STOP_MAX_SEC = 5.0
+"""Far below the 36 s of old, with room for a loaded machine (more test processes than cores)."""
 
 
 def test_a_large_body_without_a_token_does_not_delay_an_operators_stop(
