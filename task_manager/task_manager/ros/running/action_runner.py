@@ -206,6 +206,7 @@ class ActionTaskRunner(TaskRunner):
             node, action_type, spec.topic, timeouts.server_requests_in_flight
         )
         self._server_ids: frozenset[bytes] = frozenset()
+        self._last_probe: Future[Any] | None = None
         self._watch = ServerWatch(
             node,
             self._probe,
@@ -289,10 +290,16 @@ class ActionTaskRunner(TaskRunner):
 
     def _probe(self) -> bool | Future[Any]:
         """A cancel request for a goal id that does not exist: a live server answers at
-        once, and it cancels nothing."""
+        once, and it cancels nothing. The probe before it, if still unanswered, is forgotten:
+        one goes out each check, and a server that answers none must not leave a request
+        waiting for each."""
+        if self._last_probe is not None and not self._last_probe.done():
+            self._client.forget_cancel_request(self._last_probe)
+        self._last_probe = None
         if not self._client.server_is_ready():
             return False
-        return self._client.cancel(uuid.uuid4().bytes)
+        self._last_probe = self._client.cancel(uuid.uuid4().bytes)
+        return self._last_probe
 
     def _cancel_late_goal(self, goal_id: bytes, goal_future: Future[Any]) -> None:
         """A goal accepted after its start timed out would run untracked: cancel it."""
