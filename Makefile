@@ -79,13 +79,13 @@ $(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels cmake/venv_interfaces.cmake $(
 # the VDA 5050 adapter (it shares the bridge's broker settings and client), the fleet console
 # (cloud-side: no rclpy). They need the ROS wheels, not the interfaces built: under `make -j`
 # (`make test`) this runs while CMake builds them.
-PACKAGES := task_manager task_manager_demo task_manager_web task_manager_mqtt \
-  task_manager_vda5050 task_manager_console
-PACKAGE_FILES := $(wildcard $(foreach p,$(PACKAGES),$(p)/pyproject.toml $(p)/setup.py $(p)/setup.cfg))
+# Each as pip takes it (a folder, with its extras); PACKAGE_FILES: what changes its install.
+PACKAGES := task_manager[dev] task_manager_demo task_manager_web[dev] task_manager_mqtt[dev] \
+  task_manager_vda5050 task_manager_console[dev]
+PACKAGE_FILES := $(wildcard $(foreach p,$(PACKAGES),$(addprefix $(firstword $(subst [, ,$(p)))/,\
+  pyproject.toml setup.py setup.cfg)))
 $(STAMPS)/packages: $(PACKAGE_FILES) $(CONSTRAINTS) | $(STAMPS)/ros-wheels
-	$(PIP_EDITABLE) -c $(CONSTRAINTS) -e 'task_manager[dev]' -e task_manager_demo \
-	  -e 'task_manager_web[dev]' -e 'task_manager_mqtt[dev]' -e task_manager_vda5050 \
-	  -e 'task_manager_console[dev]'
+	$(PIP_EDITABLE) -c $(CONSTRAINTS) $(foreach p,$(PACKAGES),-e '$(p)')
 	@touch $@
 
 # The demo's interfaces: a simulated robot's.
