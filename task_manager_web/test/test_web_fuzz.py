@@ -16,7 +16,7 @@ from urllib.parse import quote
 import httpx
 import pytest
 from fastapi import FastAPI
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from task_manager.client import TaskManagerClient
@@ -137,6 +137,9 @@ def test_any_body_gets_one_clean_answer(
     assert_one_clean_answer(response)
 
 
+ANSWERED_WITHOUT_A_NODE = {'/api/health', '/api/whoami'}
+
+
 @FUZZ
 @given(
     query=st.dictionaries(
@@ -148,6 +151,9 @@ def test_any_query_and_path_get_one_clean_answer(
     gateway: InProcessGateway, query: dict[str, str], path: str
 ) -> None:
     path = path if path.startswith('/api/') else f'/api/tasks/{quote(path, safe="")}'
+    # the routes that answer without a Task Manager, with a document rather than an error (a
+    # generated path found /api/health in CI); test_web_api and test_web_roles cover them
+    assume(path.rstrip('/') not in ANSWERED_WITHOUT_A_NODE)
 
     response = gateway.request('GET', path, params=query)
 
