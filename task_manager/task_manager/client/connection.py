@@ -13,6 +13,7 @@ from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
+from rclpy.subscription import MessageInfo
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskEventArray
@@ -81,20 +82,25 @@ class Connection:
         msg_type: type,
         topic: str,
         profile: QoSProfile,
-        callback: Callable[[Any], None],
+        callback: Callable[..., None],
         key: str = '',
+        with_info: bool = False,
     ) -> None:
         """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us
         (under `key`, the topic unless told: a second reader of a topic has a key of its own).
+        `callback(message)`, or `callback(message, info)` `with_info` (rclpy's MessageInfo).
 
         What `callback` raises is logged, not spread: it would end the executor thread, and
         with it every call of the client.
         """
         key = key or topic
 
-        def guarded(message: Any) -> None:
+        def guarded(message: Any, info: MessageInfo) -> None:
             try:
-                callback(message)
+                if with_info:
+                    callback(message, info)
+                else:
+                    callback(message)
             except Exception:  # the callback boundary: the executor thread must go on
                 NodeLog.of(self.node).error(
                     f'a message of {topic} could not be handled:\n{traceback.format_exc()}'

@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 from rclpy.node import Node
+from rclpy.subscription import MessageInfo
 from rclpy.task import Future
 from task_manager_msgs.msg import ActiveTaskArray
 
@@ -24,23 +25,47 @@ T = TypeVar('T')
 EVERY_ACTIVE_LIST = f'{ACTIVE_TASKS_TOPIC} (every list)'
 
 
+# Where a list stands in its publisher's stream: the writer, and the list's number in it.
+Place = tuple[bytes, int]
+
+
+def place_of(info: MessageInfo) -> Place:
+    """The writer's id and the list's sequence number (its source time where the middleware
+    numbers nothing: the writer's own clock, so still ordered within one writer)."""
+    gid = info['publisher_gid']
+    sequence = info['publication_sequence_number']
+    return (
+        bytes(gid['data']) if gid else b'',
+        info['source_timestamp'] if sequence is None else sequence,
+    )
+
+
 class ActiveTasks:
     """The latest /task_manager/active_tasks, and who listens for every list.
 
     Two readers of the topic: the latest list comes from one that keeps only the newest (a
     client that joins gets the current list, not the publisher's history); the listeners get
-    every list from a deep volatile one, made on first use, so that a list shown for a moment
-    (a task that starts and ends within a tick) is not overwritten before they see it.
+    every list from a deep one, made on first use, so that a list shown for a moment (a task
+    that starts and ends within a tick) is not overwritten before they see it. The deep reader
+    is transient local: the lists published while the Task Manager's writer is still learning
+    of it come as its history. Of that history, the lists up to the latest one the client had
+    when it started following are dropped: they are over.
     """
 
     def __init__(self, connection: Connection) -> None:
         self._connection = connection
         self._latest: list[ActiveTaskInfo] | None = None
+        self._latest_place: Place | None = None
+        self._followed_from: Place | None = None
         self._following = False
         self.listeners = Listeners[list[ActiveTaskInfo]](connection.lock)
         """Who gets every list from `follow()` on."""
         connection.subscribe(
-            ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.LATEST_ACTIVE_TASKS, self._on_latest
+            ActiveTaskArray,
+            ACTIVE_TASKS_TOPIC,
+            qos.LATEST_ACTIVE_TASKS,
+            self._on_latest,
+            with_info=True,
         )
 
     def latest(self, timeout_sec: float | None = None) -> list[ActiveTaskInfo]:
@@ -59,9 +84,15 @@ class ActiveTasks:
     def follow(self) -> None:
         """Subscribe (once) to every list; wait until the Task Manager's publisher reaches
         it, if a Task Manager is there (bounded by the client's timeout)."""
-        with self._connection.lock:
+        lock = self._connection.lock
+        if self._connection.connected:
+            with lock:  # the list of the moment arrives with the match: wait, to know it
+                lock.wait_for(lambda: self._latest is not None, self._connection.timeout_sec)
+        with lock:
             subscribe = not self._following
             self._following = True
+            if subscribe:
+                self._followed_from = self._latest_place
         if subscribe:
             self._connection.subscribe(
                 ActiveTaskArray,
@@ -69,16 +100,22 @@ class ActiveTasks:
                 qos.ACTIVE_TASK_CHANGES,
                 self._on_change,
                 key=EVERY_ACTIVE_LIST,
+                with_info=True,
             )
         if self._connection.connected:
             self._connection.wait_matched({EVERY_ACTIVE_LIST}, self._connection.timeout_sec)
 
-    def _on_latest(self, message: ActiveTaskArray) -> None:
+    def _on_latest(self, message: ActiveTaskArray, info: MessageInfo) -> None:
         with self._connection.lock:
             self._latest = _infos(message)
+            self._latest_place = place_of(info)
             self._connection.lock.notify_all()
 
-    def _on_change(self, message: ActiveTaskArray) -> None:
+    def _on_change(self, message: ActiveTaskArray, info: MessageInfo) -> None:
+        writer, number = place_of(info)
+        start = self._followed_from
+        if start is not None and writer == start[0] and number <= start[1]:
+            return  # history from before follow()
         self.listeners.put(_infos(message))
 
 

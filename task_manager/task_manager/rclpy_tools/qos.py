@@ -45,9 +45,15 @@ LATEST_ACTIVE_TASKS = QoSProfile(
     durability=DurabilityPolicy.TRANSIENT_LOCAL,
 )
 
-# A subscriber that wants every list from now on: volatile (no history of lists that are
-# over), deep enough that a burst of changes waits for it rather than being overwritten.
-ACTIVE_TASK_CHANGES = DEEP_RELIABLE
+# A subscriber that wants every list from now on: deep enough that a burst of changes waits
+# for it rather than being overwritten; transient local, so that the lists published while the
+# writer is still learning of this reader come as history (it drops those that are over).
+ACTIVE_TASK_CHANGES = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=DEEP_QUEUE_DEPTH,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
 
 
 def without_qos_events() -> PublisherEventCallbacks:

@@ -20,6 +20,7 @@ from task_manager.client import (
 from task_manager.core.names import TASK_EVENT_BATCHES_TOPIC, TASK_EVENTS_TOPIC
 from task_manager.core.status import TaskStatus
 from task_manager.rclpy_tools import qos
+from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import (
@@ -323,11 +324,21 @@ class ListLog:
                 self.lists.append([(t.task_id, t.status) for t in update])
                 self._changed.notify_all()
 
-    def wait_for(self, entry: tuple[str, TaskStatus]) -> bool:
+    def wait_for(self, entry: tuple[str, TaskStatus], timeout_sec: float = TIMEOUT_SEC) -> bool:
         with self._changed:
             return self._changed.wait_for(
-                lambda: any(entry in listed for listed in self.lists), TIMEOUT_SEC
+                lambda: any(entry in listed for listed in self.lists), timeout_sec
             )
+
+    def wait_until_following(self, tm: Any, attempts: int = 10) -> str:
+        """Run short tasks until one reaches the log (its iterator follows from its first
+        next(), in its thread: a task run before that is not for it); that task's id."""
+        for attempt in range(attempts):
+            task_id = f'listening-{attempt}'
+            tm.run('fib', {'order': 1}, task_id=task_id)
+            if self.wait_for((task_id, TaskStatus.IN_PROGRESS), TIMEOUT_SEC / attempts):
+                return task_id
+        raise AssertionError(f'the log got no task of {attempts}: {self.lists}')
 
 
 def test_a_listener_gets_every_active_list_even_when_the_client_is_held_up(
@@ -352,8 +363,7 @@ def test_a_listener_gets_every_active_list_even_when_the_client_is_held_up(
 
     client.on_task_event(hold_the_executor)
     log = ListLog(client)
-    tm.run('fib', {'order': 1}, task_id='listening')
-    assert log.wait_for(('listening', TaskStatus.IN_PROGRESS)), log.lists
+    log.wait_until_following(tm)
     try:
         tm.run('fib', {'order': 1}, task_id='hold')
         assert held.wait(TIMEOUT_SEC), 'the client never got the events of hold'
@@ -365,3 +375,34 @@ def test_a_listener_gets_every_active_list_even_when_the_client_is_held_up(
         released.set()
 
     assert log.wait_for(('quick', TaskStatus.IN_PROGRESS)), log.lists
+
+
+def test_a_listener_that_starts_late_gets_no_list_that_was_over(
+    ros: RosHarness,
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    client: TaskManagerClient,
+) -> None:
+    """The reader of every list is transient local (a list published while the node's writer
+    still learns of it comes as history); the history from before the first next() is not
+    yielded: the first lists are those of the next change."""
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=lambda g: g.succeed())
+    ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/hold')
+    tm = launch_task_manager(
+        {
+            'fib': action_task('fib', f'{topic_prefix}/fib', reentrant=True),
+            'hold': action_task('hold', f'{topic_prefix}/hold'),
+        }
+    )
+    client.wait_until_available()
+    for task_id in ('over-1', 'over-2', 'over-3'):
+        assert tm.run('fib', {'order': 1}, task_id=task_id).task_status == 'DONE'
+    tm.send('hold', {'order': 1}, task_id='stays')
+    assert wait_until(
+        lambda: [t.task_id for t in client.active_tasks()] == ['stays'],
+        'the latest list, with the held task only',
+    )
+    log = ListLog(client)
+    following = log.wait_until_following(tm)
+    seen = {task_id for listed in log.lists for task_id, _ in listed}
+    assert seen == {'stays', following}, log.lists
