@@ -127,8 +127,8 @@ $(STAMPS)/postgresql: | $(PY) $(STAMPS)/mosquitto
 # `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain; files shared
 # out whole), though it leaves 0.7 of 2 cores idle: 2,321 tests on 2 cores, pytest 631-689 s
 # with 2, 594 s with 3, 568-602 s with 4 (1.8 cores busy: CPU-bound). With 3, a web gateway
-# stopped right after its start sometimes misses the SIGINT and runs on (twice in CI; a second
-# SIGINT stops it): 2 until that is fixed.
+# stopped right after its start sometimes missed the SIGINT and ran on (twice in CI, also once
+# with 2): the gateway now keeps one handler of its own for its whole run (test_web_stop.py).
 # The layers' contracts (.importlinter), run in an empty folder: in the repository's root the
 # colcon folder task_manager/ would pass for the package, and so would build/task_manager/ (the
 # colcon check's build of it) in build/.

@@ -19,7 +19,6 @@ from pathlib import Path
 from typing import Any
 
 import task_manager_web.doors.access
-import uvicorn
 from fastapi import FastAPI, Request, Response
 from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
@@ -33,7 +32,7 @@ from task_manager_web.doors.settings import (
 )
 from task_manager_web.doors.tokens import dashboard_line, door_tokens
 from task_manager_web.errors import ApiError
-from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
+from task_manager_web.http_server import HEADER_TIMEOUT_SEC, Server, listen, server_config
 from task_manager_web.request_metrics import METRICS_ROUTE, metrics_response
 
 from task_manager.protocol.errors import RefusalCode
@@ -148,7 +147,7 @@ def _add_routes(app: FastAPI) -> None:
         return metrics_response(console_metrics.registry)
 
 
-class _Server(uvicorn.Server):
+class _Server(Server):
     """uvicorn's server, which ends the event streams when it begins to stop (else each would
     hold the stop for its grace period, then be cancelled)."""
 

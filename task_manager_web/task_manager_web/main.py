@@ -7,11 +7,8 @@ stops it.
 
 import argparse
 import asyncio
-import contextlib
 import logging
 import sys
-
-import uvicorn
 
 from task_manager.client import TaskManagerClient
 from task_manager.discovery import use_quick_discovery
@@ -23,7 +20,13 @@ from task_manager_web.doors.settings import (
     allowed_hosts,
 )
 from task_manager_web.doors.tokens import dashboard_line, door_tokens
-from task_manager_web.http_server import HEADER_TIMEOUT_SEC, listen, server_config
+from task_manager_web.http_server import (
+    HEADER_TIMEOUT_SEC,
+    Server,
+    listen,
+    server_config,
+    stopped_by_signals,
+)
 
 EXIT_USAGE = 2
 DEFAULT_PORT = 8080
@@ -94,14 +97,13 @@ def main(argv: list[str] | None = None) -> None:
         settings, lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC)
     )
     config = server_config(app, arguments.header_timeout_sec, arguments.access_log)
-    server = uvicorn.Server(config)
+    server = Server(config)
     host, port = listener.getsockname()[:2]
     shown_host = f'[{host}]' if ':' in host else host
     dashboard = dashboard_line(f'http://{shown_host}:{port}/', tokens, arguments.token_file)
-    # Ctrl-C is a clean stop from the first line printed on, also before uvicorn has taken the
-    # signals over: then it interrupts a print (KeyboardInterrupt) or asyncio.run's start-up,
-    # which cancels the server's task (CancelledError)
-    with contextlib.suppress(KeyboardInterrupt, asyncio.CancelledError):
+    # Ctrl-C is a clean stop from the first line printed on: before the server starts, it
+    # starts and stops at once (the node's client made and closed)
+    with stopped_by_signals(server):
         print(f'Task Manager web gateway on http://{shown_host}:{port}/ (API docs: /docs)')
         print(dashboard, flush=True)
         asyncio.run(server.serve(sockets=[listener]))

@@ -7,7 +7,6 @@ import subprocess
 from pathlib import Path
 from typing import Any
 
-import httpx
 import pytest
 
 from task_manager.gateway.secret_file import exposure_warning
@@ -112,9 +111,6 @@ def test_the_gateway_logs_the_warning_of_a_token_file_others_may_read(tmp_path: 
     token_file.chmod(0o644)
 
     gateway = GatewayProcess(token_file)
-    # stopped once it serves: a SIGINT sent in its first moments can be missed under load (an
-    # open bug, issue 40's note), which is not what this test is about
-    assert httpx.get(f'{gateway.url}/api/health', timeout=TIMEOUT_SEC).status_code == 200
 
     assert gateway.stop() == 0
     warnings = [line for line in gateway.log_lines if line.startswith('[WARNING]')]
