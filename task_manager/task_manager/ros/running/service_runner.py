@@ -5,6 +5,7 @@ from typing import Any
 from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.task import Future
+from rclpy.timer import Timer
 
 from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import ErrorCode, TaskStatus
@@ -14,29 +15,47 @@ from task_manager.messages.json_codec import message_from_json, message_to_dict
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.futures import wait_for, wait_until_ready
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.request_window import RequestWindow
 from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
+# No bound on the calls in flight (server_requests_in_flight 0: each sent at once).
+UNBOUNDED = 2**31
+
 
 class ServiceExecution:
-    """A service call in flight. A service cannot be cancelled: cancel waits for the response."""
+    """A service call in flight. A service cannot be cancelled: cancel waits for the response.
+
+    The call waits its turn in the runner's request window; `service_response_timeout` counts
+    from when it left the window (the wait before is the node's, not the server's)."""
 
     def __init__(
-        self, node: Node, client: Any, request: Any, spec: TaskSpec, response_timeout_sec: float
+        self,
+        node: Node,
+        window: RequestWindow,
+        request: Any,
+        spec: TaskSpec,
+        response_timeout_sec: float,
     ) -> None:
         self._node = node
-        self._client = client
+        self._window = window
         self._spec = spec
+        self._response_timeout_sec = response_timeout_sec
+        self._deadline: Timer | None = None
         self.outcome: Future[Any] = Future()
-        self._response_future = client.call_async(request)
+        self._response_future = window.call_async(request)
         self._response_future.add_done_callback(self._on_response)
-        self._deadline = node.create_timer(
-            response_timeout_sec,
-            lambda: self.fail(
-                f'service {spec.topic} gave no response within {response_timeout_sec} s'
-            ),
-        )
+        window.sent(self._response_future).add_done_callback(self._arm_deadline)
         self.outcome.add_done_callback(lambda _: self._clean_up())
+
+    def _arm_deadline(self, sent: Future[None]) -> None:
+        if sent.cancelled() or self.outcome.done():
+            return
+        seconds = self._response_timeout_sec
+        self._deadline = self._node.create_timer(
+            seconds,
+            lambda: self.fail(f'service {self._spec.topic} gave no response within {seconds} s'),
+        )
 
     def _on_response(self, future: Future[Any]) -> None:
         if self.outcome.done() or future.cancelled() or future.result() is None:
@@ -55,10 +74,11 @@ class ServiceExecution:
         """Nothing to ask again: a call cannot be repeated (its service may act twice)."""
 
     def _clean_up(self) -> None:
-        self._deadline.cancel()
-        destroy_timer(self._node, self._deadline)
+        if self._deadline is not None:
+            self._deadline.cancel()
+            destroy_timer(self._node, self._deadline)
         if not self._response_future.done():
-            self._client.remove_pending_request(self._response_future)
+            self._window.forget(self._response_future)
 
     async def cancel(self, timeout_sec: float) -> bool:
         return await wait_for(self._node, self.outcome, timeout_sec)
@@ -78,6 +98,10 @@ class ServiceTaskRunner(TaskRunner):
         self._client: Client[Any, Any] = node.create_client(
             service_type, spec.topic, qos_profile=DEEP_RELIABLE
         )
+        # a server keeps its last 10 unread requests by default: a burst goes out 8 at a time
+        self._window = RequestWindow(
+            node, self._client, timeouts.server_requests_in_flight or UNBOUNDED
+        )
         self._watch = ServerWatch(
             node,
             self._client.service_is_ready,
@@ -96,7 +120,7 @@ class ServiceTaskRunner(TaskRunner):
                 ErrorCode.TASK_START_FAILED, f'service {self.spec.topic} is not available'
             )
         execution = ServiceExecution(
-            self._node, self._client, message, self.spec, self._timeouts.service_response_sec
+            self._node, self._window, message, self.spec, self._timeouts.service_response_sec
         )
         self._watch.track(execution)
         return execution

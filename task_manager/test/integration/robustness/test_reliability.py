@@ -298,6 +298,47 @@ def test_a_stop_cancels_every_goal_of_a_server_that_keeps_only_ten_requests(
     assert [tm.result_of(h).result.task_status for h in handles] == ['CANCELED'] * len(ids)
 
 
+def test_a_burst_of_service_calls_reaches_a_server_that_keeps_only_ten_requests(
+    launch_task_manager: LaunchTaskManager,
+    topic_prefix: str,
+    busy_server_node: rclpy.node.Node,
+) -> None:
+    """A service server on rclpy's default QoS keeps its last 10 unread requests: 30 calls
+    sent at once while its executor is busy lost 20, each task then waiting for its response
+    until service_response_timeout. They go out at most 8 unanswered at a time."""
+    release = threading.Event()
+    server = ScriptedService(
+        busy_server_node,
+        SetBool,
+        f'{topic_prefix}/lights',
+        on_call=lambda call: call.respond(success=True),
+    )
+    tm = launch_task_manager(
+        {'lights': service_task('lights', f'{topic_prefix}/lights', reentrant=True)},
+        service_response_timeout=TIMEOUT_SEC / 2,
+    )
+    tm.run('lights', {'data': True}, task_id='warm-up')  # the node has found the server
+
+    def keep_busy() -> None:  # the server's executor takes no request meanwhile
+        release.wait(TIMEOUT_SEC)
+
+    busy_server_node.create_guard_condition(keep_busy).trigger()
+    handles = [
+        tm.send('lights', {'data': True}, task_id=f'call-{n}') for n in range(GOALS_IN_FLIGHT)
+    ]
+    tm.wait_active(
+        lambda tasks: sum(status == 'IN_PROGRESS' for _, status in tasks) == GOALS_IN_FLIGHT
+    )
+    release.set()
+
+    results = [tm.result_of(handle).result for handle in handles]
+
+    assert [r.task_status for r in results] == ['DONE'] * GOALS_IN_FLIGHT, [
+        r.task_result for r in results if r.task_status != 'DONE'
+    ]
+    assert len(server.calls.items) == GOALS_IN_FLIGHT + 1
+
+
 def test_goals_waiting_their_turn_in_the_node_are_not_timed_out_as_the_servers_delay(
     launch_task_manager: LaunchTaskManager,
     topic_prefix: str,
