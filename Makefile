@@ -124,11 +124,12 @@ $(STAMPS)/mosquitto: | $(PY) $(STAMPS)/chromium
 $(STAMPS)/postgresql: | $(PY) $(STAMPS)/mosquitto
 	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
-# `make test` runs the suite in 2 processes (pytest-xdist, each its own ROS domain; files shared
-# out whole), though it leaves 0.7 of 2 cores idle: 2,321 tests on 2 cores, pytest 631-689 s
-# with 2, 594 s with 3, 568-602 s with 4 (1.8 cores busy: CPU-bound). With 3, a web gateway
-# stopped right after its start sometimes missed the SIGINT and ran on (twice in CI, also once
-# with 2): the gateway now keeps one handler of its own for its whole run (test_web_stop.py).
+# `make test` runs the suite in 3 processes (pytest-xdist, each its own ROS domain; files shared
+# out whole): it is CPU-bound on 2 cores (about half its CPU is starting processes: ~630 Task
+# Managers, gateways and taskctl). Measured on a fresh clone: pytest 631-689 s with 2, 583 s
+# with 3, 568-602 s with 4. With 3, a web gateway stopped right after its start sometimes
+# missed the SIGINT (twice in CI, also once with 2): it now keeps one handler of its own for
+# its whole run (test_web_stop.py).
 # The layers' contracts (.importlinter), run in an empty folder: in the repository's root the
 # colcon folder task_manager/ would pass for the package, and so would build/task_manager/ (the
 # colcon check's build of it) in build/.
@@ -141,7 +142,7 @@ TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; ti
 test:
 	$(call TIMED,install) $(MAKE) --no-print-directory -j4 --output-sync=target install
 	$(call TIMED,lint (ruff, mypy, import contracts)) { $(VENV)/bin/ruff check . && $(VENV)/bin/mypy && $(LINT_IMPORTS); }
-	$(call TIMED,pytest) $(VENV)/bin/pytest -n 2 --dist loadfile --durations=10
+	$(call TIMED,pytest) $(VENV)/bin/pytest -n 3 --dist loadfile --durations=10
 
 lint: install
 	$(VENV)/bin/ruff check .

@@ -2,6 +2,12 @@
 
 import os
 
+# numpy, which every ROS 2 Python process imports (rclpy's service_msgs), starts OpenBLAS's
+# thread pool, one thread per core, as it loads: 0.11 s of CPU in each of the ~900 processes of
+# a run that import rclpy (0.47 -> 0.36 s). Nothing here does linear algebra: one thread, for
+# this process and every process a test starts.
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
 # Keep this run's DDS traffic apart from other runs on the machine, and on it: each run claims a
 # group of domains no other run holds (task_manager.testing.domains), each pytest-xdist worker
 # (gw0 to gw3) one of its first four, tests that start nodes in domains of their own the rest.
