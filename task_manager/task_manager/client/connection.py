@@ -10,6 +10,7 @@ from typing import Any
 import rclpy
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.subscription import MessageInfo
@@ -23,7 +24,6 @@ from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.log import NodeLog
-from task_manager.rclpy_tools.parking_executor import ParkingExecutor
 
 DEFAULT_TIMEOUT_SEC = 5.0
 # A request is sent again after this long without a reply, then after twice as long, ...:
@@ -55,10 +55,7 @@ class Connection:
         self.changes = Listeners[bool](self.lock)
         """Who is told each change of `connected`."""
         self._matched: set[str] = set()
-        # rclpy's executor wakes itself again after each message it hands over: two wait sets
-        # per message (77 for 40, counted); this one builds the next after the turn instead.
-        # Coroutines are not parked here (install() is the Task Manager's, not a library's).
-        self._executor = ParkingExecutor(context=self._context)
+        self._executor = SingleThreadedExecutor(context=self._context)
         self._spin_thread = threading.Thread(target=self._spin, daemon=True)
 
     def start(self) -> None:

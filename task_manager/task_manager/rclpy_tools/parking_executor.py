@@ -44,7 +44,6 @@ from collections.abc import Callable, Coroutine, Generator
 from typing import Any
 
 from rclpy.client import Client
-from rclpy.context import Context
 from rclpy.exceptions import InvalidHandle
 from rclpy.executors import SingleThreadedExecutor, TimeoutException, await_or_execute
 from rclpy.node import Node
@@ -115,8 +114,8 @@ class ParkingExecutor(SingleThreadedExecutor):
         has run): then rclpy_tools.futures.resolved queues no wake-up task for it."""
         return Future.__await__ is _await_noting_the_future
 
-    def __init__(self, context: Context | None = None) -> None:
-        super().__init__(context=context)
+    def __init__(self) -> None:
+        super().__init__()
         self._ready: deque[Task[Any]] = deque()
         # services and clients a message was taken from this turn: maybe more are waiting
         self._taken: deque[tuple[Service[Any, Any] | Client[Any, Any], Node, _Take]] = deque()

@@ -14,12 +14,12 @@ from rclpy.task import Future
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.names import EXECUTE_TASK_ACTION, NODE_NAME
 from task_manager.core.params_file import check_params_file, params_files
-from task_manager.rclpy_tools import parking_executor
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wake
-from task_manager.rclpy_tools.parking_executor import ParkingExecutor
+from task_manager.ros import parking_executor
 from task_manager.ros.instances import describe
 from task_manager.ros.node import TaskManagerNode
+from task_manager.ros.parking_executor import ParkingExecutor
 
 EXIT_CONFIGURATION_ERROR = 2
 EXIT_ANOTHER_TASK_MANAGER = 2

@@ -5,7 +5,6 @@ import weakref
 from collections.abc import Callable
 from typing import Any, TypeVar, cast
 
-import pytest
 import rclpy
 from rclpy.action.client import ActionClient
 from rclpy.event_handler import QoSSubscriptionMatchedInfo, SubscriptionEventCallbacks
@@ -193,31 +192,3 @@ class RosHarness:
                 f'{len(self.callback_errors)} callback(s) on the test node raised, the first: '
                 f'{first!r}'
             ) from first
-
-
-class WaitSetCount:
-    """Counts the wait sets rclpy's executors build (one per wait), through the module they
-    make them with; nothing else about them changes."""
-
-    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
-        self.count = 0
-        self._changed = threading.Condition()
-        real = rclpy.executors._rclpy  # type: ignore[attr-defined]  # the binding it patches
-        counter = self
-
-        class Counting:
-            def __getattr__(self, name: str) -> Any:
-                return getattr(real, name)
-
-            def WaitSet(self, *args: Any) -> Any:  # noqa: N802 (rclpy's name)
-                with counter._changed:
-                    counter.count += 1
-                    counter._changed.notify_all()
-                return real.WaitSet(*args)
-
-        monkeypatch.setattr(rclpy.executors, '_rclpy', Counting())
-
-    def wait_for(self, count: int, timeout_sec: float) -> bool:
-        """Wait until at least `count` wait sets were built."""
-        with self._changed:
-            return self._changed.wait_for(lambda: self.count >= count, timeout_sec)

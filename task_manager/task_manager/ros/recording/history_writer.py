@@ -22,7 +22,7 @@ from task_manager.core.history.store import HistoryError, HistoryInUseError, Tas
 from task_manager.core.task import TaskRecord
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.log import NodeLog
-from task_manager.rclpy_tools.parking_executor import spawn_after_turn
+from task_manager.ros.parking_executor import spawn_after_turn
 
 WRITE_ERROR_LOG_PERIOD_SEC = 60.0
 RETRY_AFTER_SEC = 5.0

@@ -27,7 +27,7 @@ from task_manager.core.task import TaskRecord
 from task_manager.messages.task_messages import task_event_msg
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_timer
-from task_manager.rclpy_tools.parking_executor import spawn_after_turn
+from task_manager.ros.parking_executor import spawn_after_turn
 
 _ENDING_DECISIONS = (DecisionKind.REFUSED, DecisionKind.PREEMPTED, DecisionKind.TIMEOUT)
 

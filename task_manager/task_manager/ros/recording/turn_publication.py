@@ -13,7 +13,7 @@ from rclpy.node import Node
 from rclpy.timer import Timer
 
 from task_manager.rclpy_tools.cleanup import destroy_timer
-from task_manager.rclpy_tools.parking_executor import spawn_after_turn
+from task_manager.ros.parking_executor import spawn_after_turn
 
 
 class TurnPublication:

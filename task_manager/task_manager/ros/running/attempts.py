@@ -25,7 +25,7 @@ from task_manager.rclpy_tools.futures import (
     wait_for,
 )
 from task_manager.rclpy_tools.log import NodeLog
-from task_manager.rclpy_tools.parking_executor import spawn
+from task_manager.ros.parking_executor import spawn
 from task_manager.ros.recording.task_changes import TaskChange, TaskChanges
 from task_manager.ros.running.deadline_timer import Deadline, DeadlineTimer
 from task_manager.ros.running.execution import Execution, TaskCatalog

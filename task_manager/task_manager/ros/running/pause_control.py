@@ -19,7 +19,7 @@ from task_manager.core.task import TaskEnd
 from task_manager.core.task_spec import PauseMode
 from task_manager.rclpy_tools.futures import result_of
 from task_manager.rclpy_tools.log import NodeLog
-from task_manager.rclpy_tools.parking_executor import spawn
+from task_manager.ros.parking_executor import spawn
 from task_manager.ros.recording.task_changes import TaskChange, TaskChanges
 from task_manager.ros.running.attempts import Attempts
 from task_manager.ros.running.task_run import Runs, TaskRun

@@ -33,7 +33,7 @@ from task_manager.core.status import CancelReason
 from task_manager.core.task import TaskRequest
 from task_manager.rclpy_tools.futures import all_completed, resolved
 from task_manager.rclpy_tools.log import NodeLog
-from task_manager.rclpy_tools.parking_executor import spawn
+from task_manager.ros.parking_executor import spawn
 from task_manager.ros.running.protocols import TaskCancelling, TaskRunning
 
 # The longest the timer waits before it looks at the wall clock again (see the module doc).

@@ -21,7 +21,7 @@ from task_manager.messages.json_codec import (
 )
 from task_manager.messages.task_messages import mission_results
 from task_manager.rclpy_tools.futures import resolved, wait_for
-from task_manager.rclpy_tools.parking_executor import spawn
+from task_manager.ros.parking_executor import spawn
 from task_manager.ros.running.execution import TaskCatalog, TaskRunner
 from task_manager.ros.running.protocols import (
     ActiveRecords,

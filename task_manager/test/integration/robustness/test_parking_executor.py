@@ -16,11 +16,10 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.task import Future
 from std_srvs.srv import Trigger
 
-from task_manager.rclpy_tools import parking_executor
 from task_manager.rclpy_tools.futures import resolved
-from task_manager.rclpy_tools.parking_executor import ParkingExecutor, spawn_after_turn
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
-from task_manager.testing.harness import WaitSetCount
+from task_manager.ros import parking_executor
+from task_manager.ros.parking_executor import ParkingExecutor, spawn_after_turn
 
 pytestmark = pytest.mark.ros
 UNRELATED_WAKE_UPS = 20
@@ -182,6 +181,26 @@ def test_a_coroutine_in_resolved_goes_on_when_its_future_completes_with_no_wake_
     started = time.monotonic()
     executor.spin_until_future_complete(task, timeout_sec=5.0)
     assert task.result() == 5 and time.monotonic() - started < 1.0
+
+
+class WaitSetCount:
+    """Counts the wait sets rclpy's executors build (one per wait), through the module they
+    make them with; nothing else about them changes."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
+        self.count = 0
+        real = rclpy.executors._rclpy  # type: ignore[attr-defined]  # the binding it patches
+        counter = self
+
+        class Counting:
+            def __getattr__(self, name: str) -> Any:
+                return getattr(real, name)
+
+            def WaitSet(self, *args: Any) -> Any:  # noqa: N802 (rclpy's name)
+                counter.count += 1
+                return real.WaitSet(*args)
+
+        monkeypatch.setattr(rclpy.executors, '_rclpy', Counting())
 
 
 def turns_to_answer_a_burst(
