@@ -7,13 +7,14 @@ never downloads a browser.
 """
 
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import httpx
 import pytest
 from playwright.sync_api import Page, Route, expect
 
-from task_manager.testing.gateway import TIMEOUT_SEC, Robot, SharedBaseRobot
+from task_manager.testing.gateway import TIMEOUT_SEC, Robot, ScriptedRobot, SharedBaseRobot
 from task_manager.testing.harness import RosHarness
 from task_manager_web.doors_testing import blank_page as blank_page
 from task_manager_web.doors_testing import browser as browser
@@ -39,6 +40,64 @@ def start_gateway(tmp_path: Path) -> Iterator[Callable[..., GatewayProcess]]:
 @pytest.fixture
 def gateway(start_gateway: Callable[..., GatewayProcess]) -> GatewayProcess:
     return start_gateway()
+
+
+# Shared by the tests of a class, for tests that leave nothing running: a node and a gateway
+# cost ~1.6 s of CPU to start, for each test otherwise.
+
+
+@pytest.fixture(scope='class')
+def class_ros(ros_context: None, request: pytest.FixtureRequest) -> Iterator[RosHarness]:
+    """As `ros`, for the tests of a class."""
+    harness = RosHarness(f'test_{abs(hash(request.node.nodeid)) % 10**8}')
+    yield harness
+    harness.close()
+
+
+@pytest.fixture(scope='class')
+def class_robot(class_ros: RosHarness, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Robot]:
+    """As `robot`, for the tests of a class."""
+    scripted = ScriptedRobot(class_ros, tmp_path_factory.mktemp('robot'))
+    yield scripted.start()
+    scripted.close()
+
+
+@pytest.fixture(scope='class')
+def class_base(
+    class_ros: RosHarness, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[SharedBaseRobot]:
+    """As `base`, for the tests of a class."""
+    robot = SharedBaseRobot(class_ros, tmp_path_factory.mktemp('base'))
+    yield robot
+    robot.close()
+
+
+@contextmanager
+def _shared_gateway_client(folder: Path) -> Iterator[httpx.Client]:
+    token_file = folder / 'token'
+    token_file.write_text('test-token-0123456789\n')
+    gateway = GatewayProcess(token_file)
+    with gateway_client(gateway) as client:
+        yield client
+    assert gateway.stop() == 0, '\n'.join(gateway.log_lines)
+
+
+@pytest.fixture(scope='class')
+def class_http(
+    class_robot: Robot, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[httpx.Client]:
+    """As `http`, one gateway of `class_robot` for the tests of a class."""
+    with _shared_gateway_client(tmp_path_factory.mktemp('gateway')) as client:
+        yield client
+
+
+@pytest.fixture(scope='class')
+def class_base_http(
+    class_base: SharedBaseRobot, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[httpx.Client]:
+    """As `http` with `base`, one gateway of `class_base` for the tests of a class."""
+    with _shared_gateway_client(tmp_path_factory.mktemp('gateway')) as client:
+        yield client
 
 
 @pytest.fixture

@@ -33,26 +33,6 @@ def started_in_background(
     return pool.submit(start, http, body, wait='true', timeout_sec=TIMEOUT_SEC)
 
 
-def test_declared_tasks_come_with_a_json_schema_of_their_goal_and_how_they_pause(
-    http: httpx.Client,
-) -> None:
-    response = http.get('/api/tasks')
-
-    assert response.status_code == 200
-    tasks = {task['task_name']: check(task, 'declared_task') for task in response.json()}
-    assert {'fib', 'instant', 'system/mission', 'system/stop'} <= set(tasks)
-    fib = tasks['fib']
-    assert fib['msg_interface'] == 'test_msgs/action/Fibonacci'
-    assert fib['reentrant'] and fib['cancel_on_stop']
-    assert (fib['pause'], tasks['system/mission']['pause']) == ('none', 'between_subtasks')
-    order = fib['goal_schema']['properties']['order']
-    assert order['type'] == 'integer' and order['x-ros-type'] == 'int32'
-    assert (order['minimum'], order['maximum'], order['default']) == (-(2**31), 2**31 - 1, 0)
-    jsonschema.Draft202012Validator.check_schema(fib['goal_schema'])
-    subtask = tasks['system/mission']['goal_schema']['properties']['subtasks']
-    assert subtask['type'] == 'array' and 'allow_skipping' in subtask['items']['properties']
-
-
 def test_start_answers_at_once_with_the_id_then_wait_gives_the_end(
     robot: Robot, http: httpx.Client, pool: ThreadPoolExecutor
 ) -> None:
@@ -93,76 +73,6 @@ def test_start_answers_at_once_with_the_id_then_wait_gives_the_end(
     )
     assert task['sequence'] > 0 and task['started'] and task['duration_sec'] >= 0
     goal.succeed()
-
-
-def test_a_refused_task_is_no_http_error_but_its_result(http: httpx.Client) -> None:
-    response = start(http, {'task_name': 'no/such_task'}, wait='true')
-
-    assert response.status_code == 200
-    task = check(response.json(), 'started')['task']
-    assert (task['status'], task['error_code']) == ('ERROR', 'unknown_task')
-    assert 'no/such_task' in task['error_message']
-
-
-def test_bad_task_data_is_refused_by_the_node_naming_the_field(http: httpx.Client) -> None:
-    response = start(http, {'task_name': 'fib', 'task_data': {'order': 'many'}}, wait='true')
-
-    task = check(response.json(), 'started')['task']
-    assert (task['status'], task['error_code']) == ('ERROR', 'task_data_parsing_failed')
-    assert "'order'" in task['error_message']
-
-
-@pytest.mark.parametrize(
-    ('content', 'field', 'words'),
-    [
-        ('{"task_data": {}}', 'task_name', 'Field required'),
-        ('{"task_name": "fib", "task_dat": {}}', 'task_dat', 'unknown field'),
-        ('{"task_name": "fib", "task_data": [1]}', 'task_data', 'dictionary'),
-        ('{"task_name": ', '', 'not valid JSON'),
-        ('[1, 2]', '', 'JSON object'),
-    ],
-)
-def test_an_invalid_body_is_a_422_naming_the_field_and_starts_nothing(
-    robot: Robot, http: httpx.Client, content: str, field: str, words: str
-) -> None:
-    response = http.post(
-        '/api/tasks/start', content=content, headers={'Content-Type': 'application/json'}
-    )
-
-    assert response.status_code == 422
-    error = check(response.json(), 'error')['error']
-    assert (error['code'], error['field']) == ('invalid_request', field)
-    assert words in error['message']
-    assert http.get('/api/active').json() == []
-
-
-def test_a_huge_body_is_refused_413(http: httpx.Client) -> None:
-    body = {'task_name': 'fib', 'task_data': {'order': 1, 'padding': 'x' * 2_000_000}}
-
-    response = start(http, body)
-
-    assert response.status_code == 413
-    assert check(response.json(), 'error')['error']['code'] == 'body_too_large'
-    assert http.get('/api/active').json() == []
-
-
-@pytest.mark.parametrize('headers', [{}, {'Authorization': 'Bearer wrong'}])
-def test_without_the_token_nothing_starts_401(
-    robot: Robot, http: httpx.Client, headers: dict[str, str]
-) -> None:
-    with httpx.Client(base_url=str(http.base_url), headers=headers) as stranger:
-        responses = [
-            stranger.post('/api/tasks/start', json={'task_name': 'fib', 'task_id': 'intruder'}),
-            stranger.post('/api/stop'),
-            stranger.post('/api/tasks/cancel', json={'task_ids': ['x']}),
-            stranger.get('/api/active'),
-            stranger.get('/api/events'),
-        ]
-
-    assert [r.status_code for r in responses] == [401] * len(responses)
-    assert all(check(r.json(), 'error')['error']['code'] == 'unauthorized' for r in responses)
-    assert http.get('/api/tasks/intruder').status_code == 404
-    assert not robot.fib.goals.items
 
 
 def test_read_without_token_opens_reading_only(robot: Robot, start_gateway: Any) -> None:
@@ -246,20 +156,6 @@ def test_history_filters_and_csv_export(http: httpx.Client) -> None:
     assert invalid.status_code == 422 and invalid.json()['error']['field'] == 'status'
 
 
-def test_unknown_task_id_and_route_are_json_404(http: httpx.Client) -> None:
-    unknown = http.get('/api/tasks/never-started')
-    route = http.get('/api/nothing-here')
-    body = {'task_name': 'instant', 'task_data': {'data': True}}
-    assert start(http, body, wait='true', timeout_sec=TIMEOUT_SEC).status_code == 200
-    # ROS would cut at the NUL: the newest task must not come back for it
-    cut = [http.get(f'/api/tasks/{path}') for path in ('%00', '%00junk', 'a%0Ab')]
-
-    assert [r.status_code for r in cut] == [404, 404, 404], [r.text for r in cut]
-    assert unknown.status_code == 404 and check(unknown.json(), 'error')
-    assert unknown.json()['error']['code'] == 'unknown_task_id'
-    assert route.status_code == 404 and route.json()['error']['code'] == 'not_found'
-
-
 def test_without_a_node_the_answer_is_503_at_once(start_gateway: Any) -> None:
     gateway = start_gateway()
     with httpx.Client(
@@ -290,3 +186,117 @@ def test_openapi_and_docs_are_served_without_any_cdn(gateway: Any, tmp_path: Pat
     for page in (docs, dashboard):
         assert 'cdn' not in page.lower()
         assert 'https://' not in page
+
+
+class TestRequestsRefusedOrRead:
+    """Requests refused, or answered without a goal of `fib`: the tests share one node and one
+    gateway (each test of this file starts both otherwise, ~1.6 s of CPU), none leaves a task
+    running or a goal on `fib`."""
+
+    @pytest.fixture
+    def robot(self, class_robot: Robot) -> Robot:
+        return class_robot
+
+    @pytest.fixture
+    def http(self, class_http: httpx.Client) -> httpx.Client:
+        return class_http
+
+    def test_declared_tasks_come_with_a_json_schema_of_their_goal_and_how_they_pause(
+        self,
+        http: httpx.Client,
+    ) -> None:
+        response = http.get('/api/tasks')
+
+        assert response.status_code == 200
+        tasks = {task['task_name']: check(task, 'declared_task') for task in response.json()}
+        assert {'fib', 'instant', 'system/mission', 'system/stop'} <= set(tasks)
+        fib = tasks['fib']
+        assert fib['msg_interface'] == 'test_msgs/action/Fibonacci'
+        assert fib['reentrant'] and fib['cancel_on_stop']
+        assert (fib['pause'], tasks['system/mission']['pause']) == ('none', 'between_subtasks')
+        order = fib['goal_schema']['properties']['order']
+        assert order['type'] == 'integer' and order['x-ros-type'] == 'int32'
+        assert (order['minimum'], order['maximum'], order['default']) == (-(2**31), 2**31 - 1, 0)
+        jsonschema.Draft202012Validator.check_schema(fib['goal_schema'])
+        subtask = tasks['system/mission']['goal_schema']['properties']['subtasks']
+        assert subtask['type'] == 'array' and 'allow_skipping' in subtask['items']['properties']
+
+    def test_a_refused_task_is_no_http_error_but_its_result(self, http: httpx.Client) -> None:
+        response = start(http, {'task_name': 'no/such_task'}, wait='true')
+
+        assert response.status_code == 200
+        task = check(response.json(), 'started')['task']
+        assert (task['status'], task['error_code']) == ('ERROR', 'unknown_task')
+        assert 'no/such_task' in task['error_message']
+
+    def test_bad_task_data_is_refused_by_the_node_naming_the_field(
+        self, http: httpx.Client
+    ) -> None:
+        response = start(http, {'task_name': 'fib', 'task_data': {'order': 'many'}}, wait='true')
+
+        task = check(response.json(), 'started')['task']
+        assert (task['status'], task['error_code']) == ('ERROR', 'task_data_parsing_failed')
+        assert "'order'" in task['error_message']
+
+    @pytest.mark.parametrize(
+        ('content', 'field', 'words'),
+        [
+            ('{"task_data": {}}', 'task_name', 'Field required'),
+            ('{"task_name": "fib", "task_dat": {}}', 'task_dat', 'unknown field'),
+            ('{"task_name": "fib", "task_data": [1]}', 'task_data', 'dictionary'),
+            ('{"task_name": ', '', 'not valid JSON'),
+            ('[1, 2]', '', 'JSON object'),
+        ],
+    )
+    def test_an_invalid_body_is_a_422_naming_the_field_and_starts_nothing(
+        self, robot: Robot, http: httpx.Client, content: str, field: str, words: str
+    ) -> None:
+        response = http.post(
+            '/api/tasks/start', content=content, headers={'Content-Type': 'application/json'}
+        )
+
+        assert response.status_code == 422
+        error = check(response.json(), 'error')['error']
+        assert (error['code'], error['field']) == ('invalid_request', field)
+        assert words in error['message']
+        assert http.get('/api/active').json() == []
+
+    def test_a_huge_body_is_refused_413(self, http: httpx.Client) -> None:
+        body = {'task_name': 'fib', 'task_data': {'order': 1, 'padding': 'x' * 2_000_000}}
+
+        response = start(http, body)
+
+        assert response.status_code == 413
+        assert check(response.json(), 'error')['error']['code'] == 'body_too_large'
+        assert http.get('/api/active').json() == []
+
+    @pytest.mark.parametrize('headers', [{}, {'Authorization': 'Bearer wrong'}])
+    def test_without_the_token_nothing_starts_401(
+        self, robot: Robot, http: httpx.Client, headers: dict[str, str]
+    ) -> None:
+        with httpx.Client(base_url=str(http.base_url), headers=headers) as stranger:
+            responses = [
+                stranger.post('/api/tasks/start', json={'task_name': 'fib', 'task_id': 'intruder'}),
+                stranger.post('/api/stop'),
+                stranger.post('/api/tasks/cancel', json={'task_ids': ['x']}),
+                stranger.get('/api/active'),
+                stranger.get('/api/events'),
+            ]
+
+        assert [r.status_code for r in responses] == [401] * len(responses)
+        assert all(check(r.json(), 'error')['error']['code'] == 'unauthorized' for r in responses)
+        assert http.get('/api/tasks/intruder').status_code == 404
+        assert not robot.fib.goals.items
+
+    def test_unknown_task_id_and_route_are_json_404(self, http: httpx.Client) -> None:
+        unknown = http.get('/api/tasks/never-started')
+        route = http.get('/api/nothing-here')
+        body = {'task_name': 'instant', 'task_data': {'data': True}}
+        assert start(http, body, wait='true', timeout_sec=TIMEOUT_SEC).status_code == 200
+        # ROS would cut at the NUL: the newest task must not come back for it
+        cut = [http.get(f'/api/tasks/{path}') for path in ('%00', '%00junk', 'a%0Ab')]
+
+        assert [r.status_code for r in cut] == [404, 404, 404], [r.text for r in cut]
+        assert unknown.status_code == 404 and check(unknown.json(), 'error')
+        assert unknown.json()['error']['code'] == 'unknown_task_id'
+        assert route.status_code == 404 and route.json()['error']['code'] == 'not_found'

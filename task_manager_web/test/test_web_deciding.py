@@ -93,46 +93,61 @@ def test_a_timeout_of_a_start_or_a_mission_ends_it_error_timeout(
     assert check(tour.json(), 'started')['task']['error_code'] == 'timeout'
 
 
-@pytest.mark.parametrize(
-    ('path', 'body', 'field'),
-    [
-        ('/api/tasks/start', {'task_name': 'drive', 'priority': 'high'}, 'priority'),
-        ('/api/tasks/start', {'task_name': 'drive', 'on_conflict': 'wait'}, 'on_conflict'),
-        ('/api/tasks/start', {'task_name': 'drive', 'timeout_sec': 0}, 'timeout_sec'),
-        ('/api/missions', {'subtasks': [{'task_name': 'dock'}], 'priority': 2**31}, 'priority'),
-        ('/api/tasks/reprioritize', {'task_ids': ['a']}, 'priority'),
-        ('/api/tasks/reprioritize', {'task_ids': [], 'priority': 1}, 'task_ids'),
-    ],
-)
-def test_an_unusable_option_is_a_422_naming_the_field_and_starts_nothing(
-    base: SharedBaseRobot, http: httpx.Client, path: str, body: dict[str, Any], field: str
-) -> None:
-    response = http.post(path, json=body)
+class TestRequestsRefused:
+    """Requests refused: the tests share one node and one gateway (each test of this file starts
+    both otherwise, ~1.6 s of CPU); none starts a task."""
 
-    assert response.status_code == 422
-    error = check(response.json(), 'error')['error']
-    assert (error['code'], error['field']) == ('invalid_request', field)
-    assert http.get('/api/active').json() == []
+    @pytest.fixture
+    def base(self, class_base: SharedBaseRobot) -> SharedBaseRobot:
+        return class_base
 
+    @pytest.fixture
+    def http(self, class_base_http: httpx.Client) -> httpx.Client:
+        return class_base_http
 
-def test_without_the_token_nothing_is_reprioritized_nor_explained_401(
-    base: SharedBaseRobot, http: httpx.Client, start_gateway: Callable[..., GatewayProcess]
-) -> None:
-    with httpx.Client(base_url=str(http.base_url)) as stranger:
-        responses = [
-            stranger.post('/api/tasks/reprioritize', json={'task_ids': ['a'], 'priority': 1}),
-            stranger.get('/api/tasks/a/why'),
-            stranger.post('/api/tasks/start', json={'task_name': 'drive', 'priority': 100}),
-        ]
+    @pytest.mark.parametrize(
+        ('path', 'body', 'field'),
+        [
+            ('/api/tasks/start', {'task_name': 'drive', 'priority': 'high'}, 'priority'),
+            ('/api/tasks/start', {'task_name': 'drive', 'on_conflict': 'wait'}, 'on_conflict'),
+            ('/api/tasks/start', {'task_name': 'drive', 'timeout_sec': 0}, 'timeout_sec'),
+            ('/api/missions', {'subtasks': [{'task_name': 'dock'}], 'priority': 2**31}, 'priority'),
+            ('/api/tasks/reprioritize', {'task_ids': ['a']}, 'priority'),
+            ('/api/tasks/reprioritize', {'task_ids': [], 'priority': 1}, 'task_ids'),
+        ],
+    )
+    def test_an_unusable_option_is_a_422_naming_the_field_and_starts_nothing(
+        self, base: SharedBaseRobot, http: httpx.Client, path: str, body: dict[str, Any], field: str
+    ) -> None:
+        response = http.post(path, json=body)
 
-    assert [r.status_code for r in responses] == [401] * len(responses)
-    assert all(check(r.json(), 'error')['error']['code'] == 'unauthorized' for r in responses)
-    assert not base.servers['drive'].goals.items
+        assert response.status_code == 422
+        error = check(response.json(), 'error')['error']
+        assert (error['code'], error['field']) == ('invalid_request', field)
+        assert http.get('/api/active').json() == []
 
+    def test_without_the_token_nothing_is_reprioritized_nor_explained_401(
+        self,
+        base: SharedBaseRobot,
+        http: httpx.Client,
+        start_gateway: Callable[..., GatewayProcess],
+    ) -> None:
+        with httpx.Client(base_url=str(http.base_url)) as stranger:
+            responses = [
+                stranger.post('/api/tasks/reprioritize', json={'task_ids': ['a'], 'priority': 1}),
+                stranger.get('/api/tasks/a/why'),
+                stranger.post('/api/tasks/start', json={'task_name': 'drive', 'priority': 100}),
+            ]
 
-def test_why_of_an_unknown_task_is_a_404(base: SharedBaseRobot, http: httpx.Client) -> None:
-    for task_id in ('nobody', 'no%00body'):
-        response = http.get(f'/api/tasks/{task_id}/why')
+        assert [r.status_code for r in responses] == [401] * len(responses)
+        assert all(check(r.json(), 'error')['error']['code'] == 'unauthorized' for r in responses)
+        assert not base.servers['drive'].goals.items
 
-        assert response.status_code == 404
-        assert check(response.json(), 'error')['error']['code'] == 'unknown_task_id'
+    def test_why_of_an_unknown_task_is_a_404(
+        self, base: SharedBaseRobot, http: httpx.Client
+    ) -> None:
+        for task_id in ('nobody', 'no%00body'):
+            response = http.get(f'/api/tasks/{task_id}/why')
+
+            assert response.status_code == 404
+            assert check(response.json(), 'error')['error']['code'] == 'unknown_task_id'
