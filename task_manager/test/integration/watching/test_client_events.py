@@ -403,6 +403,6 @@ def test_a_listener_that_starts_late_gets_no_list_that_was_over(
         'the latest list, with the held task only',
     )
     log = ListLog(client)
-    following = log.wait_until_following(tm)
+    log.wait_until_following(tm)
     seen = {task_id for listed in log.lists for task_id, _ in listed}
-    assert seen == {'stays', following}, log.lists
+    assert 'stays' in seen and not seen & {'over-1', 'over-2', 'over-3'}, log.lists
