@@ -21,11 +21,17 @@ from task_manager_web.doors_testing import browser as browser
 from task_manager_web.testing import GatewayProcess, HeldRead, gateway_client
 
 
+def _token_file(folder: Path) -> Path:
+    """The gateways' token file here: one admin token."""
+    token_file = folder / 'token'
+    token_file.write_text('test-token-0123456789\n')
+    return token_file
+
+
 @pytest.fixture
 def start_gateway(tmp_path: Path) -> Iterator[Callable[..., GatewayProcess]]:
     gateways: list[GatewayProcess] = []
-    token_file = tmp_path / 'token'
-    token_file.write_text('test-token-0123456789\n')
+    token_file = _token_file(tmp_path)
 
     def start(*args: str) -> GatewayProcess:
         gateway = GatewayProcess(token_file, *args)
@@ -74,9 +80,7 @@ def class_base(
 
 @contextmanager
 def _shared_gateway_client(folder: Path) -> Iterator[httpx.Client]:
-    token_file = folder / 'token'
-    token_file.write_text('test-token-0123456789\n')
-    gateway = GatewayProcess(token_file)
+    gateway = GatewayProcess(_token_file(folder))
     with gateway_client(gateway) as client:
         yield client
     assert gateway.stop() == 0, '\n'.join(gateway.log_lines)

@@ -2,8 +2,7 @@
 
 import asyncio
 import signal
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -57,11 +56,9 @@ def test_a_second_sigint_asks_for_a_stop_without_waiting() -> None:
 
 @pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGINT, signal.SIGTERM])
 def test_the_gateway_stops_cleanly_on_a_signal_right_after_its_first_line(
-    tmp_path: Path, signum: int
+    start_gateway: Callable[..., GatewayProcess], signum: int
 ) -> None:
-    token_file = tmp_path / 'token'
-    token_file.write_text('test-token-0123456789\n')
-    gateway = GatewayProcess(token_file)  # returns once the dashboard line is out
+    gateway = start_gateway()  # returns once the dashboard line is out
 
     gateway.process.send_signal(signum)
 

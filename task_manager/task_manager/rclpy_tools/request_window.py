@@ -14,6 +14,7 @@ Runs on the node's executor thread (its callbacks and timer), as the node's runn
 """
 
 import functools
+import sys
 import time
 from collections import OrderedDict, deque
 from typing import Any
@@ -31,7 +32,8 @@ DEFAULT_SLOT_TIMEOUT_SEC = 0.5
 
 
 class RequestWindow:
-    """Sends the requests of one service client, at most `size` unanswered at a time."""
+    """Sends the requests of one service client, at most `size` unanswered at a time (0: no
+    bound, each sent at once)."""
 
     def __init__(
         self,
@@ -42,7 +44,7 @@ class RequestWindow:
     ) -> None:
         self._node = node
         self._client = client
-        self._size = size
+        self._size = size or sys.maxsize
         self._slot_timeout_sec = slot_timeout_sec
         self._waiting: deque[tuple[Any, Future[Any]]] = deque()
         # the caller's futures of the requests in `_waiting` not forgotten

@@ -27,8 +27,9 @@ class RunnerTimeouts:
     server_loss_timeout_sec: float = 5.0
     """How long a server may give no sign of life before its tasks end ERROR."""
     server_requests_in_flight: int = DEFAULT_SIZE
-    """Goals, cancels and results asked again, sent to one action server at most this many
-    unanswered at a time (a server keeps 10 unread requests by default; 0: no bound)."""
+    """Goals, cancels and results asked again, sent to one action server, and a service task's
+    calls to its service, at most this many unanswered at a time (a server keeps 10 unread
+    requests by default; 0: no bound)."""
 
 
 class Execution(Protocol):

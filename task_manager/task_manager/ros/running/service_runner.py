@@ -19,9 +19,6 @@ from task_manager.rclpy_tools.request_window import RequestWindow
 from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
-# No bound on the calls in flight (server_requests_in_flight 0: each sent at once).
-UNBOUNDED = 2**31
-
 
 class ServiceExecution:
     """A service call in flight. A service cannot be cancelled: cancel waits for the response.
@@ -99,9 +96,7 @@ class ServiceTaskRunner(TaskRunner):
             service_type, spec.topic, qos_profile=DEEP_RELIABLE
         )
         # a server keeps its last 10 unread requests by default: a burst goes out 8 at a time
-        self._window = RequestWindow(
-            node, self._client, timeouts.server_requests_in_flight or UNBOUNDED
-        )
+        self._window = RequestWindow(node, self._client, timeouts.server_requests_in_flight)
         self._watch = ServerWatch(
             node,
             self._client.service_is_ready,

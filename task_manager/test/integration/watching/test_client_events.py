@@ -330,14 +330,14 @@ class ListLog:
                 lambda: any(entry in listed for listed in self.lists), timeout_sec
             )
 
-    def wait_until_following(self, tm: Any, attempts: int = 10) -> str:
+    def wait_until_following(self, tm: Any, attempts: int = 10) -> None:
         """Run short tasks until one reaches the log (its iterator follows from its first
-        next(), in its thread: a task run before that is not for it); that task's id."""
+        next(), in its thread: a task run before that is not for it)."""
         for attempt in range(attempts):
             task_id = f'listening-{attempt}'
             tm.run('fib', {'order': 1}, task_id=task_id)
             if self.wait_for((task_id, TaskStatus.IN_PROGRESS), TIMEOUT_SEC / attempts):
-                return task_id
+                return
         raise AssertionError(f'the log got no task of {attempts}: {self.lists}')
 
 
