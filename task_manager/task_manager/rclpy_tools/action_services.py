@@ -21,7 +21,7 @@ from unique_identifier_msgs.msg import UUID
 
 from task_manager.rclpy_tools.futures import completed_future
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, RESULT_REPLIES
-from task_manager.rclpy_tools.request_window import RequestWindow
+from task_manager.rclpy_tools.request_window import DEFAULT_SLOT_TIMEOUT_SEC, RequestWindow
 
 
 def action_service_name(action_name: str, service: str) -> str:
@@ -33,11 +33,18 @@ class ActionServicesClient:
     """Sends goals, gets results, cancels and receives feedback of one action server."""
 
     def __init__(
-        self, node: Node, action_type: Any, action_name: str, requests_in_flight: int = 0
+        self,
+        node: Node,
+        action_type: Any,
+        action_name: str,
+        requests_in_flight: int = 0,
+        slot_timeout_sec: float = DEFAULT_SLOT_TIMEOUT_SEC,
     ) -> None:
         """`requests_in_flight` > 0: goals, cancels and results asked again are sent at most
         that many unanswered at a time per service (see request_window.py), for a server that
-        keeps only a few unread requests; 0: each at once (a server with deep queues)."""
+        keeps only a few unread requests, and places held by requests unanswered for
+        `slot_timeout_sec` (none sent after them answered either) are given up; 0: each at
+        once (a server with deep queues)."""
         impl = action_type.Impl
         self._impl = impl
         self._node = node
@@ -60,9 +67,9 @@ class ActionServicesClient:
         self._windows: tuple[RequestWindow, RequestWindow, RequestWindow] | None = None
         if requests_in_flight > 0:
             self._windows = (
-                RequestWindow(node, self._send_goal, requests_in_flight),
-                RequestWindow(node, self._get_result, requests_in_flight),
-                RequestWindow(node, self._cancel, requests_in_flight),
+                RequestWindow(node, self._send_goal, requests_in_flight, slot_timeout_sec),
+                RequestWindow(node, self._get_result, requests_in_flight, slot_timeout_sec),
+                RequestWindow(node, self._cancel, requests_in_flight, slot_timeout_sec),
             )
         self._feedback_topic = f'{action_name.rstrip("/")}/_action/feedback'
         self._status_topic = f'{action_name.rstrip("/")}/_action/status'

@@ -6,9 +6,14 @@ when a burst reaches it faster than its executor takes them: 200 cancels sent at
 `system/stop` reached a server as 19. Sending at most `size` (fewer than 10) at a time, and the
 next as each is answered, keeps any burst within what a server keeps.
 
-A request that is not answered within `slot_timeout_sec` (dropped anyway, or held by its
-server, as a goal callback may) gives its place up, so that a lost answer never closes the
-window; its answer, should it come later, still completes its future.
+A request unanswered when one sent after it is answered gives its place up: the server takes
+requests in order, so it has taken this one (and holds it, as a goal callback may) or dropped
+it; either way it is in no queue of the server any more. A server that answers nothing is busy
+(or gone): its places are kept, however long, since a request sent then is one more in its
+queue, and past 10 the server drops the oldest. Only when none of them has been answered
+within `slot_timeout_sec` (they were lost, say with a server that restarted) are they given
+up, so that a lost answer never closes the window for good. An answer that comes after its
+place was given up still completes its future.
 
 Runs on the node's executor thread (its callbacks and timer), as the node's runners do.
 """
@@ -17,7 +22,8 @@ import functools
 import sys
 import time
 from collections import OrderedDict, deque
-from typing import Any
+from itertools import count
+from typing import Any, NamedTuple
 
 from rclpy.client import Client
 from rclpy.node import Node
@@ -28,7 +34,14 @@ from task_manager.rclpy_tools.futures import completed_future
 
 # Below the 10 unread requests rclpy's and rclcpp's servers keep by default.
 DEFAULT_SIZE = 8
-DEFAULT_SLOT_TIMEOUT_SEC = 0.5
+DEFAULT_SLOT_TIMEOUT_SEC = 5.0
+
+
+class _Sent(NamedTuple):
+    """A request sent: the client's future of it and its place in the order of sending."""
+
+    future: Future[Any]
+    number: int
 
 
 class RequestWindow:
@@ -49,10 +62,12 @@ class RequestWindow:
         self._waiting: deque[tuple[Any, Future[Any]]] = deque()
         # the caller's futures of the requests in `_waiting` not forgotten
         self._unsent: set[Future[Any]] = set()
-        # key: the caller's future of a request holding a place, value: when it was sent
-        self._in_flight: OrderedDict[Future[Any], float] = OrderedDict()
-        # key: the caller's future, value: the client's future of the request sent
-        self._sent: dict[Future[Any], Future[Any]] = {}
+        # key: the caller's future of a request holding a place, value: its number and when it
+        # was sent; in the order of sending
+        self._in_flight: OrderedDict[Future[Any], tuple[int, float]] = OrderedDict()
+        # key: the caller's future, value: the request sent, not answered nor forgotten yet
+        self._sent: dict[Future[Any], _Sent] = {}
+        self._numbers = count()
         # key: the caller's future of a request waiting its turn, value: done when it is sent
         self._sending: dict[Future[Any], Future[None]] = {}
         self._timer: Timer | None = None
@@ -88,8 +103,8 @@ class RequestWindow:
         if signal is not None:
             signal.cancel()
         sent = self._sent.pop(future, None)
-        if sent is not None and not sent.done():
-            self._client.remove_pending_request(sent)
+        if sent is not None and not sent.future.done():
+            self._client.remove_pending_request(sent.future)
         if not future.done():
             future.cancel()
         self._in_flight.pop(future, None)
@@ -97,8 +112,8 @@ class RequestWindow:
 
     def _pump(self) -> None:
         now = time.monotonic()
-        while self._in_flight:  # oldest first: places given up by requests long unanswered
-            oldest, sent_at = next(iter(self._in_flight.items()))
+        while self._in_flight:  # oldest first: a server silent that long lost them
+            oldest, (_, sent_at) = next(iter(self._in_flight.items()))
             if now - sent_at < self._slot_timeout_sec:
                 break
             del self._in_flight[oldest]
@@ -107,20 +122,25 @@ class RequestWindow:
             if future.done():  # forgotten while it waited
                 continue
             self._unsent.discard(future)
+            number = next(self._numbers)
             sent = self._client.call_async(request)
-            self._sent[future] = sent
-            self._in_flight[future] = now
+            self._sent[future] = _Sent(sent, number)
+            self._in_flight[future] = (number, now)
             sent.add_done_callback(functools.partial(self._answered, future))
             signal = self._sending.pop(future, None)
             if signal is not None:
                 signal.set_result(None)
         self._arm(bool(self._waiting))
 
-    def _answered(self, future: Future[Any], sent: Future[Any]) -> None:
-        self._sent.pop(future, None)
+    def _answered(self, future: Future[Any], answer: Future[Any]) -> None:
+        sent = self._sent.pop(future, None)
         self._in_flight.pop(future, None)
-        if not future.done() and not sent.cancelled():
-            future.set_result(sent.result())
+        if sent is not None and not answer.cancelled():
+            # the server has taken every request sent before this one
+            while self._in_flight and next(iter(self._in_flight.values()))[0] < sent.number:
+                self._in_flight.popitem(last=False)
+            if not future.done():
+                future.set_result(answer.result())
         self._pump()
 
     def _arm(self, waiting: bool) -> None:

@@ -202,8 +202,13 @@ class ActionTaskRunner(TaskRunner):
         self._node = node
         self._action_type = action_type
         self._timeouts = timeouts
+        # a server silent for goal_response_timeout has lost the requests it holds unanswered
         self._client = ActionServicesClient(
-            node, action_type, spec.topic, timeouts.server_requests_in_flight
+            node,
+            action_type,
+            spec.topic,
+            timeouts.server_requests_in_flight,
+            timeouts.goal_response_sec,
         )
         self._server_ids: frozenset[bytes] = frozenset()
         self._last_probe: Future[Any] | None = None

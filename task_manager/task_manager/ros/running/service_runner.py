@@ -95,8 +95,14 @@ class ServiceTaskRunner(TaskRunner):
         self._client: Client[Any, Any] = node.create_client(
             service_type, spec.topic, qos_profile=DEEP_RELIABLE
         )
-        # a server keeps its last 10 unread requests by default: a burst goes out 8 at a time
-        self._window = RequestWindow(node, self._client, timeouts.server_requests_in_flight)
+        # a server keeps its last 10 unread requests by default: a burst goes out 8 at a time;
+        # a call unanswered for service_response_timeout gives its place up as it ends ERROR
+        self._window = RequestWindow(
+            node,
+            self._client,
+            timeouts.server_requests_in_flight,
+            timeouts.service_response_sec,
+        )
         self._watch = ServerWatch(
             node,
             self._client.service_is_ready,

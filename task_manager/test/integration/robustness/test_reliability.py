@@ -38,6 +38,9 @@ LONG_GOAL_SEC = 2.0
 SLOW_GOALS = 200
 SLOW_ACCEPTANCE_SEC = 0.01
 HOLD_ORDER = 100  # goals of this order or more wait for the test's release
+# how long a server stays busy once a burst of requests has reached it: longer than the node
+# once waited before it sent more (0.5 s), so that the burst alone fills the server's queue
+SERVER_BUSY_SEC = 2.0
 LOSS_TIMEOUT_SEC = 0.5
 
 
@@ -289,7 +292,7 @@ def test_a_stop_cancels_every_goal_of_a_server_that_keeps_only_ten_requests(
 
     busy_server_node.create_guard_condition(keep_busy).trigger()
     stop = tm.send('system/stop', {})
-    threading.Timer(0.5, release.set).start()
+    threading.Timer(SERVER_BUSY_SEC, release.set).start()
 
     stopped = tm.result_of(stop).result
 
@@ -305,7 +308,9 @@ def test_a_burst_of_service_calls_reaches_a_server_that_keeps_only_ten_requests(
 ) -> None:
     """A service server on rclpy's default QoS keeps its last 10 unread requests: 30 calls
     sent at once while its executor is busy lost 20, each task then waiting for its response
-    until service_response_timeout. They go out at most 8 unanswered at a time."""
+    until service_response_timeout. They go out at most 8 unanswered at a time, and no more
+    while the server answers none, however long it stays busy (after 0.5 s, 4 were lost
+    still)."""
     release = threading.Event()
     server = ScriptedService(
         busy_server_node,
@@ -329,7 +334,7 @@ def test_a_burst_of_service_calls_reaches_a_server_that_keeps_only_ten_requests(
     tm.wait_active(
         lambda tasks: sum(status == 'IN_PROGRESS' for _, status in tasks) == GOALS_IN_FLIGHT
     )
-    release.set()
+    threading.Timer(SERVER_BUSY_SEC, release.set).start()
 
     results = [tm.result_of(handle).result for handle in handles]
 
