@@ -133,10 +133,11 @@ $(STAMPS)/mosquitto: | $(PY) $(STAMPS)/chromium
 $(STAMPS)/postgresql: | $(PY) $(STAMPS)/mosquitto
 	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
-# `make test` runs the suite in 3 processes (pytest-xdist, each its own ROS domain; files shared
-# out whole): it is CPU-bound on 2 cores (about half its CPU is starting processes: ~630 Task
-# Managers, gateways and taskctl). Measured on a fresh clone: pytest 631-689 s with 2, 583 s
-# with 3, 568-602 s with 4. With 3, a web gateway stopped right after its start sometimes
+# `make test` runs the suite in 4 processes (pytest-xdist, each its own ROS domain; files shared
+# out whole): on 2 cores (about half its CPU is starting processes: ~630 Task Managers,
+# gateways and taskctl), the tests wait often enough that a fourth keeps the cores busier.
+# Measured in one sitting (the same tree): 525 s with 3 (1.5 cores busy), 467 s with 4 (1.7);
+# earlier, 631-689 s with 2. With 3, a web gateway stopped right after its start sometimes
 # missed the SIGINT (twice in CI, also once with 2): it now keeps one handler of its own for
 # its whole run (test_web_stop.py).
 # The layers' contracts (.importlinter), run in an empty folder: in the repository's root the
@@ -150,7 +151,7 @@ LINT_IMPORTS := mkdir -p $(BUILD)/lint-imports && cd $(BUILD)/lint-imports && $(
 TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; time
 test:
 	$(call TIMED,install and lint) $(MAKE) --no-print-directory -j4 --output-sync=target install static-checks
-	$(call TIMED,pytest) $(VENV)/bin/pytest -n 3 --dist loadfile --durations=10
+	$(call TIMED,pytest) $(VENV)/bin/pytest -n 4 --dist loadfile --durations=10
 
 # The static checks of `make test`. They need our packages installed, not the interfaces built
 # (mypy skips the generated messages): they run while CMake builds those.
