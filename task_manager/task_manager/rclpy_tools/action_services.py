@@ -23,6 +23,12 @@ from task_manager.rclpy_tools.futures import completed_future
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, RESULT_REPLIES
 from task_manager.rclpy_tools.request_window import DEFAULT_SLOT_TIMEOUT_SEC, RequestWindow
 
+RESULT_SLOT_TIMEOUT_SEC = 0.5
+"""An action server holds each GetResult request until its goal ends (rclpy's and rclcpp's do):
+such requests are taken, not queued, and give their places up after this long unanswered, so
+that goals that run for long do not hold every place. A result asked again that a busy server
+drops is asked again at the next check."""
+
 
 def action_service_name(action_name: str, service: str) -> str:
     """The name of one of an action's services: send_goal, get_result or cancel_goal."""
@@ -42,7 +48,7 @@ class ActionServicesClient:
     ) -> None:
         """`requests_in_flight` > 0: goals, cancels and results asked again are sent at most
         that many unanswered at a time per service (see request_window.py), for a server that
-        keeps only a few unread requests, and places held by requests unanswered for
+        keeps only a few unread requests, and places held by goals and cancels unanswered for
         `slot_timeout_sec` (none sent after them answered either) are given up; 0: each at
         once (a server with deep queues)."""
         impl = action_type.Impl
@@ -68,7 +74,7 @@ class ActionServicesClient:
         if requests_in_flight > 0:
             self._windows = (
                 RequestWindow(node, self._send_goal, requests_in_flight, slot_timeout_sec),
-                RequestWindow(node, self._get_result, requests_in_flight, slot_timeout_sec),
+                RequestWindow(node, self._get_result, requests_in_flight, RESULT_SLOT_TIMEOUT_SEC),
                 RequestWindow(node, self._cancel, requests_in_flight, slot_timeout_sec),
             )
         self._feedback_topic = f'{action_name.rstrip("/")}/_action/feedback'
