@@ -34,6 +34,7 @@ from task_manager.rclpy_tools.futures import completed_future
 
 # Below the 10 unread requests rclpy's and rclcpp's servers keep by default.
 DEFAULT_SIZE = 8
+# A server that has answered none of the requests holding places for this long lost them.
 DEFAULT_SLOT_TIMEOUT_SEC = 5.0
 
 
