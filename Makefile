@@ -7,7 +7,7 @@ PY := $(VENV)/bin/python
 PIP := $(PY) -m pip --disable-pip-version-check
 # The venv's packages are installed with uv (requirements/installer.txt), itself installed with
 # pip: on a fresh clone the ROS wheels took pip 22 s, our packages 51 s; uv 7 s each. Its cache
-# stays in build/. uv reads no pip.conf: a mirror is set with UV_INDEX_URL / UV_EXTRA_INDEX_URL.
+# stays in build/. uv reads no pip.conf: a mirror is set with UV_DEFAULT_INDEX / UV_INDEX.
 UV := $(VENV)/bin/uv
 UV_INSTALL := UV_CACHE_DIR=$(BUILD)/uv-cache $(UV) pip install --quiet --python $(PY)
 # Our packages, editable, built with the venv's setuptools (requirements/build.txt).
