@@ -93,4 +93,4 @@ def test_a_child_that_dies_before_it_is_ready_fails_the_demo_with_its_output(
     assert 'task_manager exited with code 2 before it was ready' in demo.output
     assert 'x/oops' in demo.output
     assert 'Task Manager ready' not in demo.output
-    assert 'killing' not in demo.output
+    assert 'killing' not in demo.output, demo.output  # whole: which child did not stop
