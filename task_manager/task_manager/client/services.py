@@ -12,6 +12,7 @@ from rclpy.task import Future
 from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
 from task_manager.client.records import TaskResult
 from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 
 
 class ClientParts:
@@ -54,7 +55,7 @@ class ServiceCalls:
                 client = self._clients[name] = self._connection.node.create_client(
                     service_type, name
                 )
-        if not client.wait_for_service(timeout_sec=timeout_sec):
+        if not wait_until_ready(client.service_is_ready, timeout_sec):
             raise TaskManagerUnavailable(f'{name} is not available')
         answered = threading.Event()
         calls: list[Future[Any]] = []

@@ -8,7 +8,6 @@ goals, asks for results and cancels on the action's three services, whose client
 pending requests by sequence number, and reads feedback from the feedback topic.
 """
 
-import time
 import uuid
 from collections.abc import Callable
 from typing import Any
@@ -22,6 +21,7 @@ from unique_identifier_msgs.msg import UUID
 from task_manager.rclpy_tools.futures import completed_future
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, RESULT_REPLIES
 from task_manager.rclpy_tools.request_window import DEFAULT_SLOT_TIMEOUT_SEC, RequestWindow
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 
 RESULT_SLOT_TIMEOUT_SEC = 0.5
 """An action server holds each GetResult request until its goal ends (rclpy's and rclcpp's do):
@@ -98,11 +98,7 @@ class ActionServicesClient:
 
     def wait_for_server(self, timeout_sec: float) -> bool:
         """Wait (bounded) until the server serves all three services; whether it does."""
-        deadline = time.monotonic() + timeout_sec
-        return all(
-            c.wait_for_service(timeout_sec=max(deadline - time.monotonic(), 0.0))
-            for c in (self._send_goal, self._get_result, self._cancel)
-        )
+        return wait_until_ready(self.server_is_ready, timeout_sec)
 
     def send_goal(
         self,

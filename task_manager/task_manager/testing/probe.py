@@ -19,6 +19,7 @@ from task_manager.core.names import (
     TASK_EVENTS_TOPIC,
 )
 from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,
@@ -91,7 +92,7 @@ class TaskManagerProbe:
 
     def wait_until_connected(self) -> None:
         """Wait until goals, results and both topics work end to end (see warm_up)."""
-        assert self.client.wait_for_server(timeout_sec=self.timeout_sec), 'no execute_task server'
+        assert wait_until_ready(self.client.server_is_ready, self.timeout_sec), 'no execute_task'
         self.results.wait_matched(self.timeout_sec)
         self.active.wait_matched(self.timeout_sec)
         warm_up(self.client)
@@ -137,7 +138,7 @@ class TaskManagerProbe:
         """Send a StartTask goal with TaskOptions fields (priority=5 sets has_priority)."""
         if self._start_client is None:
             self._start_client = execute_task_client(self.ros, StartTask, START_TASK_ACTION)
-            assert self._start_client.wait_for_server(timeout_sec=self.timeout_sec)
+            assert wait_until_ready(self._start_client.server_is_ready, self.timeout_sec)
             warm_up(self._start_client)
         if 'priority' in options:
             options['has_priority'] = True
