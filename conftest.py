@@ -1,12 +1,22 @@
 """Fixtures of every test tree: an isolated ROS domain per test run, an in-process ROS node."""
 
 import os
+import signal
 
 # numpy, which every ROS 2 Python process imports (rclpy's service_msgs), starts OpenBLAS's
 # thread pool, one thread per core, as it loads: 0.11 s of CPU in each of the ~900 processes of
 # a run that import rclpy (0.47 -> 0.36 s). Nothing here does linear algebra: one thread, for
 # this process and every process a test starts.
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
+
+# Tests stop the processes they start with SIGINT, as a terminal's Ctrl-C does. A suite started
+# in the background by a non-interactive shell has SIGINT ignored, and every process it starts
+# inherits that until it installs a handler of its own: a SIGINT sent before then vanishes (the
+# demo robot, signalled within its first 0.25 s, then served on in 5 of 23 starts). Python
+# installs its handler only where SIGINT was not ignored: put it back for this process and
+# its children (a handler, unlike "ignored", is not inherited across exec).
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # Keep this run's DDS traffic apart from other runs on the machine, and on it: each run claims a
 # group of domains no other run holds (task_manager.testing.domains), each pytest-xdist worker
