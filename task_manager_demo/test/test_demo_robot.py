@@ -12,6 +12,7 @@ from rclpy.client import Client
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto, UploadPhotos
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager_demo.robot_interface import (
     DOCK_ACTION,
@@ -64,9 +65,9 @@ class RobotClient:
             node.create_client(UploadPhotos, UPLOAD_PHOTOS_SERVICE)
         )
         for client in (self.navigate, self.spin, self.dock):
-            assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
-        assert self.take_photo.wait_for_service(timeout_sec=TIMEOUT_SEC)
-        assert self.upload_photos.wait_for_service(timeout_sec=TIMEOUT_SEC)
+            assert wait_until_ready(client.server_is_ready, TIMEOUT_SEC)
+        assert wait_until_ready(self.take_photo.service_is_ready, TIMEOUT_SEC)
+        assert wait_until_ready(self.upload_photos.service_is_ready, TIMEOUT_SEC)
 
     def send(self, client: ActionClient[Any, Any, Any], goal: Any) -> tuple[Any, FeedbackRecorder]:
         feedback = FeedbackRecorder()

@@ -16,6 +16,7 @@ from task_manager_msgs.msg import Schedule
 from task_manager_msgs.srv import GetSchedules, GetTaskStates
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, WaitTimeoutError, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task
@@ -63,7 +64,7 @@ def _schedules(ros: RosHarness, *schedule_ids: str) -> dict[str, Schedule]:
         GetSchedules, '/task_manager/get_schedules'
     )
     try:
-        assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
         request = GetSchedules.Request(schedule_ids=list(schedule_ids))
         found = wait_for_future(client.call_async(request), TIMEOUT_SEC, 'schedules').schedules
         return {s.schedule_id: s for s in found}
@@ -87,7 +88,7 @@ def _states(ros: RosHarness, task_id: str) -> Any:
         GetTaskStates, '/task_manager/get_task_states'
     )
     try:
-        assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
         request = GetTaskStates.Request(task_ids=[task_id])
         return wait_for_future(client.call_async(request), TIMEOUT_SEC, 'states').tasks[0]
     finally:

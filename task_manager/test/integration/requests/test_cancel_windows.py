@@ -22,6 +22,7 @@ from test_msgs.action import Fibonacci
 
 from task_manager.client import TaskManagerClient
 from task_manager.rclpy_tools.futures import result_of
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task
@@ -120,7 +121,7 @@ def test_a_cancel_sent_as_a_task_servers_goal_is_accepted_cancels_the_task(
         {'fib': action_task('math/fib', f'{topic_prefix}/fib')}, enable_task_servers=True
     )
     client = ros.action_client(Fibonacci, '/task_manager/task/math/fib')
-    assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(client.server_is_ready, TIMEOUT_SEC)
     for _ in range(ATTEMPTS):
         handle, cancel = _cancel_at_acceptance(ros, client, Fibonacci.Goal(order=6))
 

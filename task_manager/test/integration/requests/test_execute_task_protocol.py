@@ -15,6 +15,7 @@ from task_manager_msgs.action import ExecuteTask
 from test_msgs.action import Fibonacci
 from unique_identifier_msgs.msg import UUID
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import ScriptedActionServer
@@ -29,7 +30,7 @@ def _goal(order: int, task_id: str) -> ExecuteTask.Goal:
 
 def _client(ros: RosHarness, service_type: Any, name: str) -> Client[Any, Any]:
     client: Client[Any, Any] = ros.node.create_client(service_type, f'{SERVICES}/{name}')
-    assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
     return client
 
 

@@ -10,6 +10,7 @@ from task_manager_msgs.msg import TaskEvent, TaskState
 from task_manager_msgs.srv import GetTaskStates
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task
@@ -49,7 +50,7 @@ def _states(ros: RosHarness, *task_ids: str) -> list[TaskState]:
         GetTaskStates, '/task_manager/get_task_states'
     )
     try:
-        assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
         request = GetTaskStates.Request(task_ids=list(task_ids))
         return list(wait_for_future(client.call_async(request), TIMEOUT_SEC, 'states').tasks)
     finally:

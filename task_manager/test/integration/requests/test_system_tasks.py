@@ -6,6 +6,7 @@ from std_srvs.srv import SetBool
 from task_manager_msgs.action import Wait
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task, service_task
 from task_manager.testing.servers import ScriptedActionServer, ScriptedService
@@ -118,7 +119,7 @@ def test_wait_publishes_remaining_time_through_its_task_server(
         {'fib': action_task('fib', f'{topic_prefix}/fib')}, enable_task_servers=True
     )
     client = ros.action_client(Wait, '/task_manager/task/system/wait')
-    assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(client.server_is_ready, TIMEOUT_SEC)
     feedback: list[float] = []
 
     goal_handle = wait_for_future(

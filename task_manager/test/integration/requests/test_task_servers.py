@@ -7,6 +7,7 @@ from rclpy.client import Client
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task, service_task
 from task_manager.testing.servers import ScriptedActionServer, ScriptedService
@@ -41,8 +42,8 @@ def test_task_servers_run_tasks_through_the_task_manager(
     service_client: Client[SetBool.Request, SetBool.Response] = ros.node.create_client(
         SetBool, '/task_manager/task/set'
     )
-    assert action_client.wait_for_server(timeout_sec=TIMEOUT_SEC)
-    assert service_client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(action_client.server_is_ready, TIMEOUT_SEC)
+    assert wait_until_ready(service_client.service_is_ready, TIMEOUT_SEC)
 
     goal_handle = wait_for_future(
         ros.send_goal(action_client, Fibonacci.Goal(order=4)), TIMEOUT_SEC, 'goal'
@@ -75,7 +76,7 @@ def test_feedback_of_an_action_task_reaches_the_task_servers_client(
         {'fib': action_task('fib', f'{topic_prefix}/fib')}, enable_task_servers=True
     )
     client = ros.action_client(Fibonacci, '/task_manager/task/fib')
-    assert client.wait_for_server(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(client.server_is_ready, TIMEOUT_SEC)
     received: list[list[int]] = []
     got_feedback = threading.Event()
 

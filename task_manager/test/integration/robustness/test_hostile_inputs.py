@@ -17,6 +17,7 @@ from rclpy.client import Client
 from task_manager_msgs.srv import GetSchedules
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, WaitTimeoutError, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import LaunchTaskManager, action_task
@@ -128,7 +129,7 @@ def _schedule_ids(ros: RosHarness) -> set[str]:
         GetSchedules, '/task_manager/get_schedules'
     )
     try:
-        assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
         answer = wait_for_future(client.call_async(GetSchedules.Request()), TIMEOUT_SEC, 'list')
         return {schedule.schedule_id for schedule in answer.schedules}
     finally:

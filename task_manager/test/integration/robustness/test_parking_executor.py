@@ -18,6 +18,7 @@ from std_srvs.srv import Trigger
 
 from task_manager.rclpy_tools.futures import resolved
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.ros import parking_executor
 from task_manager.ros.parking_executor import ParkingExecutor, spawn_after_turn
 
@@ -104,7 +105,7 @@ def test_an_async_service_callback_waiting_on_a_future_is_parked_too(
     name = f'/parking_{os.getpid()}/answer'
     node.create_service(Trigger, name, answer, callback_group=ReentrantCallbackGroup())
     client: Client[Trigger.Request, Trigger.Response] = node.create_client(Trigger, name)
-    assert client.wait_for_service(timeout_sec=5.0)
+    assert wait_until_ready(client.service_is_ready, 5.0)
     reply = client.call_async(Trigger.Request())
     deadline = time.monotonic() + 5.0
     while not entered.is_set() and time.monotonic() < deadline:
@@ -219,7 +220,7 @@ def turns_to_answer_a_burst(
 
     node.create_service(Trigger, service, answer, qos_profile=DEEP_RELIABLE)
     client: Client[Any, Any] = node.create_client(Trigger, service, qos_profile=DEEP_RELIABLE)
-    assert client.wait_for_service(timeout_sec=5.0)
+    assert wait_until_ready(client.service_is_ready, 5.0)
     executor.add_node(node)
     replies = [client.call_async(Trigger.Request()) for _ in range(BURST)]
     everything: Future[None] = Future()

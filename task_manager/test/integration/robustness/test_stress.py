@@ -23,6 +23,7 @@ from rclpy.action.client import ActionClient
 from task_manager_msgs.action import ExecuteTask
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,
@@ -77,7 +78,7 @@ class StressClient:
 
     def warm_up(self) -> None:
         """One round trip, so that DDS has matched this client's reply paths before the stream."""
-        assert self.client.wait_for_server(timeout_sec=SEND_TIMEOUT_SEC), 'no execute_task'
+        assert wait_until_ready(self.client.server_is_ready, SEND_TIMEOUT_SEC), 'no execute_task'
         warm_up(self.client)
 
     def start(self) -> None:

@@ -9,6 +9,7 @@ from rclpy.client import Client
 from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import (
@@ -99,8 +100,8 @@ def test_results_and_states_are_served_from_the_history_after_a_restart(
     states: Client[GetTaskStates.Request, GetTaskStates.Response] = ros.node.create_client(
         GetTaskStates, '/task_manager/get_task_states'
     )
-    assert results.wait_for_service(timeout_sec=TIMEOUT_SEC)
-    assert states.wait_for_service(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(results.service_is_ready, TIMEOUT_SEC)
+    assert wait_until_ready(states.service_is_ready, TIMEOUT_SEC)
 
     kept = wait_for_future(
         results.call_async(GetTaskResults.Request(max_results=0)), TIMEOUT_SEC, 'results'
@@ -150,7 +151,7 @@ def test_the_history_is_queried_by_filters_and_kept_within_its_limits(
     client: Client[QueryTaskHistory.Request, QueryTaskHistory.Response] = ros.node.create_client(
         QueryTaskHistory, '/task_manager/query_task_history'
     )
-    assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
 
     def ids(**filters: object) -> list[str]:
         request = QueryTaskHistory.Request(**filters)

@@ -15,6 +15,7 @@ from test_msgs.action import Fibonacci
 from test_msgs.srv import BasicTypes
 
 from task_manager.core.names import TASK_EVENT_BATCHES_TOPIC, TASK_EVENTS_TOPIC
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import (
     RosHarness,
     TopicRecorder,
@@ -222,7 +223,7 @@ def test_a_late_client_gets_the_state_of_every_active_task(
     client: Client[GetTaskStates.Request, GetTaskStates.Response] = ros.node.create_client(
         GetTaskStates, '/task_manager/get_task_states'
     )
-    assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
 
     def states(*task_ids: str) -> list[TaskState]:
         request = GetTaskStates.Request(task_ids=list(task_ids))

@@ -8,6 +8,7 @@ from task_manager_msgs.srv import GetTaskResults
 from test_msgs.action import Fibonacci
 
 from task_manager.rclpy_tools import qos
+from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.ros.recording.active_tasks import LARGE_LIST, LARGE_LIST_RATE_HZ
 from task_manager.testing.harness import RosHarness, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task
@@ -102,7 +103,7 @@ def test_kept_results_can_be_fetched_after_the_fact(
     client: Client[GetTaskResults.Request, GetTaskResults.Response] = ros.node.create_client(
         GetTaskResults, '/task_manager/get_task_results'
     )
-    assert client.wait_for_service(timeout_sec=TIMEOUT_SEC)
+    assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
 
     everything = wait_for_future(
         client.call_async(GetTaskResults.Request(max_results=0)), TIMEOUT_SEC, 'results'
