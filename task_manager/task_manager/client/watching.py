@@ -143,50 +143,41 @@ class Watching:
     def active_task_updates(
         self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[list[ActiveTaskInfo]]:
-        """Every active task list from now on.
+        """Every active task list from this call on.
 
-        Stops after `timeout_sec` without an update (None: never), or once `until` completes.
+        Like every iterator here, it keeps what comes from the call, not from its first
+        `next()`: call it, then read what the lists will change (taskctl active --watch: the
+        task states), or start the tasks it must not miss. Stops after `timeout_sec` without
+        an update (None: never), or once `until` completes.
         """
-        inbox: Inbox[list[ActiveTaskInfo]] = queue.SimpleQueue()
         self._active.follow()
-        with self._active.listeners.listening(inbox):
-            yield from drain(inbox, timeout_sec, until)
+        inbox: Inbox[list[ActiveTaskInfo]] = queue.SimpleQueue()
+        return _from_now(inbox, self._active.listeners.add(inbox), timeout_sec, until)
 
     def results(
         self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[TaskResult]:
-        """Every task result from now on; stops as active_task_updates does."""
+        """Every task result from this call on; stops as active_task_updates does."""
         inbox: Inbox[TaskResult] = queue.SimpleQueue()
-        with self._results.listening(inbox):
-            yield from drain(inbox, timeout_sec, until)
+        return _from_now(inbox, self._results.add(inbox), timeout_sec, until)
 
     def updates(
         self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[list[ActiveTaskInfo] | TaskResult]:
-        """Active task lists and results, in the order they arrive; stops as above."""
-        inbox: Inbox[list[ActiveTaskInfo] | TaskResult] = queue.SimpleQueue()
+        """Active task lists and results from this call on, in the order they arrive; stops as
+        active_task_updates does."""
         self._active.follow()
-        with self._active.listeners.listening(inbox), self._results.listening(inbox):
-            # annotated: mypy infers no T from `A | B | End` against `T | End` by itself
-            arrivals: Iterator[list[ActiveTaskInfo] | TaskResult] = drain(inbox, timeout_sec, until)
-            yield from arrivals
+        inbox: Inbox[list[ActiveTaskInfo] | TaskResult] = queue.SimpleQueue()
+        stops = [self._active.listeners.add(inbox), self._results.add(inbox)]
+        return _from_now(inbox, lambda: [stop() for stop in stops], timeout_sec, until)
 
     def task_events(
         self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[TaskEvent]:
-        """Every event of every task from this call on; stops as active_task_updates does.
-
-        Events are kept from the call, not from the first `next()`: start the iterator, then
-        the tasks whose events it must not miss.
-        """
+        """Every event of every task from this call on; stops as active_task_updates does."""
         self._events.follow()
         inbox: Inbox[TaskEvent] = queue.SimpleQueue()
-        listeners = self._events.listeners
-        listeners.add(inbox)
-        events = _drain_then_stop(listeners, inbox, timeout_sec, until)
-        # an iterator dropped before its first next() never runs its `finally`
-        weakref.finalize(events, listeners.remove, inbox)
-        return events
+        return _from_now(inbox, self._events.listeners.add(inbox), timeout_sec, until)
 
     def on_task_event(self, callback: Callable[[TaskEvent], None]) -> Callable[[], None]:
         """Call `callback(event)` with every task event from now on; returns the unsubscribe.
@@ -197,10 +188,29 @@ class Watching:
         return self._events.listeners.add(Callback(callback, NodeLog.of(self.node)))
 
 
+def _from_now(
+    inbox: Inbox[T],
+    stop: Callable[[], object],
+    timeout_sec: float | None,
+    until: Future[Any] | None,
+) -> Iterator[T]:
+    """What `inbox` gets (it listens already) as an iterator; `stop` ends its listening when the
+    iterator ends, or when it is dropped (one dropped before its first `next()` never runs its
+    `finally`)."""
+    items = _drain_then_stop(inbox, stop, timeout_sec, until)
+    weakref.finalize(items, stop)
+    return items
+
+
 def _drain_then_stop(
-    listeners: Listeners[T], inbox: Inbox[T], timeout_sec: float | None, until: Future[Any] | None
+    inbox: Inbox[T],
+    stop: Callable[[], object],
+    timeout_sec: float | None,
+    until: Future[Any] | None,
 ) -> Iterator[T]:
     try:
-        yield from drain(inbox, timeout_sec, until)
+        # annotated: mypy infers no T from `A | B | End` against `T | End` by itself
+        items: Iterator[T] = drain(inbox, timeout_sec, until)
+        yield from items
     finally:
-        listeners.remove(inbox)
+        stop()

@@ -7,8 +7,8 @@ gateway about 0.1-0.25 s for nothing. This looks every millisecond at first, the
 20 ms: a look costs microseconds, a 5 s wait for a missing server 250 of them.
 """
 
-import time
 from collections.abc import Callable
+from time import monotonic, sleep
 
 FIRST_LOOK_AFTER_SEC = 0.001
 LONGEST_GAP_SEC = 0.02
@@ -16,12 +16,12 @@ LONGEST_GAP_SEC = 0.02
 
 def wait_until_ready(is_ready: Callable[[], bool], timeout_sec: float) -> bool:
     """Wait (bounded) until `is_ready()`, e.g. a client's `service_is_ready`; whether it is."""
-    deadline = time.monotonic() + timeout_sec
+    deadline = monotonic() + timeout_sec
     gap_sec = FIRST_LOOK_AFTER_SEC
     while not is_ready():
-        remaining_sec = deadline - time.monotonic()
+        remaining_sec = deadline - monotonic()
         if remaining_sec <= 0:
             return is_ready()
-        time.sleep(min(gap_sec, remaining_sec))
+        sleep(min(gap_sec, remaining_sec))
         gap_sec = min(gap_sec * 2, LONGEST_GAP_SEC)
     return True

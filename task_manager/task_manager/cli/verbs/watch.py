@@ -100,22 +100,23 @@ def active(
     """Show the tasks in progress."""
     try:
         with connected(ctx) as client:
+            # followed before the states are read: a change between the two is not lost
+            updates = client.active_task_updates() if watch else iter(())
             tasks = StampedActiveTasks(client)
             if as_json:
                 print_active_json(tasks.rows, as_list=watch)
-                if watch:
-                    for update in client.active_task_updates():
-                        print_active_json(tasks.update(update), as_list=True)
+                for update in updates:
+                    print_active_json(tasks.update(update), as_list=True)
             elif not watch:
                 output.print(active_table(tasks.rows))
             elif output.is_terminal:  # redrawn as time passes, too
                 with Live(get_renderable=lambda: active_table(tasks.rows), console=output) as live:
-                    for update in client.active_task_updates():
+                    for update in updates:
                         tasks.update(update)
                         live.refresh()
             else:  # a pipe: one table per change, as it happens
                 output.print(active_table(tasks.rows))
-                for update in client.active_task_updates():
+                for update in updates:
                     output.print(active_table(tasks.update(update)))
                     output.file.flush()
     except KeyboardInterrupt:  # how watching ends, wherever it is
@@ -146,13 +147,13 @@ def result_line(result: TaskResult, as_json: bool) -> str:
 
 
 def new_results(client: TaskManagerClient) -> Iterator[TaskResult]:
-    """Results as tasks end: from ENDED events (with stamps) when they reach us, else plain."""
+    """Results as tasks end, from this call on: from ENDED events (with stamps) when they
+    reach us, else plain."""
     if not client.events_connected:
-        yield from client.results()
-        return
-    for event in client.task_events():
-        if event.kind is TaskEventKind.ENDED:
-            yield event.task.to_result()
+        plain: Iterator[TaskResult] = client.results()
+        return plain
+    events = client.task_events()
+    return (event.task.to_result() for event in events if event.kind is TaskEventKind.ENDED)
 
 
 def results(
@@ -169,10 +170,15 @@ def results(
     """Print the latest task results the Task Manager kept, oldest first: when each ended."""
     try:
         with connected(ctx, events=follow) as client:
-            for result in client.recent_results(limit if last is None else last):
+            # followed before the kept results are read: a task that ends between the two is
+            # not lost (and shown once: it may be in both)
+            following = new_results(client) if follow else iter(())
+            kept = client.recent_results(limit if last is None else last)
+            for result in kept:
                 print(result_line(result, as_json), flush=True)
-            if follow:
-                for result in new_results(client):
+            shown = {(result.task_id, result.ended_at) for result in kept}
+            for result in following:
+                if (result.task_id, result.ended_at) not in shown:
                     print(result_line(result, as_json), flush=True)
     except KeyboardInterrupt:  # how following ends, wherever it is
         pass

@@ -13,7 +13,7 @@ def test_a_server_ready_at_once_ends_the_wait_without_sleeping(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     gaps: list[float] = []
-    monkeypatch.setattr(server_wait.time, 'sleep', gaps.append)
+    monkeypatch.setattr(f'{server_wait.__name__}.sleep', gaps.append)
 
     assert wait_until_ready(lambda: True, timeout_sec=5.0)
 
@@ -24,7 +24,7 @@ def test_the_looks_come_often_at_first_and_never_more_than_20_ms_apart(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     gaps: list[float] = []
-    monkeypatch.setattr(server_wait.time, 'sleep', gaps.append)
+    monkeypatch.setattr(f'{server_wait.__name__}.sleep', gaps.append)
 
     assert wait_until_ready(lambda: len(gaps) == 30, timeout_sec=5.0)
 

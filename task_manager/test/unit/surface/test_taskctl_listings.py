@@ -5,6 +5,7 @@ import importlib
 import json
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from datetime import UTC, datetime, timedelta
 from types import SimpleNamespace
 from typing import Any
@@ -85,7 +86,8 @@ class FakeClient:
         return record
 
     def active_task_updates(self) -> Iterator[list[ActiveTaskInfo]]:
-        yield from self.answers['active_task_updates']
+        self.calls.append(('active_task_updates', (), {}))  # the client follows from the call
+        return iter(self.answers['active_task_updates'])
 
 
 @pytest.fixture(scope='module')
@@ -150,6 +152,22 @@ def test_results_default_to_the_latest_20(run: Any) -> None:
     assert client.calls == [('recent_results', (20,), {})]
 
 
+def test_results_follow_follows_before_it_reads_the_kept_ones_and_shows_each_once(
+    run: Any,
+) -> None:
+    """A task that ended between the kept results' answer and the start of following was
+    lost; one that ends just as following starts is in both, and shown once."""
+    drive = DRIVE.to_result()
+    later = replace(drive, task_id='later', ended_at=_at(20))
+    client = FakeClient(recent_results=[drive], results=[drive, later])
+
+    result = run(client, 'results', '--follow', '--json')
+
+    assert (result.exit_code, result.stderr) == (0, '')
+    assert [method for method, _, _ in client.calls] == ['results', 'recent_results']
+    assert [line['task_id'] for line in _lines(result.stdout)] == ['drive', 'later']
+
+
 def test_history_json_has_the_mission_the_sequence_and_the_pauses(run: Any) -> None:
     client = FakeClient(history=[DRIVE])
 
@@ -191,6 +209,19 @@ def test_active_json_a_line_per_task_and_a_list_per_change_with_watch(run: Any) 
     assert (once.exit_code, watched.exit_code) == (0, 0)
     assert _lines(once.stdout) == [queued_data]
     assert _lines(watched.stdout) == [[queued_data], [queued_data]]
+
+
+@pytest.mark.parametrize('as_json', [[], ['--json']])
+def test_active_watch_follows_the_lists_before_it_reads_the_states(
+    run: Any, as_json: list[str]
+) -> None:
+    """A list published between the states' answer and the start of following was lost: a
+    task started then never showed until the next change (the suite saw it once)."""
+    client = FakeClient(task_states=[], active_task_updates=[])
+
+    run(client, 'active', '--watch', *as_json)
+
+    assert [method for method, _, _ in client.calls] == ['active_task_updates', 'task_states']
 
 
 def test_active_shows_the_prompt_of_a_waiting_confirmation(run: Any) -> None:
