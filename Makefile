@@ -8,12 +8,12 @@ PIP := $(PY) -m pip --disable-pip-version-check
 # The venv's packages are installed with uv (requirements/installer.txt), itself installed with
 # pip: on a fresh clone the ROS wheels took pip 22 s, our packages 51 s; uv 7 s each. Its cache
 # stays in build/. uv reads no pip.conf: a mirror is set with UV_DEFAULT_INDEX / UV_INDEX.
+STAMPS := $(VENV)/.stamps
+BUILD := $(CURDIR)/build
 UV := $(VENV)/bin/uv
 UV_INSTALL := UV_CACHE_DIR=$(BUILD)/uv-cache $(UV) pip install --quiet --python $(PY)
 # Our packages, editable, built with the venv's setuptools (requirements/build.txt).
 UV_EDITABLE := $(UV_INSTALL) --no-build-isolation
-STAMPS := $(VENV)/.stamps
-BUILD := $(CURDIR)/build
 CONSTRAINTS := requirements/ros-constraints.txt
 PARAMS ?= task_manager/params/task_manager_defaults.yaml
 # The dashboard's port for `make run` (0: any free one).
@@ -79,15 +79,18 @@ define build_interfaces
 	@touch $@
 endef
 
-$(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels cmake/venv_interfaces.cmake $(shell find task_manager_msgs -type f)
+$(STAMPS)/task_manager_msgs: $(STAMPS)/ros-wheels cmake/venv_interfaces.cmake $(shell find task_manager_msgs -type f) \
+  | $(STAMPS)/packages
 	@mkdir -p $(BUILD)
 	$(call build_interfaces,task_manager_msgs)
 
 # Our packages, editable, in one uv call (one resolution, no two installers writing the venv at
 # once): the node and its client (task_manager), the demo, the web gateway, the MQTT bridge,
 # the VDA 5050 adapter (it shares the bridge's broker settings and client), the fleet console
-# (cloud-side: no rclpy). They need the ROS wheels, not the interfaces built: under `make -j`
-# (`make test`) this runs while CMake builds them.
+# (cloud-side: no rclpy). They need the ROS wheels, not the interfaces built; the interfaces are
+# built after them (order only), as the builds run the venv's Python and setuptools, which uv
+# may be rewriting meanwhile (a fresh clone's CMake build once failed so, importing a
+# half-written setuptools). Under `make -j` (`make test`) the lint runs beside the builds.
 # Each as uv pip takes it (a folder, with its extras); PACKAGE_FILES: what changes its install.
 PACKAGES := task_manager[dev] task_manager_demo task_manager_web[dev] task_manager_mqtt[dev] \
   task_manager_vda5050 task_manager_console[dev]
@@ -98,7 +101,8 @@ $(STAMPS)/packages: $(PACKAGE_FILES) $(CONSTRAINTS) | $(STAMPS)/ros-wheels
 	@touch $@
 
 # The demo's interfaces: a simulated robot's.
-$(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels cmake/venv_interfaces.cmake $(shell find task_manager_demo_msgs -type f)
+$(STAMPS)/task_manager_demo_msgs: $(STAMPS)/ros-wheels cmake/venv_interfaces.cmake $(shell find task_manager_demo_msgs -type f) \
+  | $(STAMPS)/packages
 	@mkdir -p $(BUILD)
 	$(call build_interfaces,task_manager_demo_msgs)
 
