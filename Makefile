@@ -137,13 +137,17 @@ $(STAMPS)/mosquitto: | $(PY) $(STAMPS)/chromium
 $(STAMPS)/postgresql: | $(PY) $(STAMPS)/mosquitto
 	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
-# `make test` runs the suite in 4 processes (pytest-xdist, each its own ROS domain; files shared
-# out whole) on 2 cores (most of its CPU is starting processes: ~325 Task Managers, 81 taskctl,
-# 60 web gateways, ...; the tests wait often enough that a fourth keeps the cores busier).
-# Measured on one tree (1ebaed5): 437-443 s with 3 (1.6 cores busy), 384 s with 4 (1.7). An
-# earlier try of 4 failed tests that bounded times too tightly for a loaded machine, or found
-# bugs the load made likely (all fixed since: the request window of 5c8d135 and 4addc9c, the
-# web load test's CPU reading, taskctl's watch of 1ebaed5).
+# `make test` runs the suite in 3 processes (pytest-xdist, each its own ROS domain; files shared
+# out whole) on 2 cores (about half its CPU is starting processes: ~316 Task Managers, 81
+# taskctl, 60 web gateways, ...). Measured: 631-689 s with 2, 497-525 s with 3 (1.5 cores
+# busy), 467-497 s with 4 (1.7); but with 4, each of four runs failed a test that bounds a time
+# (a control request answered in 1.2 s for a bound of 1 s beside 500 reads), or found a bug the
+# load made likely (fixed: the request window of 5c8d135 and 4addc9c). With 3, a web gateway
+# stopped right after its start sometimes missed the SIGINT (twice in CI, also once with 2):
+# it now keeps one handler of its own for its whole run (test_web_stop.py). Tried again on
+# 2026-11-28: 384-463 s with 4 against 437-443 s with 3, a fresh clone's make test 8 min 12 s
+# against 8 min 45 s; one run of four lost a taskctl to a segmentation fault (-11) as it
+# closed, under that load: 3 until that is found.
 # The layers' contracts (.importlinter), run in an empty folder: in the repository's root the
 # colcon folder task_manager/ would pass for the package, and so would build/task_manager/ (the
 # colcon check's build of it) in build/.
@@ -155,7 +159,7 @@ LINT_IMPORTS := mkdir -p $(BUILD)/lint-imports && cd $(BUILD)/lint-imports && $(
 TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; time
 test:
 	$(call TIMED,install and lint) $(MAKE) --no-print-directory -j4 --output-sync=target install static-checks
-	$(call TIMED,pytest) $(VENV)/bin/pytest -n 4 --dist loadfile --durations=10
+	$(call TIMED,pytest) $(VENV)/bin/pytest -n 3 --dist loadfile --durations=10
 
 # The static checks of `make test`. They need our packages installed, not the interfaces built
 # (mypy skips the generated messages): they run while CMake builds those.
