@@ -18,6 +18,10 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
+# A process a test starts that dies of a fatal signal (a segmentation fault at exit was seen
+# once in a taskctl) prints the Python stack of each of its threads to its stderr.
+os.environ.setdefault('PYTHONFAULTHANDLER', '1')
+
 # Keep this run's DDS traffic apart from other runs on the machine, and on it: each run claims a
 # group of domains no other run holds (task_manager.testing.domains), each pytest-xdist worker
 # (gw0 to gw3) one of its first four, tests that start nodes in domains of their own the rest.
