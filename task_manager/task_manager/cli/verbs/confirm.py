@@ -18,7 +18,9 @@ def confirm(
     """
     with connected(ctx) as client:
         answer = client.confirm(task_id, reject=reject, comment=comment, source=source)
-    if not answer.taken:
-        progress.print(f'{answer.error_code}: {answer.message}', markup=False, soft_wrap=True)
-        raise typer.Exit(EXIT_ERROR)
-    print(f'{task_id}  {"rejected" if reject else "confirmed"}', flush=True)
+        # told before the client closes, as every verb that changes something: the answer
+        # stands whatever the middleware's teardown does
+        if not answer.taken:
+            progress.print(f'{answer.error_code}: {answer.message}', markup=False, soft_wrap=True)
+            raise typer.Exit(EXIT_ERROR)
+        print(f'{task_id}  {"rejected" if reject else "confirmed"}', flush=True)

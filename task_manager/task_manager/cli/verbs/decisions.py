@@ -34,9 +34,12 @@ def reprioritize(
 
     Exit 0 when every one has it.
     """
-    with connected(ctx) as client:
-        result = client.reprioritize(task_ids, priority, source=source)
-    report_each(result, 'successful_changes', f'priority {priority}')
+    with connected(ctx) as client:  # told before the client closes, as confirm
+        report_each(
+            client.reprioritize(task_ids, priority, source=source),
+            'successful_changes',
+            f'priority {priority}',
+        )
 
 
 def decision_line(decision: Decision) -> str:

@@ -168,6 +168,49 @@ def test_results_follow_follows_before_it_reads_the_kept_ones_and_shows_each_onc
     assert [line['task_id'] for line in _lines(result.stdout)] == ['drive', 'later']
 
 
+class TeardownCrashError(Exception):
+    """Stands for the middleware failing as the client closes."""
+
+
+@pytest.mark.parametrize(
+    ('args', 'answers', 'said'),
+    [
+        (['confirm', 'tray'], {'confirm': SimpleNamespace(taken=True)}, 'tray  confirmed\n'),
+        (
+            ['reprioritize', 'drive', '7'],
+            {
+                'reprioritize': TaskResult(
+                    'p', 'system/reprioritize', TaskStatus.DONE, ErrorCode.NONE,
+                    {'successful_changes': ['drive']},
+                )
+            },
+            'drive  priority 7\n',
+        ),
+    ],
+)  # fmt: skip
+def test_a_change_is_told_before_the_client_closes(
+    cli: SimpleNamespace,
+    monkeypatch: pytest.MonkeyPatch,
+    args: list[str],
+    answers: dict[str, Any],
+    said: str,
+) -> None:
+    """A confirmation the Task Manager took is printed even if closing the client fails."""
+
+    @contextmanager
+    def connected(ctx: typer.Context, events: bool = False) -> Iterator[FakeClient]:
+        yield FakeClient(**answers)
+        raise TeardownCrashError
+
+    for module in (cli.verbs[3], importlib.import_module('task_manager.cli.verbs.confirm')):
+        monkeypatch.setattr(module, 'connected', connected)
+
+    result = CliRunner().invoke(cli.main.app, args)
+
+    assert isinstance(result.exception, TeardownCrashError)
+    assert result.stdout == said
+
+
 def test_history_json_has_the_mission_the_sequence_and_the_pauses(run: Any) -> None:
     client = FakeClient(history=[DRIVE])
 
