@@ -2,7 +2,6 @@
 listeners of its kind; an iterator drains its own inbox, with bounded waits; a user's callback
 is called, and what it raises is logged, not spread."""
 
-import contextlib
 import queue
 import threading
 import traceback
@@ -77,15 +76,6 @@ class Listeners(Generic[T]):
         """The listeners now, to give them an update without the lock."""
         with self._lock:
             return list(self._listeners)
-
-    @contextlib.contextmanager
-    def listening(self, inbox: Listener[T]) -> Iterator[None]:
-        """Have `inbox` get the updates until the block ends."""
-        stop_listening = self.add(inbox)
-        try:
-            yield
-        finally:
-            stop_listening()
 
 
 def drain(inbox: Inbox[T], timeout_sec: float | None, until: Future[Any] | None) -> Iterator[T]:
