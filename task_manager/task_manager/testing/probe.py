@@ -92,7 +92,8 @@ class TaskManagerProbe:
 
     def wait_until_connected(self) -> None:
         """Wait until goals, results and both topics work end to end (see warm_up)."""
-        assert wait_until_ready(self.client.server_is_ready, self.timeout_sec), 'no execute_task'
+        ready = wait_until_ready(self.client.server_is_ready, self.timeout_sec)
+        assert ready, 'no execute_task server'
         self.results.wait_matched(self.timeout_sec)
         self.active.wait_matched(self.timeout_sec)
         warm_up(self.client)

@@ -202,8 +202,10 @@ def test_a_change_is_told_before_the_client_closes(
         yield FakeClient(**answers)
         raise TeardownCrashError
 
-    for module in (cli.verbs[3], importlib.import_module('task_manager.cli.verbs.confirm')):
-        monkeypatch.setattr(module, 'connected', connected)
+    for verb in ('confirm', 'decisions'):
+        monkeypatch.setattr(
+            importlib.import_module(f'task_manager.cli.verbs.{verb}'), 'connected', connected
+        )
 
     result = CliRunner().invoke(cli.main.app, args)
 
