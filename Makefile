@@ -138,17 +138,16 @@ $(STAMPS)/mosquitto: | $(PY) $(STAMPS)/chromium
 $(STAMPS)/postgresql: | $(PY) $(STAMPS)/mosquitto
 	$(call debian_package,postgresql,/usr/lib/postgresql/*/bin/initdb,the fleet console's database)
 
-# `make test` runs the suite in 3 processes (pytest-xdist, each its own ROS domain; files shared
-# out whole) on 2 cores (about half its CPU is starting processes: ~316 Task Managers, 81
-# taskctl, 60 web gateways, ...). Measured: 631-689 s with 2, 497-525 s with 3 (1.5 cores
-# busy), 467-497 s with 4 (1.7); but with 4, each of four runs failed a test that bounds a time
-# (a control request answered in 1.2 s for a bound of 1 s beside 500 reads), or found a bug the
-# load made likely (fixed: the request window of 5c8d135 and 4addc9c). With 3, a web gateway
-# stopped right after its start sometimes missed the SIGINT (twice in CI, also once with 2):
-# it now keeps one handler of its own for its whole run (test_web_stop.py). Tried again on
-# 2026-11-28: 384-463 s with 4 against 437-443 s with 3, a fresh clone's make test 8 min 12 s
-# against 8 min 45 s; one run of four lost a taskctl to a segmentation fault (-11) as it
-# closed, under that load: 3 until that is found.
+# `make test` runs the suite in 4 processes (pytest-xdist, each its own ROS domain; files shared
+# out whole, the slowest first) on 2 cores: the tests wait more than they compute (about half
+# their CPU is starting processes: ~324 Task Managers, 81 taskctl, 60 web gateways, ...).
+# Measured in one hour, on one tree: 393 s with 3 (1.57 cores busy), 341-349 s with 4 (1.77).
+# 4 was tried twice before and put back to 3 for failures the load brought out: a control
+# request bound to 1 s beside 500 reads (now bound to 2 s; the bug it guards took 2.2-6.9 s),
+# requests lost by a busy server (fixed: the request window, 5c8d135 and 4addc9c), and once a
+# taskctl that died of a segmentation fault as it closed, after its answer (never reproduced
+# in 800 runs under load; the tests now start every process with PYTHONFAULTHANDLER=1, so a
+# next one prints its threads' stacks).
 # The layers' contracts (.importlinter), run in an empty folder: in the repository's root the
 # colcon folder task_manager/ would pass for the package, and so would build/task_manager/ (the
 # colcon check's build of it) in build/.
@@ -160,12 +159,12 @@ LINT_IMPORTS := mkdir -p $(BUILD)/lint-imports && cd $(BUILD)/lint-imports && $(
 TIMED = @TIMEFORMAT='[make test] $(1): %0R s wall, %0U s user, %0S s system'; time
 test:
 	$(call TIMED,install and lint) $(MAKE) --no-print-directory -j4 --output-sync=target install static-checks
-	$(call TIMED,pytest) $(VENV)/bin/pytest -n 3 --dist loadfile --durations=10
+	$(call TIMED,pytest) $(VENV)/bin/pytest -n 4 --dist loadfile --durations=10
 
 # The seconds each test file takes, slowest first (test-durations.json): `make test` starts the
 # slowest files first (conftest.py). Run again when files were added or got slower.
 test-durations: install
-	$(VENV)/bin/pytest -n 3 --dist loadfile --store-durations
+	$(VENV)/bin/pytest -n 4 --dist loadfile --store-durations
 
 # The static checks of `make test`. They need our packages installed, not the interfaces built
 # (mypy skips the generated messages): they run while CMake builds those.
