@@ -24,6 +24,7 @@ from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.log import NodeLog
+from task_manager.rclpy_tools.spin_thread import SpinThread
 
 DEFAULT_TIMEOUT_SEC = 5.0
 # A request is sent again after this long without a reply, then after twice as long, ...:
@@ -56,26 +57,27 @@ class Connection:
         """Who is told each change of `connected`."""
         self._matched: set[str] = set()
         self._executor = SingleThreadedExecutor(context=self._context)
-        self._spin_thread = threading.Thread(target=self._spin, daemon=True)
+        self._spinner = SpinThread(self._executor, self.node, 'task-manager-client', _end_thread)
 
     def start(self) -> None:
         """Spin the node in the background thread (once the helpers have made their ends)."""
         self._executor.add_node(self.node)
-        self._spin_thread.start()
+        self._spinner.start()
 
     def close(self) -> None:
+        """Stop the executor thread, then destroy the node and the context. A thread still in a
+        callback after `timeout_sec` keeps them: destroying a node under the thread that spins
+        it can crash the process; they go with the process."""
+        if not self._spinner.stop(self.timeout_sec):
+            NodeLog.of(self.node).warning(
+                f"the client's executor thread did not end within {self.timeout_sec:g} s; "
+                'its node is left to the end of the process'
+            )
+            return
         self._executor.shutdown()
-        self._spin_thread.join(timeout=self.timeout_sec)
         destroy_waitables(self.node)
         self.node.destroy_node()
         rclpy.try_shutdown(context=self._context)
-
-    def _spin(self) -> None:
-        try:
-            self._executor.spin()
-        except Exception:  # the context is shutting down under us
-            if self._context.ok():
-                raise
 
     def subscribe(
         self,
@@ -189,3 +191,9 @@ class EventFeed:
             return
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         self._connection.wait_matched({TASK_EVENT_BATCHES_TOPIC}, timeout_sec)
+
+
+def _end_thread(error: Exception) -> None:
+    """An error of the executor itself (a topic's callbacks catch their own) ends its thread, as
+    rclpy's `spin` would."""
+    raise error

@@ -14,6 +14,7 @@ from rclpy.qos import QoSProfile
 from rclpy.task import Future
 
 from task_manager.rclpy_tools.cleanup import destroy_waitables
+from task_manager.rclpy_tools.spin_thread import SpinThread
 
 T = TypeVar('T')
 
@@ -124,17 +125,10 @@ class RosHarness:
         self.callback_errors: list[Exception] = []
         self._closing = False
         _HARNESSES[id(self.node)] = self
-        self._thread = threading.Thread(target=self._spin, name=f'{node_name}-spin', daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        while not self._closing and rclpy.ok():
-            try:
-                self.executor.spin()
-            except Exception as error:
-                if self._closing or not rclpy.ok():  # shutting down under us
-                    return
-                self.callback_errors.append(error)
+        self._spinner = SpinThread(
+            self.executor, self.node, f'{node_name}-spin', self.callback_errors.append
+        )
+        self._spinner.start()
 
     def on_executor(self, function: Callable[[], T], timeout_sec: float = 10.0) -> T:
         """Run `function` on the executor thread and return its result.
@@ -159,7 +153,7 @@ class RosHarness:
         lock: sent from another thread, a response handled in between raises ValueError
         ('list.remove(x): x not in list'). Send goals of the harness's clients through this.
         """
-        if threading.current_thread() is self._thread:
+        if self._spinner.is_current():
             return cast(
                 Future[Any], client.send_goal_async(goal, feedback_callback=feedback_callback)
             )
@@ -171,7 +165,7 @@ class RosHarness:
         """Destroy action clients and servers, recorders (what has `destroy()`) of this node on
         the thread spinning it (see destroy_on_executor)."""
         for entity in entities:
-            if self._closing or threading.current_thread() is self._thread:
+            if self._closing or self._spinner.is_current():
                 entity.destroy()
             else:
                 self.on_executor(entity.destroy)
@@ -182,8 +176,8 @@ class RosHarness:
     def close(self) -> None:
         """Stop spinning and destroy the node; raises CallbackError if a callback raised."""
         self._closing = True
+        assert self._spinner.stop(timeout_sec=5.0), 'a callback on the test node did not return'
         self.executor.shutdown()
-        self._thread.join(timeout=5.0)
         destroy_waitables(self.node)
         self.node.destroy_node()
         if self.callback_errors:
