@@ -21,6 +21,7 @@ from rclpy.task import Future
 from std_srvs.srv import SetBool
 from test_msgs.action import Fibonacci
 
+from task_manager.rclpy_tools.spin_thread import SpinThread
 from task_manager.testing.harness import RosHarness, WaitTimeoutError, wait_for_future
 from task_manager.testing.process import LaunchTaskManager, action_task, service_task
 from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal, ScriptedService
@@ -161,12 +162,16 @@ def busy_server_node(ros_context: None) -> Iterator[rclpy.node.Node]:
     node = rclpy.create_node(f'busy_server_{os.getpid()}')
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
+    spinner = SpinThread(executor, node, 'busy-server', _raise)
+    spinner.start()
     yield node
+    assert spinner.stop(TIMEOUT_SEC), 'the busy server is still in a callback'
     executor.shutdown()
-    thread.join(TIMEOUT_SEC)
     node.destroy_node()
+
+
+def _raise(error: Exception) -> None:
+    raise error
 
 
 def test_every_result_comes_back_when_a_busy_server_drops_the_requests_for_them(
