@@ -3,7 +3,6 @@ Executor.shutdown() from another thread, and the thread has ended when `stop` re
 
 import os
 import threading
-import time
 from collections.abc import Iterator
 
 import pytest
@@ -69,11 +68,9 @@ def test_stop_wakes_a_thread_waiting_with_nothing_ready_and_joins_it(node: Node)
     executor.create_task(ran.set)
     assert ran.wait(TIMEOUT_SEC)  # the thread spins, then waits: nothing else is ready
 
-    started = time.monotonic()
-    ended = spinner.stop(TIMEOUT_SEC)
+    ended = spinner.stop(TIMEOUT_SEC)  # without a wake-up, it would wait on to the timeout
 
     assert ended
-    assert time.monotonic() - started < STILL_WAITING_SEC
     executor.shutdown()
 
 
