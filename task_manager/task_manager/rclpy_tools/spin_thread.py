@@ -42,9 +42,11 @@ class SpinThread:
         return threading.current_thread() is self._thread
 
     def stop(self, timeout_sec: float) -> bool:
-        """Wake the thread, let it end its callback, join it; whether it ended in time."""
-        self._stopping = True
-        self._wake.trigger()
+        """Wake the thread, let it end its callback, join it; whether it ended in time. Again
+        once stopped (a client closed twice), only the join: the node may be gone."""
+        if not self._stopping:
+            self._stopping = True
+            self._wake.trigger()
         self._thread.join(timeout_sec)
         return not self._thread.is_alive()
 

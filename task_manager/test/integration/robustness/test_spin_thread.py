@@ -4,12 +4,14 @@ Executor.shutdown() from another thread, and the thread has ended when `stop` re
 import os
 import threading
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from task_manager import TaskManagerClient
 from task_manager.rclpy_tools.spin_thread import SpinThread
 
 pytestmark = pytest.mark.ros
@@ -34,7 +36,7 @@ class ShutdownWhileGathering(SingleThreadedExecutor):
         super().__init__()
         self.armed = False
 
-    def can_execute(self, entity: object) -> bool:
+    def can_execute(self, entity: Any) -> bool:
         if self.armed:
             self.armed = False
             self.shutdown()
@@ -80,7 +82,12 @@ def test_stop_returns_after_the_callback_in_progress_ends(node: Node) -> None:
     spinner = SpinThread(executor, node, 'spin-thread-test', lambda error: None)
     spinner.start()
     inside, release = threading.Event(), threading.Event()
-    executor.create_task(lambda: (inside.set(), release.wait(TIMEOUT_SEC)))
+
+    def held() -> None:
+        inside.set()
+        release.wait(TIMEOUT_SEC)
+
+    executor.create_task(held)
     assert inside.wait(TIMEOUT_SEC)
     results: list[bool] = []
     stopping = threading.Thread(target=lambda: results.append(spinner.stop(TIMEOUT_SEC)))
@@ -114,3 +121,10 @@ def test_an_error_of_the_executor_goes_to_on_error_and_the_thread_spins_on(node:
     assert [str(error) for error in errors] == ['in a callback']
     assert spinner.stop(TIMEOUT_SEC)
     executor.shutdown()
+
+
+def test_a_client_closed_twice_closes_once(ros_context: None) -> None:
+    client = TaskManagerClient('closed_twice', timeout_sec=TIMEOUT_SEC)
+    client.close()
+
+    client.close()  # the node and its guard condition are gone: nothing to wake
