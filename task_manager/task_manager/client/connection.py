@@ -57,7 +57,7 @@ class Connection:
         """Who is told each change of `connected`."""
         self._matched: set[str] = set()
         self._executor = SingleThreadedExecutor(context=self._context)
-        self._spinner = SpinThread(self._executor, self.node, 'task-manager-client', _end_thread)
+        self._spinner = SpinThread(self._executor, self.node, 'task-manager-client')
 
     def start(self) -> None:
         """Spin the node in the background thread (once the helpers have made their ends)."""
@@ -191,9 +191,3 @@ class EventFeed:
             return
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         self._connection.wait_matched({TASK_EVENT_BATCHES_TOPIC}, timeout_sec)
-
-
-def _end_thread(error: Exception) -> None:
-    """An error of the executor itself (a topic's callbacks catch their own) ends its thread, as
-    rclpy's `spin` would."""
-    raise error

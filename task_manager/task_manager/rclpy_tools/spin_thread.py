@@ -21,11 +21,16 @@ class SpinThread:
     """Spins `executor` (holding `node`) in a daemon thread named `name` until `stop`.
 
     What `spin_once` raises goes to `on_error` unless the thread is stopping or the context is
-    going; `on_error` returns to spin on, or raises to end the thread.
+    going; `on_error` returns to spin on, or raises to end the thread. Without one, the error
+    ends the thread, as it ends rclpy's `spin`.
     """
 
     def __init__(
-        self, executor: Executor, node: Node, name: str, on_error: Callable[[Exception], None]
+        self,
+        executor: Executor,
+        node: Node,
+        name: str,
+        on_error: Callable[[Exception], None] | None = None,
     ) -> None:
         self._executor = executor
         self._node = node
@@ -57,4 +62,6 @@ class SpinThread:
             except Exception as error:
                 if self._stopping or not self._node.context.ok():
                     return
+                if self._on_error is None:
+                    raise
                 self._on_error(error)

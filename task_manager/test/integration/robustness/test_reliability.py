@@ -162,16 +162,12 @@ def busy_server_node(ros_context: None) -> Iterator[rclpy.node.Node]:
     node = rclpy.create_node(f'busy_server_{os.getpid()}')
     executor = SingleThreadedExecutor()
     executor.add_node(node)
-    spinner = SpinThread(executor, node, 'busy-server', _raise)
+    spinner = SpinThread(executor, node, 'busy-server')
     spinner.start()
     yield node
     assert spinner.stop(TIMEOUT_SEC), 'the busy server is still in a callback'
     executor.shutdown()
     node.destroy_node()
-
-
-def _raise(error: Exception) -> None:
-    raise error
 
 
 def test_every_result_comes_back_when_a_busy_server_drops_the_requests_for_them(

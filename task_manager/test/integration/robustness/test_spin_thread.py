@@ -128,3 +128,21 @@ def test_a_client_closed_twice_closes_once(ros_context: None) -> None:
     client.close()
 
     client.close()  # the node and its guard condition are gone: nothing to wake
+
+
+def test_without_on_error_an_error_of_the_executor_ends_the_thread(node: Node) -> None:
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    spinner = SpinThread(executor, node, 'spin-thread-ended-by-an-error')
+    spinner.start()
+    (thread,) = [t for t in threading.enumerate() if t.name == 'spin-thread-ended-by-an-error']
+
+    def fail() -> None:
+        raise ValueError('in a callback')
+
+    executor.create_task(fail)
+    thread.join(TIMEOUT_SEC)  # not stopped: only the error ends it
+
+    assert not thread.is_alive()
+    assert spinner.stop(TIMEOUT_SEC)
+    executor.shutdown()
