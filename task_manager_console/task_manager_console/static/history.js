@@ -15,6 +15,5 @@ export const { loadHistory, addHistoryRow, wireHistory } = historyTable({
   keyOf: (result) => `${result.robot_id}\n${result.sequence}`,
   attributes: (result) => ({ 'data-robot-id': result.robot_id }),
   leadingCells: (result) => [element('td', { text: result.robot_id })],
-  repeats: true,
   csvName: 'fleet_history.csv',
 });

@@ -7,7 +7,8 @@ import { statusCell } from './tasks.js';
 export const { loadHistory, addHistoryRow, wireHistory } = historyTable({
   filters: [{ name: 'task_name', label: 'Task', list: 'task-names' }, STATUS_FILTER, { name: 'source', label: 'Source' }],
   sinceParameter: 'since',
-  keyOf: (task) => task.task_id,
+  // a task id may be used again once its task ended: its number in the history tells the ends apart
+  keyOf: (task) => `${task.task_id}\n${task.sequence}`,
   statusCell: (task) => statusCell(task, task.status),
   csvName: 'task_history.csv',
 });

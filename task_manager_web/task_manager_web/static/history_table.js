@@ -33,11 +33,11 @@ function sinceControl() {
 //   filters: the form's filters, each {name, label, list (a datalist's id), choices}, sent as
 //     the query's parameters of their names and matched against a live row's fields;
 //   sinceParameter: the query's parameter of the earliest end (the form's "Ended within");
-//   keyOf(entry): what tells one entry (a row's document) from another;
+//   keyOf(entry): what tells one stored end (a row's document) from another: an entry already
+//     shown is not shown again (a live row may come after a read that already held it, or twice);
 //   attributes(entry): the row's attributes besides data-key and data-task-id (none by default);
 //   leadingCells(entry): the cells before the task's own (none by default);
 //   statusCell(entry): the status's cell (its badge by default);
-//   repeats: a live row may come more than once (then it is shown once);
 //   csvName: the export's file name.
 export function historyTable(options) {
   const names = options.filters.map((filter) => filter.name);
@@ -105,7 +105,7 @@ export function historyTable(options) {
   function showRow(entry) {
     const body = $('#history tbody');
     const key = options.keyOf(entry);
-    if (options.repeats && [...body.children].some((row) => row.dataset.key === key)) return;
+    if ([...body.children].some((row) => row.dataset.key === key)) return;
     body.prepend(historyRow(entry));
     while (body.children.length > HISTORY_ROWS) body.lastElementChild.remove();
     showEmpty();
