@@ -51,14 +51,14 @@ from pathlib import Path
 import pytest
 import rclpy
 
-from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import prepare_ros_process
 from task_manager.testing.gateway import Robot, ScriptedRobot
 from task_manager.testing.harness import RosHarness
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """As the Task Manager's own processes do: this one and every process a test starts."""
-    use_quick_discovery()
+    prepare_ros_process()
 
 
 @pytest.fixture(scope='session')

@@ -27,7 +27,7 @@ from rclpy.task import Future
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto, UploadPhotos
 
-from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import prepare_ros_process
 from task_manager_demo.motion import DriveToPose, Motion, Pose, Speeds, SpinBy
 from task_manager_demo.robot_interface import (
     DOCK_ACTION,
@@ -302,7 +302,7 @@ class SimRobot(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Console script `task-manager-demo-robot`: run the simulated robot until interrupted."""
-    use_quick_discovery()
+    prepare_ros_process()
     rclpy.init(args=args if args is not None else sys.argv)
     node = None
     executor = SingleThreadedExecutor()

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from task_manager.client import TaskManagerClient
-from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import prepare_ros_process
 from task_manager_mqtt.bridge import Bridge
 from task_manager_mqtt.settings import (
     DEFAULT_MAX_PAYLOAD_BYTES,
@@ -115,7 +115,7 @@ def settings_from(options: dict[str, Any]) -> BridgeSettings:
 
 
 def main(argv: list[str] | None = None) -> int:
-    use_quick_discovery()
+    prepare_ros_process()
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT, stream=sys.stderr)
     try:
         settings = settings_from(vars(_arguments(argv)))

@@ -21,7 +21,7 @@ from task_manager_mqtt.settings import Broker, SettingsError
 
 from task_manager.client import TaskManagerClient
 from task_manager.core.errors import TaskManagerError
-from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import prepare_ros_process
 from task_manager_vda5050.adapter import STATE_PERIOD_SEC, Adapter
 from task_manager_vda5050.link import Link
 from task_manager_vda5050.mapping import Mapping, MappingError, read_mapping
@@ -65,7 +65,7 @@ def _broker(options: argparse.Namespace) -> Broker:
 
 
 def main(argv: list[str] | None = None) -> int:
-    use_quick_discovery()
+    prepare_ros_process()
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT, stream=sys.stderr)
     options = _arguments(argv)
     try:

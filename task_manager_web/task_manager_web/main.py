@@ -11,7 +11,7 @@ import logging
 import sys
 
 from task_manager.client import TaskManagerClient
-from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import prepare_ros_process
 from task_manager_web.app import Settings, create_app
 from task_manager_web.doors.settings import (
     MAX_BODY_BYTES,
@@ -72,7 +72,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
 
 
 def main(argv: list[str] | None = None) -> None:
-    use_quick_discovery()
+    prepare_ros_process()
     arguments = _arguments(argv)
     logging.basicConfig(
         level=logging.INFO, format='[%(levelname)s] [task_manager_web]: %(message)s'

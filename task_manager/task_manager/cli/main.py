@@ -16,7 +16,7 @@ from task_manager.cli.verbs.schedule import schedule_app
 from task_manager.cli.verbs.start import start
 from task_manager.cli.verbs.tasks import tasks
 from task_manager.cli.verbs.watch import active, results
-from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import prepare_ros_process
 
 app = typer.Typer(
     name='taskctl',
@@ -47,7 +47,7 @@ app.add_typer(schedule_app)
 
 def main() -> None:
     """Run taskctl; errors print one `ErrorType: message` line and exit non-zero."""
-    use_quick_discovery()
+    prepare_ros_process()
     try:
         app()  # exits by itself, also for usage errors (exit code 2)
     except TaskManagerUnavailable as error:

@@ -9,7 +9,7 @@ waits for them and hands the shutdown to the executor as a task.
 import signal
 import sys
 
-from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import prepare_ros_process
 
 SHUTDOWN_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
@@ -21,7 +21,7 @@ def main(args: list[str] | None = None) -> int:
     # Hence the node's modules are imported only now, and importing this module has no
     # effect on the importer's signals.
     signal.pthread_sigmask(signal.SIG_BLOCK, SHUTDOWN_SIGNALS)
-    use_quick_discovery()
+    prepare_ros_process()
     from task_manager.ros.node_process import run
 
     return run(args if args is not None else sys.argv, SHUTDOWN_SIGNALS)

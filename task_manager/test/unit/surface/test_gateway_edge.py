@@ -1,7 +1,7 @@
 """The public surface a gateway stands on: what the web gateway, the MQTT bridge, the VDA 5050
 adapter and the fleet console import of `task_manager` is the client, the protocol, the
-gateway package, core's values and discovery (task_manager/gateway/__init__.py says so), and
-the contract that keeps them off the node allows no indirect import."""
+gateway package, core's values and the process set-up (task_manager/gateway/__init__.py says
+so), and the contract that keeps them off the node allows no indirect import."""
 
 import ast
 import configparser
@@ -14,7 +14,7 @@ EDGE = (
     'task_manager.protocol',
     'task_manager.gateway',
     'task_manager.core',
-    'task_manager.discovery',
+    'task_manager.process_setup',
 )
 TESTING = 'task_manager.testing'
 """Also imported by a gateway's own test fixtures (its testing modules)."""

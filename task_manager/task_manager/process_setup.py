@@ -1,0 +1,61 @@
+"""What each of the Task Manager's ROS 2 processes sets up before rclpy starts (no rclpy here).
+
+`prepare_ros_process()` is called first thing by every program of ours that runs a ROS 2 node
+(the Task Manager, taskctl, the gateways, the simulated robot):
+
+- Fast DDS announces the process quickly (`discovery.use_quick_discovery`);
+- message type supports load without rosidl's code generator. A generated message imports
+  `rosidl_generator_py` for its type support the first time a node uses it, and that package's
+  `__init__` also imports its code generator (lark, empy, rosidl_parser) to offer
+  `generate_py`, which only a build of interfaces calls: about 25 ms of CPU in every process,
+  a twentieth of a Task Manager's start. Here the package is registered without running its
+  `__init__`: `import_type_support` is loaded at once, `generate_py` when it is first asked for.
+"""
+
+import importlib
+import importlib.util
+import sys
+from types import ModuleType
+from typing import Any
+
+from task_manager.discovery import use_quick_discovery
+
+GENERATOR_PACKAGE = 'rosidl_generator_py'
+
+
+def prepare_ros_process() -> None:
+    """Quick discovery and type supports without the code generator (see the module)."""
+    use_quick_discovery()
+    load_type_supports_without_code_generator()
+
+
+def load_type_supports_without_code_generator() -> bool:
+    """Register `rosidl_generator_py` with only what loading a type support needs; whether it
+    did (not when the package is already imported, or missing)."""
+    if GENERATOR_PACKAGE in sys.modules:
+        return False
+    spec = importlib.util.find_spec(GENERATOR_PACKAGE)
+    if spec is None or spec.submodule_search_locations is None:
+        return False
+    package = importlib.util.module_from_spec(spec)
+    sys.modules[GENERATOR_PACKAGE] = package
+    try:
+        loading = importlib.import_module(f'{GENERATOR_PACKAGE}.import_type_support_impl')
+    except ImportError:
+        del sys.modules[GENERATOR_PACKAGE]
+        return False
+    package.import_type_support = loading.import_type_support  # type: ignore[attr-defined]
+    package.__all__ = ['import_type_support', 'generate_py']  # type: ignore[attr-defined]
+    package.__getattr__ = _code_generator_on_demand(package)  # type: ignore[method-assign]
+    return True
+
+
+def _code_generator_on_demand(package: ModuleType) -> Any:
+    def __getattr__(name: str) -> Any:  # noqa: N807 (PEP 562: the module's attribute hook)
+        if name != 'generate_py':
+            raise AttributeError(f'module {package.__name__!r} has no attribute {name!r}')
+        generating = importlib.import_module(f'{package.__name__}.generate_py_impl')
+        package.generate_py = generating.generate_py  # type: ignore[attr-defined]
+        return generating.generate_py
+
+    return __getattr__
