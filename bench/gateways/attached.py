@@ -113,10 +113,15 @@ class HeldRamps:
         self.shares: dict[str, list[float]] = {ALONE.name: [], ATTACHED.name: []}
         self.ramps_ms: dict[str, list[float]] = {ALONE.name: [], ATTACHED.name: []}
         self.failures: list[str] = []
+        # when the last held goals ended: at first, when the benchmark began (those of the
+        # benchmarks before it were gone by then)
+        self._held_ended = time.monotonic()
 
     def measure(self, setting: Setting, _index: int) -> None:
         count = config.CONCURRENT_TASKS
-        self._ctx.wait_kept_goals_gone()  # rclpy's hold server walks the goals it keeps
+        # rclpy's hold server walks the goals it keeps: the last ramp's must be gone (a phase's
+        # dispatch samples and bursts usually take longer than they are kept)
+        self._ctx.wait_kept_goals_gone(since=self._held_ended)
         direct = direct_hold(self._ctx, count)
         watcher = ActiveTasksWatcher(self._ctx.client.harness)
         try:
@@ -127,6 +132,7 @@ class HeldRamps:
             return
         finally:
             watcher.destroy()
+            self._held_ended = time.monotonic()
         self.shares[setting.name].append(ratio(managed.ramp_sec, direct.ramp_sec))
         self.ramps_ms[setting.name].append(managed.ramp_sec * 1000)
 

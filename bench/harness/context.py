@@ -143,11 +143,16 @@ class BenchContext:
         print(f'[bench] settling {config.SETTLE_SEC} s', flush=True)
         time.sleep(config.SETTLE_SEC)
 
-    def wait_kept_goals_gone(self) -> None:
-        """Let the node's ExecuteTask server drop the finished goals it keeps (a fixed pause),
-        before a measurement of its memory or idle CPU."""
-        print(f'[bench] waiting {config.KEPT_GOALS_SEC} s for the kept goals to go', flush=True)
-        time.sleep(config.KEPT_GOALS_SEC)
+    def wait_kept_goals_gone(self, since: float | None = None) -> None:
+        """Let the node's ExecuteTask server and rclpy's servers drop the finished goals they
+        keep (KEPT_GOALS_SEC after the last one ended), before a measurement of memory or idle
+        CPU, or of a server that walks them. `since`: when the last goal ended
+        (time.monotonic()), where the caller knows it; else just now."""
+        elapsed = time.monotonic() - since if since is not None else 0.0
+        left = config.KEPT_GOALS_SEC - elapsed
+        if left > 0:
+            print(f'[bench] waiting {left:.1f} s for the kept goals to go', flush=True)
+            time.sleep(left)
 
     def task_latency_ms(
         self, task_name: str, task_data: str, timeout_sec: float = config.SAMPLE_TIMEOUT_SEC
