@@ -54,11 +54,18 @@ install: $(BUILD)/COLCON_IGNORE
 $(BUILD)/COLCON_IGNORE:
 	@mkdir -p $(BUILD) && touch $@
 
+# The venv is made without pip (its ensurepip took 5 s of a fresh clone's install): uv is
+# installed into it by the machine's pip where that pip can install into another interpreter
+# (--python, pip 22.3), else by a pip put into the venv for it.
 $(PY):
-	python3 -m venv $(VENV)
+	python3 -m venv --without-pip $(VENV)
 
 $(STAMPS)/installer: requirements/installer.txt | $(PY)
-	$(PIP) install --quiet -r requirements/installer.txt
+	if python3 -m pip --disable-pip-version-check --python $(PY) --version > /dev/null 2>&1; then \
+	  python3 -m pip --disable-pip-version-check --python $(PY) install --quiet -r requirements/installer.txt; \
+	else \
+	  $(PY) -m ensurepip --default-pip > /dev/null && $(PIP) install --quiet -r requirements/installer.txt; \
+	fi
 	@mkdir -p $(STAMPS) && touch $@
 
 $(STAMPS)/ros-wheels: requirements/ros.txt requirements/build.txt $(CONSTRAINTS) $(STAMPS)/installer
@@ -169,8 +176,9 @@ test-durations: install
 
 # The static checks of `make test`. They need our packages installed, not the interfaces built
 # (mypy skips the generated messages): they run while CMake builds those.
+# They run niced: the interface builds, which the tests wait for, get the cores first.
 static-checks: $(STAMPS)/packages
-	$(call TIMED,lint (ruff, mypy, import contracts)) { $(VENV)/bin/ruff check . && $(VENV)/bin/mypy && $(LINT_IMPORTS); }
+	$(call TIMED,lint (ruff, mypy, import contracts)) nice -n 10 bash -c '$(VENV)/bin/ruff check . && $(VENV)/bin/mypy && $(LINT_IMPORTS)'
 
 lint: install
 	$(VENV)/bin/ruff check .

@@ -28,3 +28,16 @@ function(_task_manager_unity_exceptions)
     endif()
   endforeach()
 endfunction()
+
+# 3. rosidl_generator_py's command waits for the target of every other generator (its comment:
+#    the IDL files could be generated files), though it reads only the IDL files, which
+#    rosidl_adapter writes at configure time: it runs beside the C generators rather than alone
+#    after them (task_manager_msgs: the last 11 s of its build on one core). Its compiled
+#    modules still wait for the C type supports they link.
+variable_watch(_custom_command _task_manager_python_generator_sooner)
+macro(_task_manager_python_generator_sooner _variable _access _value)
+  if("${_access}" STREQUAL "READ_ACCESS")
+    string(REPLACE "DEPENDS \${target_dependencies} \${rosidl_generate_interfaces_TARGET}"
+      "DEPENDS \${target_dependencies}" _custom_command "${_custom_command}")
+  endif()
+endmacro()
