@@ -3,6 +3,7 @@
 import json
 import math
 import os
+import resource
 import signal
 
 # numpy, which every ROS 2 Python process imports (rclpy's service_msgs), starts OpenBLAS's
@@ -21,7 +22,8 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 
 # A process a test starts that dies of a fatal signal (a segmentation fault at exit was seen
-# once in a taskctl) prints the Python stack of each of its threads to its stderr.
+# once in a taskctl, and NodeProcess.stop aborts a process that does not stop) prints the
+# Python stack of each of its threads to its stderr (and no core file: see pytest_configure).
 os.environ.setdefault('PYTHONFAULTHANDLER', '1')
 
 # Keep this run's DDS traffic apart from other runs on the machine, and on it: each run claims a
@@ -57,8 +59,10 @@ from task_manager.testing.harness import RosHarness
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """As the Task Manager's own processes do: this one and every process a test starts."""
+    """As the Task Manager's own processes do: this one and every process a test starts; and
+    none of them writes a core file."""
     prepare_ros_process()
+    resource.setrlimit(resource.RLIMIT_CORE, (0, resource.getrlimit(resource.RLIMIT_CORE)[1]))
 
 
 @pytest.fixture(scope='session')

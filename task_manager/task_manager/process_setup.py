@@ -10,17 +10,27 @@
   `generate_py`, which only a build of interfaces calls: about 25 ms of CPU in every process,
   a twentieth of a Task Manager's start. Here the package is registered without running its
   `__init__`: `import_type_support` is loaded at once, `generate_py` when it is first asked for.
+
+`end_within()` is how each of them ends once its work is done: its ROS entities are destroyed
+within a bound, or the process exits anyway (see there).
 """
 
+import faulthandler
 import importlib
 import importlib.util
+import os
 import sys
+import threading
+from collections.abc import Callable
 from types import ModuleType
 from typing import Any
 
 from task_manager.discovery import use_quick_discovery
 
 GENERATOR_PACKAGE = 'rosidl_generator_py'
+END_TIMEOUT_SEC = 5.0
+"""How long a program's ROS entities may take to be destroyed once its work is done (well under
+a second when nothing goes wrong)."""
 
 
 def prepare_ros_process() -> None:
@@ -59,3 +69,39 @@ def _code_generator_on_demand(package: ModuleType) -> Any:
         return generating.generate_py
 
     return __getattr__
+
+
+def end_within(release: Callable[[], None], program: str, exit_code: int) -> None:
+    """Run `release` (destroying the program's ROS entities, its work done); if it has not
+    returned within END_TIMEOUT_SEC, say so in one line on stderr (with every thread's stack
+    when faulthandler is on, e.g. PYTHONFAULTHANDLER=1) and end the process with `exit_code`.
+
+    Fast DDS 3.2 can deadlock while it destroys a reader or a participant as another process
+    leaves the domain (its timer thread and a receive thread each waiting for the other, the
+    kind reported as eProsima/Fast-DDS#6502); a program whose work is done must not hang on it.
+    """
+    raised: list[BaseException] = []
+
+    def run() -> None:
+        try:
+            release()
+        except BaseException as error:  # raised again by the caller's thread
+            raised.append(error)
+
+    releasing = threading.Thread(target=run, name=f'{program}-end', daemon=True)
+    releasing.start()
+    releasing.join(END_TIMEOUT_SEC)
+    if not releasing.is_alive():
+        if raised:
+            raise raised[0]
+        return
+    print(
+        f'{program}: the ROS middleware did not shut down within {END_TIMEOUT_SEC:g} s; '
+        'exiting anyway',
+        file=sys.stderr,
+        flush=True,
+    )
+    if faulthandler.is_enabled():
+        faulthandler.dump_traceback(all_threads=True)
+    sys.stdout.flush()
+    os._exit(exit_code)

@@ -27,7 +27,7 @@ from rclpy.task import Future
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto, UploadPhotos
 
-from task_manager.process_setup import prepare_ros_process
+from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_demo.motion import DriveToPose, Motion, Pose, Speeds, SpinBy
 from task_manager_demo.robot_interface import (
     DOCK_ACTION,
@@ -316,11 +316,15 @@ def main(args: list[str] | None = None) -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        end_within(lambda: _release(executor, node), 'task-manager-demo-robot', 0)
     return 0
+
+
+def _release(executor: SingleThreadedExecutor, node: SimRobot | None) -> None:
+    executor.shutdown()
+    if node is not None:
+        node.destroy_node()
+    rclpy.try_shutdown()
 
 
 if __name__ == '__main__':

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from task_manager.client import TaskManagerClient
-from task_manager.process_setup import prepare_ros_process
+from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_mqtt.bridge import Bridge
 from task_manager_mqtt.settings import (
     DEFAULT_MAX_PAYLOAD_BYTES,
@@ -125,15 +125,20 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
-    with TaskManagerClient('task_manager_mqtt', timeout_sec=CLIENT_TIMEOUT_SEC) as client:
+    client = TaskManagerClient('task_manager_mqtt', timeout_sec=CLIENT_TIMEOUT_SEC)
+    code = 1  # an error of ours, raised on
+    try:
         bridge = Bridge(settings, client, on_failure=stop.set)
         bridge.start()
         stop.wait()
         bridge.stop()
-    if bridge.failed.is_set():
-        LOG.error(bridge.failure)
-        return EXIT_USAGE
-    return 0
+        code = 0
+        if bridge.failed.is_set():
+            LOG.error(bridge.failure)
+            code = EXIT_USAGE
+    finally:
+        end_within(client.close, 'task-manager-mqtt', code)
+    return code
 
 
 if __name__ == '__main__':

@@ -51,6 +51,7 @@ class Link:
         """The largest message to send: less when the broker's CONNACK says it takes less."""
         self._too_large: set[str] = set()
         """The topics whose last message was too large to send (said once in the log)."""
+        self._stopping = False
         client_id = broker.username or f'{vehicle.manufacturer}_{vehicle.serial_number}'
         self.mqtt = new_client(client_id, broker, reconnect_max_sec, MAX_IN_FLIGHT)
         self.mqtt.will_set(
@@ -99,6 +100,7 @@ class Link:
 
     def stop(self, timeout_sec: float = 5.0) -> None:
         """OFFLINE (retained), delivered before a clean disconnection (no last will)."""
+        self._stopping = True
         if self.connected:
             info = self.mqtt.publish(
                 self.vehicle.topic('connection'),
@@ -136,7 +138,10 @@ class Link:
     def _disconnected(
         self, _: mqtt.Client, __: Any, ___: Any, reason: ReasonCode, ____: Any
     ) -> None:
-        LOG.warning('disconnected from the broker (%s); reconnecting', reason)
+        if self._stopping:
+            LOG.info('disconnected from the broker')
+        else:
+            LOG.warning('disconnected from the broker (%s); reconnecting', reason)
 
     def _message(self, _: mqtt.Client, __: Any, message: mqtt.MQTTMessage) -> None:
         name = message.topic.rsplit('/', 1)[-1]

@@ -21,7 +21,7 @@ from task_manager_mqtt.settings import Broker, SettingsError
 
 from task_manager.client import TaskManagerClient
 from task_manager.core.errors import TaskManagerError
-from task_manager.process_setup import prepare_ros_process
+from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_vda5050.adapter import STATE_PERIOD_SEC, Adapter
 from task_manager_vda5050.link import Link
 from task_manager_vda5050.mapping import Mapping, MappingError, read_mapping
@@ -78,13 +78,19 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
-    with TaskManagerClient('task_manager_vda5050', timeout_sec=CLIENT_TIMEOUT_SEC) as client:
+    client = TaskManagerClient('task_manager_vda5050', timeout_sec=CLIENT_TIMEOUT_SEC)
+    code = 1  # an error of ours, raised on
+    try:
         try:
             client.wait_until_available(TASK_MANAGER_WAIT_SEC, events=True)
         except TaskManagerError as error:
             print(f'task-manager-vda5050: {error}', file=sys.stderr)
-            return EXIT_USAGE
-        return _serve(client, vehicle, broker, mapping, options, stop)
+            code = EXIT_USAGE
+        else:
+            code = _serve(client, vehicle, broker, mapping, options, stop)
+    finally:
+        end_within(client.close, 'task-manager-vda5050', code)
+    return code
 
 
 def _serve(

@@ -60,8 +60,12 @@ class Settings(DoorSettings):
     followed by `:<name>` for a token with a name."""
 
 
-def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient]) -> FastAPI:
-    """The gateway; `make_client` is called at start-up (its client is closed at shutdown)."""
+def create_app(
+    settings: Settings,
+    make_client: Callable[[], TaskManagerClient],
+    close_client: Callable[[TaskManagerClient], None] = TaskManagerClient.close,
+) -> FastAPI:
+    """The gateway; `make_client` is called at start-up, `close_client` at shutdown."""
 
     @asynccontextmanager
     async def lifespan(app: FastAPI) -> AsyncIterator[None]:
@@ -73,7 +77,7 @@ def create_app(settings: Settings, make_client: Callable[[], TaskManagerClient])
         finally:
             stop_counting()
             app.state.link.close()
-            await asyncio.to_thread(client.close)
+            await asyncio.to_thread(close_client, client)
 
     app = door_app(
         'Task Manager web gateway',

@@ -11,7 +11,7 @@ import logging
 import sys
 
 from task_manager.client import TaskManagerClient
-from task_manager.process_setup import prepare_ros_process
+from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_web.app import Settings, create_app
 from task_manager_web.doors.settings import (
     MAX_BODY_BYTES,
@@ -94,7 +94,9 @@ def main(argv: list[str] | None = None) -> None:
         allowed_hosts=allowed_hosts(arguments),
     )
     app = create_app(
-        settings, lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC)
+        settings,
+        lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC),
+        lambda client: end_within(client.close, 'task-manager-web', 0),
     )
     config = server_config(app, arguments.header_timeout_sec, arguments.access_log)
     server = Server(config)

@@ -1,9 +1,7 @@
 """What the taskctl verbs share: the client, exit codes, output."""
 
 import json
-import os
 import sys
-import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime, timedelta
@@ -16,13 +14,13 @@ from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, 
 from task_manager.client.records import Decision
 from task_manager.core.admission.options import OnConflict
 from task_manager.core.bounds import PRIORITY
+from task_manager.process_setup import end_within
 
 EXIT_DONE = 0
 EXIT_ERROR = 1
 EXIT_CANCELED = 3
 EXIT_UNAVAILABLE = 4
 EXIT_INTERRUPTED = 130
-CLOSE_TIMEOUT_SEC = 5.0
 # key: a task's end status, value: taskctl's exit code for it
 EXIT_CODES = {
     TaskStatus.DONE: EXIT_DONE,
@@ -139,26 +137,7 @@ def connected(ctx: typer.Context, events: bool = False) -> Iterator[TaskManagerC
         code = EXIT_INTERRUPTED
         raise
     finally:
-        close_within_bound(client, code)
-
-
-def close_within_bound(client: TaskManagerClient, code: int) -> None:
-    """Close the client; if the middleware hangs while shutting down, exit with `code` anyway.
-
-    Fast DDS can deadlock while destroying a participant when another process leaves the
-    domain at the same moment; taskctl must never hang on it.
-    """
-    closer = threading.Thread(target=client.close, name='taskctl-close', daemon=True)
-    closer.start()
-    closer.join(CLOSE_TIMEOUT_SEC)
-    if closer.is_alive():
-        progress.print(
-            f'the ROS middleware did not shut down within {CLOSE_TIMEOUT_SEC:g} s; exiting anyway',
-            markup=False,
-        )
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(code)
+        end_within(client.close, 'taskctl', code)
 
 
 def duration_text(duration: timedelta) -> str:

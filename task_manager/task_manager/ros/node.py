@@ -246,6 +246,11 @@ class TaskManagerNode(Node):
     def destroy_node(self) -> None:
         """Destroy action servers and clients first (see destroy_waitables); close the history."""
         destroy_waitables(self)
+        self.close_history()
+        super().destroy_node()
+
+    def close_history(self) -> None:
+        """Write what the history holds buffered, and close it (again: nothing more)."""
         history = getattr(self, 'history', None)  # None when the constructor failed before it
         if history is not None:
             try:
@@ -253,7 +258,6 @@ class TaskManagerNode(Node):
             except sqlite3.Error as error:
                 self._log.error(f'cannot write the task history at shutdown: {error}')
             history.close()
-        super().destroy_node()
 
     def _create_runner(self, spec: TaskSpec, timeouts: RunnerTimeouts) -> TaskRunner:
         interface_class = load_interface(spec)

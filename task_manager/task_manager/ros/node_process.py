@@ -14,6 +14,7 @@ from rclpy.task import Future
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.names import EXECUTE_TASK_ACTION, NODE_NAME
 from task_manager.core.params_file import check_params_file, params_files
+from task_manager.process_setup import end_within
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wake
 from task_manager.ros import parking_executor
@@ -21,6 +22,7 @@ from task_manager.ros.instances import describe
 from task_manager.ros.node import TaskManagerNode
 from task_manager.ros.parking_executor import ParkingExecutor
 
+PROGRAM = 'task-manager'
 EXIT_CONFIGURATION_ERROR = 2
 EXIT_ANOTHER_TASK_MANAGER = 2
 DRAIN_MAX_CALLBACKS = 1000
@@ -94,29 +96,43 @@ def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
     except Exception as error:  # a value rclpy refuses (a list of mixed types, a bad name)
         rclpy.try_shutdown()
         return _refuse_configuration(error)
+    code = 1  # an error of ours, raised on
+    try:
+        code = _serve(executor, node, shutdown_signals)
+    finally:
+        node.close_history()  # before the bound: the ends are written whatever DDS does
+        end_within(lambda: _release(executor, node), PROGRAM, code)
+    return code
+
+
+def _serve(
+    executor: SingleThreadedExecutor, node: TaskManagerNode, shutdown_signals: set[signal.Signals]
+) -> int:
+    """Serve until a shutdown signal (or an older Task Manager found); the exit code."""
     stopped: Future[Any] = Future()
     exit_code = [0]
     executor.add_node(node)
-    try:
-        executor.spin_until_future_complete(
-            node.instances.older, timeout_sec=node.settings.instance_check_timeout_sec
-        )
-        if node.instances.older.done():
-            _report_older(node, 'not starting')
-            return EXIT_ANOTHER_TASK_MANAGER
-        node.serve()
-        node.instances.older.add_done_callback(lambda _: _yield_to_older(node, stopped, exit_code))
-        threading.Thread(
-            target=_receive_signals, args=(node, stopped, shutdown_signals), daemon=True
-        ).start()
-        _serve_until(executor, stopped)
-        _drain(executor)
-    finally:
-        executor.shutdown()
-        destroy_waitables(node)
-        node.destroy_node()
-        rclpy.try_shutdown()
+    executor.spin_until_future_complete(
+        node.instances.older, timeout_sec=node.settings.instance_check_timeout_sec
+    )
+    if node.instances.older.done():
+        _report_older(node, 'not starting')
+        return EXIT_ANOTHER_TASK_MANAGER
+    node.serve()
+    node.instances.older.add_done_callback(lambda _: _yield_to_older(node, stopped, exit_code))
+    threading.Thread(
+        target=_receive_signals, args=(node, stopped, shutdown_signals), daemon=True
+    ).start()
+    _serve_until(executor, stopped)
+    _drain(executor)
     return exit_code[0]
+
+
+def _release(executor: SingleThreadedExecutor, node: TaskManagerNode) -> None:
+    executor.shutdown()
+    destroy_waitables(node)
+    node.destroy_node()
+    rclpy.try_shutdown()
 
 
 def _report_older(node: TaskManagerNode, what: str) -> None:

@@ -15,6 +15,7 @@ from task_manager.testing.harness import WaitTimeoutError
 from task_manager.testing.output_reader import OutputReader
 
 STOP_TIMEOUT_SEC = 10.0
+ABORT_TIMEOUT_SEC = 5.0
 TASKCTL = str(Path(sys.executable).with_name('taskctl'))
 TASKCTL_TIMEOUT_SEC = 30.0
 TASKCTL_REACH_SEC = 15.0
@@ -73,6 +74,7 @@ class NodeProcess:
             if ros_args:
                 command += ['--ros-args', *ros_args]
         self.killed = False
+        self._program = Path(command[0]).name
         self.process = subprocess.Popen(
             command,
             stdout=subprocess.PIPE,
@@ -109,15 +111,30 @@ class NodeProcess:
         return self.wait_exit(timeout_sec)
 
     def stop(self, timeout_sec: float = STOP_TIMEOUT_SEC) -> int:
-        """SIGINT, then wait; kill only as a last resort (a kill leaves DDS files in /dev/shm)."""
+        """SIGINT, then wait; kill only as a last resort (a kill leaves DDS files in /dev/shm).
+        A process that does not stop in time is aborted, and what it printed (with the stack of
+        each of its threads, from faulthandler, which the tests turn on) is printed here."""
         if self.process.poll() is None:
             self.process.send_signal(signal.SIGINT)
         try:
             return self.wait_exit(timeout_sec)
         except subprocess.TimeoutExpired:
+            self._abort()
+            print(
+                f'{self._program} did not stop within {timeout_sec:g} s of SIGINT; '
+                'aborted, its output:\n' + '\n'.join(self.log_lines)
+            )
+            raise
+
+    def _abort(self) -> None:
+        """SIGABRT (faulthandler prints the threads' stacks), SIGKILL if that is not enough."""
+        self.process.send_signal(signal.SIGABRT)
+        try:
+            self.process.wait(ABORT_TIMEOUT_SEC)
+        except subprocess.TimeoutExpired:
             self.process.kill()
             self.process.wait()
-            raise
+        self._output.join(ABORT_TIMEOUT_SEC)
 
 
 def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
