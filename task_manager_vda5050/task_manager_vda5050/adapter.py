@@ -93,6 +93,7 @@ class Adapter:
     def __init__(
         self,
         client: TaskManagerClient,
+        declared: list[dict[str, Any]],
         link: Link,
         mapping: Mapping,
         state_period_sec: float = STATE_PERIOD_SEC,
@@ -106,7 +107,7 @@ class Adapter:
         self.state.safety.update(mapping.reported.get('safetyState') or {})
         self.state.operating_mode = mapping.reported.get('operatingMode', 'AUTOMATIC')
         self.items: queue.SimpleQueue[Item] = queue.SimpleQueue()
-        self._blocking_tasks = self._tasks_that_block_driving(client, mapping)
+        self._blocking_tasks = self._tasks_that_block_driving(declared, mapping)
         self.planner = Planner(mapping, self._blocking_tasks.__contains__)
         self.orders = Orders(client, self.planner, self.state, mapping.position)
         self.instant = InstantActions(client, mapping, self.state, self.orders, self.publish)
@@ -118,15 +119,15 @@ class Adapter:
         self._thread = threading.Thread(target=self._work, name='vda5050', daemon=True)
 
     @staticmethod
-    def _tasks_that_block_driving(client: TaskManagerClient, mapping: Mapping) -> set[str]:
+    def _tasks_that_block_driving(declared: list[dict[str, Any]], mapping: Mapping) -> set[str]:
         """The declared tasks that cannot run beside the navigation: blocking ones, and
         those holding one of its resources."""
-        declared = {task.get('task_name', ''): task for task in client.declared_tasks()}
-        navigation = declared.get(mapping.navigation.task_name, {})
+        by_name = {task.get('task_name', ''): task for task in declared}
+        navigation = by_name.get(mapping.navigation.task_name, {})
         driving = set(navigation.get('resources') or []) | {'@blocking'}
         return {
             name
-            for name, task in declared.items()
+            for name, task in by_name.items()
             if task.get('blocking') or driving & set(task.get('resources') or [])
         }
 

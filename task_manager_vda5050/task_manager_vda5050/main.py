@@ -15,12 +15,14 @@ import logging
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
+from typing import Any
 
 from task_manager_mqtt.settings import Broker, SettingsError
 
 from task_manager.client import TaskManagerClient
-from task_manager.core.errors import TaskManagerError
+from task_manager.core.errors import TaskManagerError, TaskManagerUnavailable
 from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_vda5050.adapter import STATE_PERIOD_SEC, Adapter
 from task_manager_vda5050.link import Link
@@ -82,19 +84,34 @@ def main(argv: list[str] | None = None) -> int:
     code = 1  # an error of ours, raised on
     try:
         try:
+            deadline = time.monotonic() + TASK_MANAGER_WAIT_SEC
             client.wait_until_available(TASK_MANAGER_WAIT_SEC, events=True)
+            declared = _declared_tasks(client, deadline)
         except TaskManagerError as error:
             print(f'task-manager-vda5050: {error}', file=sys.stderr)
             code = EXIT_USAGE
         else:
-            code = _serve(client, vehicle, broker, mapping, options, stop)
+            code = _serve(client, declared, vehicle, broker, mapping, options, stop)
     finally:
         end_within(client.close, 'task-manager-vda5050', code)
     return code
 
 
+def _declared_tasks(client: TaskManagerClient, deadline: float) -> list[dict[str, Any]]:
+    """The node's declared tasks, asked again until `deadline` (time.monotonic): a newcomer can
+    find the node's parameter services some seconds after its action and event stream (seen:
+    more than the client's 5 s on a loaded machine)."""
+    while True:
+        try:
+            return client.declared_tasks()
+        except TaskManagerUnavailable:
+            if time.monotonic() >= deadline:
+                raise
+
+
 def _serve(
     client: TaskManagerClient,
+    declared: list[dict[str, Any]],
     vehicle: Vehicle,
     broker: Broker,
     mapping: Mapping,
@@ -102,7 +119,7 @@ def _serve(
     stop: threading.Event,
 ) -> int:
     link = Link(vehicle, broker, keepalive_sec=options.keepalive_sec)
-    adapter = Adapter(client, link, mapping, options.state_period_sec)
+    adapter = Adapter(client, declared, link, mapping, options.state_period_sec)
     link.on_message = adapter.on_message
     link.on_connected = adapter.on_connected
     adapter.start()

@@ -1,0 +1,39 @@
+"""The adapter's start: the node's declared tasks are asked again until the start's deadline,
+as a newcomer can find the node's parameter services seconds after its action (seen on a
+loaded machine: more than the client's 5 s, and the adapter died with a traceback)."""
+
+import time
+from typing import Any
+
+import pytest
+
+from task_manager.core.errors import TaskManagerUnavailable
+from task_manager_vda5050.main import _declared_tasks
+
+DECLARED = [{'task_name': 'navigate', 'blocking': True}]
+
+
+class ParameterServicesFoundLate:
+    """Stands for TaskManagerClient.declared_tasks: unavailable the first `misses` times."""
+
+    def __init__(self, misses: int) -> None:
+        self.misses = misses
+        self.asked = 0
+
+    def declared_tasks(self) -> list[dict[str, Any]]:
+        self.asked += 1
+        if self.asked <= self.misses:
+            raise TaskManagerUnavailable('/task_manager/list_parameters is not available')
+        return DECLARED
+
+
+def test_declared_tasks_found_late_are_read_before_the_deadline() -> None:
+    client = ParameterServicesFoundLate(misses=2)
+    assert _declared_tasks(client, time.monotonic() + 60) == DECLARED  # type: ignore[arg-type]
+    assert client.asked == 3
+
+
+def test_past_the_deadline_the_last_error_is_raised() -> None:
+    client = ParameterServicesFoundLate(misses=10**6)
+    with pytest.raises(TaskManagerUnavailable, match='list_parameters is not available'):
+        _declared_tasks(client, time.monotonic() + 0.05)  # type: ignore[arg-type]
