@@ -74,7 +74,12 @@ class AdapterProcess(NodeProcess):
         ]
         super().__init__(None, command=command)
         if wait:
-            self.wait_for_log(CONNECTED_LINE, START_TIMEOUT_SEC)
+            try:
+                self.wait_for_log(CONNECTED_LINE, START_TIMEOUT_SEC)
+            except WaitTimeoutError:
+                if self.process.poll() is None:  # not left running: its stacks say where
+                    self.abort(f'did not connect within {START_TIMEOUT_SEC:g} s')
+                raise
 
 
 def node_executable() -> str:

@@ -119,15 +119,13 @@ class NodeProcess:
         try:
             return self.wait_exit(timeout_sec)
         except subprocess.TimeoutExpired:
-            self._abort()
-            print(
-                f'{self._program} did not stop within {timeout_sec:g} s of SIGINT; '
-                'aborted, its output:\n' + '\n'.join(self.log_lines)
-            )
+            self.abort(f'did not stop within {timeout_sec:g} s of SIGINT')
             raise
 
-    def _abort(self) -> None:
-        """SIGABRT (faulthandler prints the threads' stacks), SIGKILL if that is not enough."""
+    def abort(self, why: str) -> None:
+        """SIGABRT (faulthandler prints the threads' stacks), SIGKILL if that is not enough;
+        then print `why` and what the process printed."""
+        self.killed = True
         self.process.send_signal(signal.SIGABRT)
         try:
             self.process.wait(ABORT_TIMEOUT_SEC)
@@ -135,6 +133,7 @@ class NodeProcess:
             self.process.kill()
             self.process.wait()
         self._output.join(ABORT_TIMEOUT_SEC)
+        print(f'{self._program} {why}; aborted, its output:\n' + '\n'.join(self.log_lines))
 
 
 def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
