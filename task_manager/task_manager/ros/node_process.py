@@ -15,7 +15,6 @@ from task_manager.core.errors import ConfigurationError
 from task_manager.core.names import EXECUTE_TASK_ACTION, NODE_NAME
 from task_manager.core.params_file import check_params_file, params_files
 from task_manager.process_setup import end_within
-from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.futures import wake
 from task_manager.ros import parking_executor
 from task_manager.ros.instances import describe
@@ -130,8 +129,7 @@ def _serve(
 
 def _release(executor: SingleThreadedExecutor, node: TaskManagerNode) -> None:
     executor.shutdown()
-    destroy_waitables(node)
-    node.destroy_node()
+    node.destroy_node()  # its action servers and clients first (TaskManagerNode.destroy_node)
     rclpy.try_shutdown()
 
 
