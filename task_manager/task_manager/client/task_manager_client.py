@@ -90,7 +90,7 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
         """Whether a Task Manager is there: its /task_manager/active_tasks reaches this client.
 
         It turns False at once when the node stops, and after DDS's lease duration when the
-        node's process dies without stopping.
+        node's process dies without stopping (5 s: the node's discovery profile).
         """
         return self._connection.connected
 

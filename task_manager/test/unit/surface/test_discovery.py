@@ -34,3 +34,18 @@ def test_the_profile_announces_20_times_every_50_ms_and_is_the_default() -> None
     assert announcements is not None
     assert announcements.findtext(f'{NAMESPACE}count') == '20'
     assert announcements.findtext(f'{NAMESPACE}period/{NAMESPACE}nanosec') == '50000000'
+
+
+def test_the_profile_keeps_a_silent_participant_5_s_through_5_announcements() -> None:
+    discovery = ElementTree.parse(PROFILE_FILE).getroot().find(f'.//{NAMESPACE}discovery_config')
+    assert discovery is not None
+
+    def seconds(element_name: str) -> float:
+        element = discovery.find(f'{NAMESPACE}{element_name}')
+        assert element is not None, element_name
+        return float(element.findtext(f'{NAMESPACE}sec', '0')) + 1e-9 * float(
+            element.findtext(f'{NAMESPACE}nanosec', '0')
+        )
+
+    assert seconds('leaseDuration') == 5.0
+    assert seconds('leaseDuration') / seconds('leaseAnnouncement') == 5
