@@ -2,7 +2,8 @@
 others forget them within their DDS lease, 5 s (task_manager/fastdds_discovery.xml), not Fast
 DDS's 20 s. While a dead participant was remembered, a newcomer now and then never matched
 some of the node's endpoints: a taskctl failed with `/task_manager/get_parameters is not
-available` in 29 of 180 starts 10-30 s after ten clients were killed, in none with the lease."""
+available` in 34 of 240 starts 10-30 s after ten clients were killed, in none of 240 with the
+lease (see task_manager/discovery.py)."""
 
 import subprocess
 import time
