@@ -1,6 +1,8 @@
 """Running the node until SIGINT/SIGTERM, then shutting it down cleanly (see main.py)."""
 
+import os
 import signal
+import sys
 import threading
 import traceback
 from typing import Any
@@ -14,6 +16,7 @@ from rclpy.task import Future
 from task_manager.core.errors import ConfigurationError
 from task_manager.core.names import EXECUTE_TASK_ACTION, NODE_NAME
 from task_manager.core.params_file import check_params_file, params_files
+from task_manager.middleware_watchdog import MiddlewareWatchdog
 from task_manager.process_setup import end_within
 from task_manager.rclpy_tools.futures import wake
 from task_manager.ros import parking_executor
@@ -24,6 +27,7 @@ from task_manager.ros.parking_executor import ParkingExecutor
 PROGRAM = 'task-manager'
 EXIT_CONFIGURATION_ERROR = 2
 EXIT_ANOTHER_TASK_MANAGER = 2
+EXIT_MIDDLEWARE_STUCK = 3
 DRAIN_MAX_CALLBACKS = 1000
 
 
@@ -122,9 +126,32 @@ def _serve(
     threading.Thread(
         target=_receive_signals, args=(node, stopped, shutdown_signals), daemon=True
     ).start()
-    _serve_until(executor, stopped)
-    _drain(executor)
+    watchdog = _watch_the_middleware(node.settings.middleware_watchdog_timeout_sec)
+    try:
+        _serve_until(executor, stopped)
+        _drain(executor)
+    finally:
+        if watchdog is not None:
+            watchdog.stop()
     return exit_code[0]
+
+
+def _watch_the_middleware(timeout_sec: float) -> MiddlewareWatchdog | None:
+    """A watchdog that ends the process when DDS is stuck (see middleware_watchdog); none with
+    a timeout of 0."""
+    if timeout_sec <= 0:
+        return None
+    watchdog = MiddlewareWatchdog(timeout_sec, _exit_stuck)
+    watchdog.start()
+    return watchdog
+
+
+def _exit_stuck(message: str) -> None:
+    """The middleware is stuck: nothing can be sent or destroyed any more; one line, and out
+    (what a turn of the executor had not written to the history yet is lost, as in a crash)."""
+    get_logger(NODE_NAME).fatal(message)
+    sys.stderr.flush()
+    os._exit(EXIT_MIDDLEWARE_STUCK)
 
 
 def _release(executor: SingleThreadedExecutor, node: TaskManagerNode) -> None:

@@ -31,6 +31,7 @@ NODE_PARAMETERS: dict[str, tuple[tuple[type, ...], Any]] = {
     'server_check_period': ((int, float), RunnerTimeouts.server_check_period_sec),
     'server_loss_timeout': ((int, float), RunnerTimeouts.server_loss_timeout_sec),
     'instance_check_timeout': ((int, float), 0.3),
+    'middleware_watchdog_timeout': ((int, float), 30.0),
     'publish_task_events': ((bool,), True),
     'feedback_rate_hz': ((int, float), 10.0),
     # None: the default file under ROS_HOME (see default_history_path)
@@ -62,6 +63,8 @@ class NodeSettings:
     timeouts: RunnerTimeouts
     results_history_size: int
     instance_check_timeout_sec: float
+    middleware_watchdog_timeout_sec: float
+    """How long the DDS timer thread may not run before the node exits (0: not watched)."""
     publish_task_events: bool
     feedback_rate_hz: float
     history_path: str
@@ -116,8 +119,9 @@ def read_settings(node: Node) -> NodeSettings:
             raise ConfigurationError(f'parameter {name!r} must be >= 0 (0: no limit)')
     if values['max_queued'] < 0:
         raise ConfigurationError(f"parameter 'max_queued' must be >= 0, got {values['max_queued']}")
-    if values['instance_check_timeout'] < 0:
-        raise ConfigurationError("parameter 'instance_check_timeout' must be >= 0")
+    for name in ('instance_check_timeout', 'middleware_watchdog_timeout'):
+        if values[name] < 0:
+            raise ConfigurationError(f'parameter {name!r} must be >= 0')
     for name in POSITIVE_PARAMETERS:
         if not values[name] > 0:
             raise ConfigurationError(f'parameter {name!r} must be > 0, got {values[name]!r}')
@@ -125,6 +129,7 @@ def read_settings(node: Node) -> NodeSettings:
         enable_task_servers=values['enable_task_servers'],
         results_history_size=values['results_history_size'],
         instance_check_timeout_sec=float(values['instance_check_timeout']),
+        middleware_watchdog_timeout_sec=float(values['middleware_watchdog_timeout']),
         publish_task_events=values['publish_task_events'],
         feedback_rate_hz=float(values['feedback_rate_hz']),
         history_path=(

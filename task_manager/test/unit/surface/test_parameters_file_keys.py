@@ -144,11 +144,22 @@ def test_the_queue_and_the_sources_have_defaults(tmp_path: Path) -> None:
     assert settings.source_priorities == {}
 
 
+def test_the_middleware_watchdog_waits_30_s_by_default_and_0_turns_it_off(tmp_path: Path) -> None:
+    photo = service_task('photo', '/photo')
+    assert settings_of(tmp_path, photo=photo).middleware_watchdog_timeout_sec == 30.0
+    off = settings_of(tmp_path, photo=photo, middleware_watchdog_timeout=0)
+    assert off.middleware_watchdog_timeout_sec == 0.0
+
+
 @pytest.mark.parametrize(
     ('parameters', 'message'),
     [
         ({'max_queued': -1}, "parameter 'max_queued' must be >= 0, got -1"),
         ({'max_queued': 2.5}, "parameter 'max_queued' must be int, got 2.5"),
+        (
+            {'middleware_watchdog_timeout': -1},
+            "parameter 'middleware_watchdog_timeout' must be >= 0",
+        ),
         (
             {'source_priorities': {'joystick': 1.5}},
             "parameter 'source_priorities.joystick' must be int (the priority of source "
