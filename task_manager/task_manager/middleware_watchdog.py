@@ -18,6 +18,7 @@ was stopped (SIGSTOP, a debugger) starts counting again when it runs; faulthandl
 not know that: debug the node with `middleware_watchdog_timeout: 0`.
 """
 
+import contextlib
 import faulthandler
 import os
 import threading
@@ -27,6 +28,9 @@ from pathlib import Path
 
 TIMER_THREAD_PREFIX = 'dds.ev.'
 """Fast DDS's name for a participant's timer thread (`dds.ev.<participant id>`)."""
+SHORTEST_TIMEOUT_SEC = 1.0
+LONGEST_TIMEOUT_SEC = 3600.0
+"""The bounds of the node's `middleware_watchdog_timeout` (0 turns the watchdog off)."""
 ROUNDS_PER_TIMEOUT = 6
 """How often the threads are read within a timeout."""
 INTERPRETER_GRACE_SEC = 30.0
@@ -101,8 +105,10 @@ class MiddlewareWatchdog:
         faulthandler.cancel_dump_traceback_later()
 
     def _arm_faulthandler(self) -> None:
-        """End the process if no round follows within the timeout and grace."""
-        faulthandler.dump_traceback_later(self._timeout_sec + INTERPRETER_GRACE_SEC, exit=True)
+        """End the process if no round follows within the timeout and grace (not without a
+        standard error to print the stacks on)."""
+        with contextlib.suppress(RuntimeError, ValueError):  # sys.stderr None or closed
+            faulthandler.dump_traceback_later(self._timeout_sec + INTERPRETER_GRACE_SEC, exit=True)
 
     def _watch(self) -> None:
         period_sec = self._timeout_sec / ROUNDS_PER_TIMEOUT
@@ -113,7 +119,11 @@ class MiddlewareWatchdog:
             if now - last_round > 2 * period_sec:  # the process was stopped (SIGSTOP, a
                 self._clock = StallClock()  # debugger) or starved: no thread could run
             last_round = now
-            stalled = self._clock.observe(self._read(), now)
+            try:
+                switches = self._read()
+            except OSError:  # no /proc: nothing to watch, and the rounds go on
+                switches = {}
+            stalled = self._clock.observe(switches, now)
             if stalled is not None and stalled[1] >= self._timeout_sec:
                 tid, stalled_sec = stalled
                 self._on_stuck(

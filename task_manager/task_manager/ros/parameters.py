@@ -18,6 +18,7 @@ from task_manager.core.task_spec import (
     parse_task_specs,
     unknown_keys,
 )
+from task_manager.middleware_watchdog import LONGEST_TIMEOUT_SEC, SHORTEST_TIMEOUT_SEC
 from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.running.execution import RunnerTimeouts
 
@@ -119,9 +120,17 @@ def read_settings(node: Node) -> NodeSettings:
             raise ConfigurationError(f'parameter {name!r} must be >= 0 (0: no limit)')
     if values['max_queued'] < 0:
         raise ConfigurationError(f"parameter 'max_queued' must be >= 0, got {values['max_queued']}")
-    for name in ('instance_check_timeout', 'middleware_watchdog_timeout'):
-        if values[name] < 0:
-            raise ConfigurationError(f'parameter {name!r} must be >= 0')
+    if values['instance_check_timeout'] < 0:
+        raise ConfigurationError("parameter 'instance_check_timeout' must be >= 0")
+    watchdog_timeout = values['middleware_watchdog_timeout']
+    if (
+        watchdog_timeout != 0
+        and not SHORTEST_TIMEOUT_SEC <= watchdog_timeout <= LONGEST_TIMEOUT_SEC
+    ):
+        raise ConfigurationError(
+            "parameter 'middleware_watchdog_timeout' must be 0 (off) or from "
+            f'{SHORTEST_TIMEOUT_SEC:g} to {LONGEST_TIMEOUT_SEC:g} s, got {watchdog_timeout!r}'
+        )
     for name in POSITIVE_PARAMETERS:
         if not values[name] > 0:
             raise ConfigurationError(f'parameter {name!r} must be > 0, got {values[name]!r}')

@@ -142,3 +142,23 @@ def test_a_held_interpreter_ends_the_process_with_its_stacks() -> None:
     assert ended.returncode == 1
     assert 'Timeout' in ended.stderr
     assert 'hold_the_interpreter' in ended.stderr
+
+
+def test_without_proc_the_rounds_go_on() -> None:
+    """A round that cannot read /proc finds nothing to watch; the next rounds still come (they
+    keep faulthandler's timer from ending the process)."""
+    reads: list[float] = []
+    rounds = threading.Event()
+
+    def no_proc() -> dict[int, int]:
+        reads.append(0.0)
+        if len(reads) >= 3:
+            rounds.set()
+        raise FileNotFoundError('/proc/self/task')
+
+    watchdog, told, _ = _watch(no_proc)
+    try:
+        assert rounds.wait(TIMEOUT_SEC)
+    finally:
+        watchdog.stop()
+    assert told == []

@@ -156,9 +156,13 @@ def test_the_middleware_watchdog_waits_30_s_by_default_and_0_turns_it_off(tmp_pa
     [
         ({'max_queued': -1}, "parameter 'max_queued' must be >= 0, got -1"),
         ({'max_queued': 2.5}, "parameter 'max_queued' must be int, got 2.5"),
-        (
-            {'middleware_watchdog_timeout': -1},
-            "parameter 'middleware_watchdog_timeout' must be >= 0",
+        *(
+            (
+                {'middleware_watchdog_timeout': timeout},
+                "parameter 'middleware_watchdog_timeout' must be 0 (off) or from 1 to 3600 s, "
+                f'got {timeout}',
+            )
+            for timeout in (-1, 0.5, 3601)
         ),
         (
             {'source_priorities': {'joystick': 1.5}},
