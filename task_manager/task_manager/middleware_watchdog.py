@@ -65,18 +65,15 @@ class StallClock:
 
     def observe(self, switches: TaskSwitches, now: float) -> tuple[int, float] | None:
         """Take a reading; the thread that has not yielded for longest and for how long."""
-        self._seen = {
-            tid: (count, since if (since := self._since(tid, count)) is not None else now)
-            for tid, count in switches.items()
-        }
-        if not self._seen:
+        seen: dict[int, tuple[int, float]] = {}
+        for tid, count in switches.items():
+            last = self._seen.get(tid)
+            seen[tid] = last if last is not None and last[0] == count else (count, now)
+        self._seen = seen
+        if not seen:
             return None
-        tid, (_, since) = min(self._seen.items(), key=lambda item: item[1][1])
+        tid, (_, since) = min(seen.items(), key=lambda item: item[1][1])
         return tid, now - since
-
-    def _since(self, tid: int, count: int) -> float | None:
-        seen = self._seen.get(tid)
-        return seen[1] if seen is not None and seen[0] == count else None
 
 
 class MiddlewareWatchdog:

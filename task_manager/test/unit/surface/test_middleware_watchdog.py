@@ -6,12 +6,17 @@ import subprocess
 import sys
 import textwrap
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
-from task_manager.middleware_watchdog import MiddlewareWatchdog, StallClock, timer_threads
+from task_manager.middleware_watchdog import (
+    MiddlewareWatchdog,
+    StallClock,
+    TaskSwitches,
+    timer_threads,
+)
 
 TIMEOUT_SEC = 5.0
 WATCHDOG_TIMEOUT_SEC = 0.3
@@ -86,7 +91,9 @@ def test_the_stall_clock_counts_from_the_last_change_of_each_thread() -> None:
     assert clock.observe({1: 6}, 15.0) == (1, 3.0)  # a thread gone is forgotten
 
 
-def _watch(read: object) -> tuple[MiddlewareWatchdog, list[str], threading.Event]:
+def _watch(
+    read: Callable[[], TaskSwitches],
+) -> tuple[MiddlewareWatchdog, list[str], threading.Event]:
     told: list[str] = []
     stuck = threading.Event()
 
@@ -94,7 +101,7 @@ def _watch(read: object) -> tuple[MiddlewareWatchdog, list[str], threading.Event
         told.append(message)
         stuck.set()
 
-    watchdog = MiddlewareWatchdog(WATCHDOG_TIMEOUT_SEC, on_stuck, read)  # type: ignore[arg-type]
+    watchdog = MiddlewareWatchdog(WATCHDOG_TIMEOUT_SEC, on_stuck, read)
     watchdog.start()
     return watchdog, told, stuck
 
