@@ -1,8 +1,14 @@
 """What each of the Task Manager's ROS 2 processes sets up before rclpy starts (no rclpy here).
 
 `prepare_ros_process()` is called first thing by every program of ours that runs a ROS 2 node
-(the Task Manager, taskctl, the gateways, the simulated robot):
+(the Task Manager, taskctl, the gateways, the simulated robot); `run_program` calls it before
+the program's module, and so rclpy, is imported, which is how their console scripts start them:
 
+- numpy's OpenBLAS starts one thread (the caller's environment may ask for more). rclpy loads
+  numpy (every service type imports it through `service_msgs`), and OpenBLAS starts a pool of
+  one thread per core as it loads; each spins about 0.1 s before it sleeps: 0.12 s of CPU at
+  each start on two cores, about 0.1 s more for each further core, for linear algebra that no
+  program of ours does;
 - Fast DDS announces the process quickly (`discovery.use_quick_discovery`);
 - message type supports load without rosidl's code generator. A generated message imports
   `rosidl_generator_py` for its type support the first time a node uses it, and that package's
@@ -33,10 +39,22 @@ END_TIMEOUT_SEC = 5.0
 a second when nothing goes wrong)."""
 
 
+BLAS_THREADS_VARIABLE = 'OPENBLAS_NUM_THREADS'
+
+
 def prepare_ros_process() -> None:
-    """Quick discovery and type supports without the code generator (see the module)."""
+    """One BLAS thread, quick discovery and type supports without the code generator (see the
+    module); the BLAS setting counts only before rclpy is first imported."""
+    os.environ.setdefault(BLAS_THREADS_VARIABLE, '1')
     use_quick_discovery()
     load_type_supports_without_code_generator()
+
+
+def run_program(module: str) -> Any:
+    """Prepare the process, then import `module` and return what its `main()` returns: the
+    console scripts' way in, so that the program's imports (rclpy among them) come after."""
+    prepare_ros_process()
+    return importlib.import_module(module).main()
 
 
 def load_type_supports_without_code_generator() -> bool:

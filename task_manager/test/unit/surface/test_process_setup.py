@@ -1,10 +1,12 @@
-"""prepare_ros_process: message type supports load without rosidl's code generator, which
-stays available on demand; end_within: a program's end is bounded. Each case runs in a fresh
-interpreter (the setup acts on sys.modules, once per process; end_within may exit it)."""
+"""prepare_ros_process: numpy loads without a BLAS thread pool, message type supports without
+rosidl's code generator, which stays available on demand; end_within: a program's end is
+bounded. Each case runs in a fresh interpreter (the setup acts on sys.modules and the
+environment, once per process; end_within may exit it)."""
 
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 LOAD_A_TYPE_SUPPORT = """
 import sys
@@ -94,3 +96,77 @@ def test_with_faulthandler_on_the_stuck_thread_stack_is_printed_too() -> None:
     ended = _end_within('release = wedged_in_the_middleware', '-X', 'faulthandler')
     assert ended.returncode == 7
     assert 'in wedged_in_the_middleware' in ended.stderr, ended.stderr
+
+
+COUNT_BLAS_THREADS = """
+import os
+{setup}
+before = len(os.listdir('/proc/self/task'))
+import numpy
+print(len(os.listdir('/proc/self/task')) - before)
+"""
+
+
+def _without_blas_setting() -> dict[str, str]:
+    """The environment without OPENBLAS_NUM_THREADS (the tests' conftest sets it)."""
+    return {k: v for k, v in os.environ.items() if k != 'OPENBLAS_NUM_THREADS'}
+
+
+def _threads_numpy_starts(setup: str, environment: dict[str, str]) -> int:
+    script = COUNT_BLAS_THREADS.format(setup=setup)
+    output = subprocess.run(
+        [sys.executable, '-c', script],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+        env=environment,
+    ).stdout
+    return int(output.split()[-1])
+
+
+def _asked_for_two() -> dict[str, str]:
+    """The environment of a caller that asks OpenBLAS for two threads (it starts one beside
+    the caller's, on a machine of two cores or more: it starts no more than the cores)."""
+    return {**_without_blas_setting(), 'OPENBLAS_NUM_THREADS': '2'}
+
+
+def test_a_prepared_process_loads_numpy_without_a_blas_thread_pool_unless_asked() -> None:
+    prepare = 'from task_manager.process_setup import prepare_ros_process; prepare_ros_process()'
+    # the count sees OpenBLAS's pool
+    assert _threads_numpy_starts('', _asked_for_two()) == 1
+    # a prepared process starts none, and one whose caller asked for threads gets them
+    assert _threads_numpy_starts(prepare, _without_blas_setting()) == 0
+    assert _threads_numpy_starts(prepare, _asked_for_two()) == 1
+
+
+THREADS_AT_HELP = """
+import atexit, os, sys
+from importlib.metadata import entry_points
+atexit.register(lambda: print('threads', len(os.listdir('/proc/self/task'))))
+sys.argv = ['{script}', '--help']
+entry_points(group='console_scripts')['{script}'].load()()
+"""
+
+
+def _threads_at_help(script: str, environment: dict[str, str], cwd: Path) -> int:
+    run = subprocess.run(
+        [sys.executable, '-c', THREADS_AT_HELP.format(script=script)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env=environment,
+        cwd=cwd,  # not the repository's root, whose folders would shadow the packages
+    )
+    # `task-manager --help` ends in one line (its parameters name no tasks), the others exit 0
+    assert run.stdout.split()[-2:-1] == ['threads'], run.stderr
+    return int(run.stdout.split()[-1])
+
+
+def test_the_programs_console_scripts_prepare_before_numpy_loads(tmp_path: Path) -> None:
+    """Each program's console script, as a user starts it: numpy (loaded by rclpy) starts no
+    BLAS thread pool, which a caller asking for two threads shows it would otherwise."""
+    programs = ('task-manager', 'taskctl', 'task-manager-web', 'task-manager-mqtt')
+    for script in (*programs, 'task-manager-vda5050'):
+        unset = _threads_at_help(script, _without_blas_setting(), tmp_path)
+        assert _threads_at_help(script, _asked_for_two(), tmp_path) == unset + 1, script
