@@ -26,7 +26,8 @@ def broker(tmp_path: Path) -> Iterator[BrokerProcess]:
 
 @pytest.fixture
 def start_bridge(broker: BrokerProcess, tmp_path: Path) -> Iterator[Callable[..., BridgeProcess]]:
-    """Start `task-manager-mqtt` for robot1 (args added); stopped cleanly at the end."""
+    """Start `task-manager-mqtt` for robot1 (args added); stopped cleanly at the end, its
+    output printed (pytest shows it when the test failed)."""
     bridges: list[BridgeProcess] = []
 
     def start(*args: str, wait: bool = True, url: str = '') -> BridgeProcess:
@@ -40,6 +41,7 @@ def start_bridge(broker: BrokerProcess, tmp_path: Path) -> Iterator[Callable[...
     for bridge in bridges:
         if not bridge.killed:
             bridge.stop()
+        print('\n'.join(bridge.log_lines))
 
 
 @pytest.fixture

@@ -70,8 +70,10 @@ class ScriptedRobot:
         return Robot(process, self.fib, self.instant)
 
     def close(self) -> None:
+        """Stop the nodes started, printing their output (pytest shows it when a test failed)."""
         for process in self.processes:
             process.stop()
+            print('\n'.join(process.log_lines))
         self.fib.destroy()
         self.instant.destroy()
 
