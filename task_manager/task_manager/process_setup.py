@@ -7,7 +7,7 @@ the program's module, and so rclpy, is imported, which is how their console scri
 - numpy's OpenBLAS starts one thread (the caller's environment may ask for more). rclpy loads
   numpy (every service type imports it through `service_msgs`), and OpenBLAS starts a pool of
   one thread per core as it loads; each spins about 0.1 s before it sleeps: 0.12 s of CPU at
-  each start on two cores, about 0.1 s more for each further core, for linear algebra that no
+  each start on two cores, and a thread more for each further core, for linear algebra that no
   program of ours does;
 - Fast DDS announces the process quickly (`discovery.use_quick_discovery`);
 - message type supports load without rosidl's code generator. A generated message imports

@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+from task_manager.process_setup import BLAS_THREADS_VARIABLE
+
 LOAD_A_TYPE_SUPPORT = """
 import sys
 {setup}
@@ -17,12 +19,21 @@ print('lark' in sys.modules)
 """
 
 
-def _lark_loaded_by_a_type_support(setup: str) -> bool:
-    script = LOAD_A_TYPE_SUPPORT.format(setup=setup)
+def _last_word(script: str, environment: dict[str, str] | None = None) -> str:
+    """The last word `script` prints, run in a fresh interpreter."""
     output = subprocess.run(
-        [sys.executable, '-c', script], capture_output=True, text=True, check=True, timeout=60
+        [sys.executable, '-c', script],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+        env=environment,
     ).stdout
-    return output.split()[-1] == 'True'
+    return output.split()[-1]
+
+
+def _lark_loaded_by_a_type_support(setup: str) -> bool:
+    return _last_word(LOAD_A_TYPE_SUPPORT.format(setup=setup)) == 'True'
 
 
 def test_a_type_support_loads_without_the_code_generator() -> None:
@@ -109,26 +120,17 @@ print(len(os.listdir('/proc/self/task')) - before)
 
 def _without_blas_setting() -> dict[str, str]:
     """The environment without OPENBLAS_NUM_THREADS (the tests' conftest sets it)."""
-    return {k: v for k, v in os.environ.items() if k != 'OPENBLAS_NUM_THREADS'}
+    return {k: v for k, v in os.environ.items() if k != BLAS_THREADS_VARIABLE}
 
 
 def _threads_numpy_starts(setup: str, environment: dict[str, str]) -> int:
-    script = COUNT_BLAS_THREADS.format(setup=setup)
-    output = subprocess.run(
-        [sys.executable, '-c', script],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=60,
-        env=environment,
-    ).stdout
-    return int(output.split()[-1])
+    return int(_last_word(COUNT_BLAS_THREADS.format(setup=setup), environment))
 
 
 def _asked_for_two() -> dict[str, str]:
     """The environment of a caller that asks OpenBLAS for two threads (it starts one beside
     the caller's, on a machine of two cores or more: it starts no more than the cores)."""
-    return {**_without_blas_setting(), 'OPENBLAS_NUM_THREADS': '2'}
+    return {**_without_blas_setting(), BLAS_THREADS_VARIABLE: '2'}
 
 
 def test_a_prepared_process_loads_numpy_without_a_blas_thread_pool_unless_asked() -> None:
@@ -140,6 +142,14 @@ def test_a_prepared_process_loads_numpy_without_a_blas_thread_pool_unless_asked(
     assert _threads_numpy_starts(prepare, _asked_for_two()) == 1
 
 
+# the simulated robot serves on at `--help`: its console script goes the same way (run_program)
+PROGRAMS_THAT_EXIT_AT_HELP = (
+    'task-manager',
+    'taskctl',
+    'task-manager-web',
+    'task-manager-mqtt',
+    'task-manager-vda5050',
+)
 THREADS_AT_HELP = """
 import atexit, os, sys
 from importlib.metadata import entry_points
@@ -166,7 +176,6 @@ def _threads_at_help(script: str, environment: dict[str, str], cwd: Path) -> int
 def test_the_programs_console_scripts_prepare_before_numpy_loads(tmp_path: Path) -> None:
     """Each program's console script, as a user starts it: numpy (loaded by rclpy) starts no
     BLAS thread pool, which a caller asking for two threads shows it would otherwise."""
-    programs = ('task-manager', 'taskctl', 'task-manager-web', 'task-manager-mqtt')
-    for script in (*programs, 'task-manager-vda5050'):
+    for script in PROGRAMS_THAT_EXIT_AT_HELP:
         unset = _threads_at_help(script, _without_blas_setting(), tmp_path)
         assert _threads_at_help(script, _asked_for_two(), tmp_path) == unset + 1, script
