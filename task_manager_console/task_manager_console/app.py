@@ -10,7 +10,6 @@ passes the same doors (`task_manager_web.doors.settings.add_doors`).
 import argparse
 import asyncio
 import contextlib
-import socket
 import threading
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
@@ -22,6 +21,7 @@ import task_manager_web.doors.access
 from fastapi import FastAPI, Request, Response
 from fastapi.responses import FileResponse
 from fastapi.staticfiles import StaticFiles
+from task_manager_web.door_link import end_event_streams
 from task_manager_web.doors.access import Access, MetricsViewer
 from task_manager_web.doors.settings import (
     DoorSettings,
@@ -147,21 +147,6 @@ def _add_routes(app: FastAPI) -> None:
         return metrics_response(console_metrics.registry)
 
 
-class _Server(Server):
-    """uvicorn's server, which ends the event streams when it begins to stop (else each would
-    hold the stop for its grace period, then be cancelled)."""
-
-    def __init__(self, app: FastAPI, settings: Settings) -> None:
-        super().__init__(server_config(app, settings.header_timeout_sec, settings.access_log))
-        self.console_app = app
-
-    async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
-        link: FleetLink | None = getattr(self.console_app.state, 'link', None)
-        if link is not None:
-            link.end_streams('the console stops')
-        await super().shutdown(sockets)
-
-
 def serve(fleet: Fleet, settings: Settings, stop: threading.Event) -> None:
     """Serve the doors of `fleet` until `stop` is set, or SIGINT or SIGTERM comes (then `stop`
     is set too); prints the page's link (`dashboard: http://HOST:PORT/?token=TOKEN` with the
@@ -169,7 +154,10 @@ def serve(fleet: Fleet, settings: Settings, stop: threading.Event) -> None:
     cannot listen."""
     listener = listen(PROGRAM, settings.host, settings.port)
     app = create_app(fleet, settings)
-    server = _Server(app, settings)
+    server = Server(
+        server_config(app, settings.header_timeout_sec, settings.access_log),
+        lambda: end_event_streams(app, 'the console stops'),
+    )
     host, port = listener.getsockname()[:2]
     shown_host = f'[{host}]' if ':' in host else host
     url = f'http://{shown_host}:{port}/'

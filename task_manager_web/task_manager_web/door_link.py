@@ -8,6 +8,7 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any, TypeVar
 
+from fastapi import FastAPI
 from fastapi.responses import StreamingResponse
 
 from task_manager_web.event_stream import EventStream, event_lines
@@ -71,3 +72,11 @@ class DoorLink:
             media_type=EVENT_STREAM_TYPE,
             headers={'Cache-Control': 'no-store', 'X-Accel-Buffering': 'no'},
         )
+
+
+def end_event_streams(app: FastAPI, message: str) -> None:
+    """End the event streams of `app`'s link (`app.state.link`, once its lifespan has made
+    it), each with a `bye` event saying `message`: its server stops."""
+    link: DoorLink | None = getattr(app.state, 'link', None)
+    if link is not None:
+        link.end_streams(message)

@@ -18,7 +18,7 @@ import contextlib
 import logging
 import signal
 import socket
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from types import FrameType
 from typing import Any
 from urllib.parse import parse_qsl, urlencode
@@ -33,7 +33,8 @@ KEEP_ALIVE_SEC = 5
 MAX_HEAD_BYTES = 16 * 1024
 """A request's head (request line and headers) larger than this is refused 400 (h11's default)."""
 SHUTDOWN_GRACE_SEC = 2
-"""How long open event streams may keep the gateway from stopping."""
+"""How long requests still answered may keep the server from stopping (its event streams are
+ended as it begins to stop: see `Server`)."""
 HIDDEN = '<removed>'
 
 
@@ -133,7 +134,18 @@ def server_config(
 
 
 class Server(uvicorn.Server):
-    """uvicorn's server, leaving the signals to its program (see `stopped_by_signals`)."""
+    """uvicorn's server, leaving the signals to its program (see `stopped_by_signals`), which
+    calls `on_stopping()` as it begins to stop: its program ends the event streams there (an
+    open stream would otherwise hold the stop for SHUTDOWN_GRACE_SEC, then be cut without a
+    word)."""
+
+    def __init__(self, config: uvicorn.Config, on_stopping: Callable[[], None]) -> None:
+        super().__init__(config)
+        self._on_stopping = on_stopping
+
+    async def shutdown(self, sockets: list[socket.socket] | None = None) -> None:
+        self._on_stopping()
+        await super().shutdown(sockets)
 
     @contextlib.contextmanager
     def capture_signals(self) -> Iterator[None]:

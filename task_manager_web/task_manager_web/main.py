@@ -13,6 +13,7 @@ import sys
 from task_manager.client import TaskManagerClient
 from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_web.app import Settings, create_app
+from task_manager_web.door_link import end_event_streams
 from task_manager_web.doors.settings import (
     MAX_BODY_BYTES,
     MAX_READS_PER_CLIENT,
@@ -99,7 +100,7 @@ def main(argv: list[str] | None = None) -> None:
         lambda client: end_within(client.close, 'task-manager-web', 0),
     )
     config = server_config(app, arguments.header_timeout_sec, arguments.access_log)
-    server = Server(config)
+    server = Server(config, lambda: end_event_streams(app, 'the gateway stops'))
     host, port = listener.getsockname()[:2]
     shown_host = f'[{host}]' if ':' in host else host
     dashboard = dashboard_line(f'http://{shown_host}:{port}/', tokens, arguments.token_file)

@@ -122,3 +122,15 @@ def test_the_stream_says_when_the_node_goes_and_comes_back(
 
             start_robot()
             assert stream.next() == ('connection', {'connected': True})
+
+
+def test_the_stream_ends_with_bye_when_the_gateway_stops(
+    robot: Robot, gateway: GatewayProcess, events: Stream
+) -> None:
+    """An open stream does not hold the stop: it is ended, and says why (a page then
+    reconnects to the gateway started next)."""
+    assert events.next() == ('hello', {'connected': True})
+
+    assert gateway.stop() == 0
+
+    assert events.next() == ('bye', {'message': 'the gateway stops'})

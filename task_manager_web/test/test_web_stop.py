@@ -30,7 +30,8 @@ def sigint_default() -> Iterator[None]:
 def test_a_signal_before_the_server_starts_stops_it_once_started(signum: int) -> None:
     """Before `stopped_by_signals`, a SIGINT here would be a KeyboardInterrupt in the test, and
     uvicorn's own handler (put in place by `serve`) would have been too late for it."""
-    server = Server(server_config(_app))
+    stopping: list[bool] = []
+    server = Server(server_config(_app), lambda: stopping.append(server.should_exit))
     listener = listen('test', '127.0.0.1', 0)
     with stopped_by_signals(server):
         signal.raise_signal(signum)
@@ -40,13 +41,14 @@ def test_a_signal_before_the_server_starts_stops_it_once_started(signum: int) ->
     assert server.should_exit
     assert not server.force_exit
     assert server.started  # it started, then stopped at once: no main loop
+    assert stopping == [True]  # told once, as it began to stop
     assert handler_within is not signal.default_int_handler  # serve took nothing over
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
 
 
 @pytest.mark.usefixtures('sigint_default')
 def test_a_second_sigint_asks_for_a_stop_without_waiting() -> None:
-    server = Server(server_config(_app))
+    server = Server(server_config(_app), lambda: None)
     with stopped_by_signals(server):
         signal.raise_signal(signal.SIGTERM)
         assert not server.force_exit
