@@ -12,7 +12,8 @@ request: at the rate of a Task Manager's ExecuteTask that was a fifth of the nod
   return codes included; each goal to cancel is offered to the cancel callback;
 - `<action>/_action/status`: the status of every goal it keeps (transient local, depth 1),
   published once per executor turn with changes, and at most STATUS_RATE_HZ a second when it
-  lists more than LARGE_STATUS goals (the topic keeps only the latest anyway);
+  lists more than LARGE_STATUS goals (the topic keeps only the latest anyway); sent as bytes
+  joined from each goal's part (goal_status_wire.py), not converted field by field;
 - `<action>/_action/feedback`.
 A finished goal is kept for `result_timeout_sec` (10 s, as rclpy), then forgotten: one timer
 serves all of them.
@@ -38,6 +39,11 @@ from task_manager.rclpy_tools.futures import resolved
 from task_manager.rclpy_tools.log import NodeLog
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, without_qos_events
 from task_manager.ros.recording.turn_publication import TurnPublication
+from task_manager.ros.serving.goal_status_wire import (
+    StatusArrayEncoding,
+    part_of,
+    status_array_encoding,
+)
 
 RESULT_TIMEOUT_SEC = 10.0
 LARGE_STATUS = 100
@@ -72,6 +78,8 @@ class ServedGoal:
             goal_info=GoalInfo(goal_id=request.goal_id, stamp=stamp),
             status=GoalStatus.STATUS_ACCEPTED,
         )
+        self.status_part = part_of(self.status_msg)
+        """Its part of the status array, as the middleware sends it (goal_status_wire.py)."""
         self.result: Future[Any] = Future()
         """Completes with the GetResult response once the goal has ended."""
 
@@ -107,6 +115,7 @@ class ServedGoal:
         if status not in _TRANSITIONS.get(self.status, ()):
             raise RuntimeError(f'goal cannot go from status {self.status} to {status}')
         self.status_msg.status = status
+        self.status_part = StatusArrayEncoding.with_status(self.status_part, status)
         self._server.status_changed()
 
 
@@ -162,6 +171,7 @@ class ActionServicesServer:
             qos_profile_action_status_default,
             event_callbacks=without_qos_events(),
         )
+        self._status_encoding = status_array_encoding()
         # key: goal id (bytes), value: the goal, from acceptance until it expires
         self._goals: dict[bytes, ServedGoal] = {}
         # (when it expires, goal id) of ended goals, oldest first
@@ -257,8 +267,13 @@ class ActionServicesServer:
         self._status_publication.changed()
 
     def _publish_status(self) -> None:
-        statuses = [goal.status_msg for goal in self._goals.values()]
-        self._status.publish(GoalStatusArray(status_list=statuses))
+        if self._status_encoding is not None:
+            self._status.publish(
+                self._status_encoding.array([goal.status_part for goal in self._goals.values()])
+            )
+        else:
+            statuses = [goal.status_msg for goal in self._goals.values()]
+            self._status.publish(GoalStatusArray(status_list=statuses))
 
     # ---- expiry ---------------------------------------------------------------------------------
 
