@@ -6,10 +6,10 @@ to publish here, and an action server lists every goal it keeps (an ended one fo
 time a status changes. A goal's part changes only with its status, so the array is a join of
 parts made beforehand (publishing 1,000 then took 6 us). The layout is CDR's, as the
 middleware's serializer writes it: the encapsulation header, the sequence's length, then per
-goal its id's 16 bytes, the alignment to 4 (3 bytes: a part after the first starts at an odd
-offset), the stamp's sec and nanosec, the status. `status_array_encoding()` checks it once
-against rclpy's `serialize_message`; a middleware that writes other bytes gets None, and its
-server publishes messages as before.
+goal its id's 16 bytes, the alignment to 4 (3 bytes, in every part but the first, which
+starts aligned), the stamp's sec and nanosec, the status. `status_array_encoding()` checks
+it once against rclpy's `serialize_message`; a middleware that writes other bytes gets None,
+and its server publishes messages as before.
 """
 
 import functools
