@@ -41,7 +41,7 @@ def start_bridge(broker: BrokerProcess, tmp_path: Path) -> Iterator[Callable[...
     for bridge in bridges:
         if not bridge.killed:
             bridge.stop()
-        print('\n'.join(bridge.log_lines))
+        bridge.print_output()
 
 
 @pytest.fixture

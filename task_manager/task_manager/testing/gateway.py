@@ -73,7 +73,7 @@ class ScriptedRobot:
         """Stop the nodes started, printing their output (pytest shows it when a test failed)."""
         for process in self.processes:
             process.stop()
-            print('\n'.join(process.log_lines))
+            process.print_output()
         self.fib.destroy()
         self.instant.destroy()
 

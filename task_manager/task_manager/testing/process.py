@@ -99,6 +99,11 @@ class NodeProcess:
             )
         return line
 
+    def print_output(self) -> None:
+        """Print what the process printed: a fixture does it at teardown, and pytest shows it
+        for a test that failed."""
+        print('\n'.join(self.log_lines))
+
     def wait_exit(self, timeout_sec: float) -> int:
         code = self.process.wait(timeout_sec)
         self._output.join(timeout_sec)

@@ -61,5 +61,5 @@ def launch_task_manager(
         probe.destroy()
     for process in processes:
         code = process.stop()
-        print('\n'.join(process.log_lines))
+        process.print_output()
         assert code == 0 or process.killed
