@@ -10,7 +10,6 @@ from typing import Any
 import rclpy
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.subscription import MessageInfo
@@ -25,6 +24,7 @@ from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
 from task_manager.rclpy_tools.log import NodeLog
 from task_manager.rclpy_tools.spin_thread import SpinThread
+from task_manager.rclpy_tools.wakeless_executor import WakelessExecutor
 
 DEFAULT_TIMEOUT_SEC = 5.0
 # A request is sent again after this long without a reply, then after twice as long, ...:
@@ -56,7 +56,7 @@ class Connection:
         self.changes = Listeners[bool](self.lock)
         """Who is told each change of `connected`."""
         self._matched: set[str] = set()
-        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor = WakelessExecutor(context=self._context)
         self._spinner = SpinThread(self._executor, self.node, 'task-manager-client')
 
     def start(self) -> None:

@@ -23,12 +23,13 @@ What gathers the changes of a turn (a history commit, a list published whole) is
 a turn that reaches RUN_AHEAD_LIMIT first hands it to the next turn as tasks in progress, which
 run before that turn waits (never after an unrelated event).
 
-Wake-ups are spared where they only cost a turn with nothing ready: rclpy's handler of a ready
-entity wakes the executor twice (for another thread's wait set), and putting a task back or
-making an entity (a timer of a bounded wait) wakes it once; here, in the executor's thread
-after its wait has found work, what was queued runs at the turn's end anyway, and the next
-wait set is built after it. From another thread, or before the wait, the executor is woken as
-in rclpy. An instant service task costs about its three outside events in turns.
+Wake-ups are spared where they only cost a turn with nothing ready: the handlers of ready
+entities do not wake it (rclpy_tools.wakeless_executor), and putting a task back or making an
+entity (a timer of a bounded wait), which wakes rclpy's once, does not either in the
+executor's thread after its wait has found work: what was queued runs at the turn's end
+anyway, and the next wait set is built after it. From another thread, or before the wait,
+the executor is woken as in rclpy. An instant service task costs about its three outside
+events in turns.
 
 Coroutine tasks made with `create_task` and the handlers made for ready entities (an async
 service callback) both park.
@@ -45,17 +46,17 @@ from typing import Any
 
 from rclpy.client import Client
 from rclpy.exceptions import InvalidHandle
-from rclpy.executors import SingleThreadedExecutor, TimeoutException, await_or_execute
+from rclpy.executors import TimeoutException, await_or_execute
 from rclpy.node import Node
 from rclpy.service import Service
 from rclpy.task import Future, Task
+
+from task_manager.rclpy_tools.wakeless_executor import Execute, Take, WakelessExecutor
 
 _noted = threading.local()
 # tasks run, and messages taken, at the end of a turn before the executor waits again
 RUN_AHEAD_LIMIT = 100
 
-_Execute = Callable[[], Coroutine[None, None, None]]
-_Take = Callable[[Any], _Execute | None]
 _Handler = Callable[..., Any] | Coroutine[Any, Any, Any]
 
 
@@ -105,8 +106,8 @@ class _ParkingTask(Task[Any]):
             self._parking.park(self, awaited)
 
 
-class ParkingExecutor(SingleThreadedExecutor):
-    """A SingleThreadedExecutor whose coroutine tasks wait off its list (see the module)."""
+class ParkingExecutor(WakelessExecutor):
+    """A WakelessExecutor whose coroutine tasks wait off its list (see the module)."""
 
     @property
     def resumes_waiters(self) -> bool:
@@ -118,7 +119,7 @@ class ParkingExecutor(SingleThreadedExecutor):
         super().__init__()
         self._ready: deque[Task[Any]] = deque()
         # services and clients a message was taken from this turn: maybe more are waiting
-        self._taken: deque[tuple[Service[Any, Any] | Client[Any, Any], Node, _Take]] = deque()
+        self._taken: deque[tuple[Service[Any, Any] | Client[Any, Any], Node, Take]] = deque()
         self._after_turn: deque[Task[Any]] = deque()
         # whether this turn has waited and found work: what is queued meanwhile, in the
         # executor's thread, runs at the turn's end without a wake-up
@@ -207,7 +208,7 @@ class ParkingExecutor(SingleThreadedExecutor):
                 return self._make_handler(entity, node, take), entity, node
         return None
 
-    def _take_service(self, srv: Service[Any, Any]) -> _Execute | None:
+    def _take_service(self, srv: Service[Any, Any]) -> Execute | None:
         """rclpy's take of one request, but None when there was none."""
         try:
             with srv.handle:
@@ -223,7 +224,7 @@ class ParkingExecutor(SingleThreadedExecutor):
 
         return execute
 
-    def _take_client(self, client: Client[Any, Any]) -> _Execute | None:
+    def _take_client(self, client: Client[Any, Any]) -> Execute | None:
         """rclpy's take of one response, but None when there was none."""
         try:
             with client.handle:
@@ -248,48 +249,26 @@ class ParkingExecutor(SingleThreadedExecutor):
         self._resume(task)
         return task
 
-    def _make_handler(self, entity: Any, node: Node, take_from_wait_list: _Take) -> Task[None]:
-        """The handler of a ready entity (a service request, a message) as a parking task: an
-        async callback awaiting a future (ExecuteTask's get_result answers, one per task in
-        flight) waits off the list like any coroutine here. A service or client it takes a
-        message from is noted, to be taken from again at the end of the turn."""
+    def _make_handler(self, entity: Any, node: Node, take_from_wait_list: Take) -> Task[None]:
+        """The handler of a ready entity (a service request, a message), as a parking task (see
+        `_handler_task`). A service or client it takes a message from is noted, to be taken from
+        again at the end of the turn."""
         take = take_from_wait_list
         if isinstance(entity, Service | Client):
 
-            def take(taken_from: Any) -> _Execute | None:
+            def take(taken_from: Any) -> Execute | None:
                 execute = take_from_wait_list(taken_from)
                 if execute is not None:
                     self._taken.append((taken_from, node, take_from_wait_list))
                 return execute
 
-        entity._executor_event = True  # out of the wait sets until its message is taken
         self._waited = True  # rclpy makes handlers for what its wait found
-        task = _ParkingTask(self, self._handle, (entity, take), {})
-        with self._tasks_lock:
-            self._tasks.append((task, entity, node))
-        return task
+        return super()._make_handler(entity, node, take)
 
-    async def _handle(self, entity: Any, take: _Take) -> None:
-        """rclpy's handler (Executor._make_handler in 9.1.2) less its two wake-ups of the
-        executor, once the message is taken and once the callback has run: they let another
-        thread's wait set take the entity back, and here every wait set is built in this thread
-        after the handler's take, so each only cost one more wait set with nothing ready (two
-        turns per outside event)."""
-        group = entity.callback_group
-        if self._is_shutdown or (group is not None and not group.beginning_execution(entity)):
-            entity._executor_event = False
-            if self._guard:
-                self._guard.trigger()
-            return
-        with self._work_tracker:
-            execute = take(entity)
-            entity._executor_event = False
-            try:
-                if execute is not None:
-                    await execute()
-            finally:
-                if group is not None:
-                    group.ending_execution(entity)
+    def _handler_task(self, entity: Any, take: Take) -> Task[None]:
+        """An async callback awaiting a future (ExecuteTask's get_result answers, one per task in
+        flight) waits off the list like any coroutine here."""
+        return _ParkingTask(self, self._handle, (entity, take), {})
 
     def park(self, task: _ParkingTask, awaited: Future[Any]) -> None:
         """Take `task` off the list until `awaited` completes (or is cancelled)."""

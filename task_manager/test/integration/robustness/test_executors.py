@@ -1,4 +1,5 @@
-"""ParkingExecutor: a coroutine waiting on a future is not stepped until the future completes;
+"""The executors of the node and the client. WakelessExecutor: a message costs one wait set.
+ParkingExecutor: a coroutine waiting on a future is not stepped until the future completes;
 woken tasks run, and waiting requests and responses are taken, before the executor waits
 again, without starving ready entities."""
 
@@ -15,10 +16,12 @@ from rclpy.client import Client
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.task import Future
 from std_srvs.srv import Trigger
+from test_msgs.msg import Empty
 
 from task_manager.rclpy_tools.futures import resolved
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 from task_manager.rclpy_tools.server_wait import wait_until_ready
+from task_manager.rclpy_tools.wakeless_executor import WakelessExecutor
 from task_manager.ros import parking_executor
 from task_manager.ros.parking_executor import ParkingExecutor, spawn_after_turn
 
@@ -26,6 +29,8 @@ pytestmark = pytest.mark.ros
 UNRELATED_WAKE_UPS = 20
 CHAIN_LENGTH = 20
 BURST = 50
+MESSAGES = 5
+IDLE_WAIT_SEC = 0.02
 
 
 class CountingFuture(Future[int]):
@@ -336,3 +341,40 @@ def test_what_is_spawned_after_a_turn_that_reached_its_run_ahead_limit_runs_at_o
     started = time.monotonic()
     executor.spin_until_future_complete(done, timeout_sec=5.0)
     assert done.done() and time.monotonic() - started < 1.0, time.monotonic() - started
+
+
+def waits_for_messages(executor: SingleThreadedExecutor, waits: WaitSetCount) -> int:
+    """Wait sets built for MESSAGES, each published once the executor has gone idle after the
+    one before (as a gateway's messages come: apart), the last idle wait included."""
+    node = rclpy.create_node(f'messages_{os.getpid()}')
+    topic = f'/messages_{os.getpid()}'
+    received: list[Empty] = []
+    node.create_subscription(Empty, topic, received.append, DEEP_RELIABLE)
+    publisher = node.create_publisher(Empty, topic, DEEP_RELIABLE)
+    assert wait_until_ready(lambda: publisher.get_subscription_count() == 1, 5.0)
+    executor.add_node(node)
+    before = waits.count
+    for count in range(1, MESSAGES + 1):
+        publisher.publish(Empty())
+        deadline = time.monotonic() + 5.0
+        while len(received) < count and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=5.0)
+        executor.spin_once(timeout_sec=IDLE_WAIT_SEC)  # nothing comes: this wait times out
+    built = waits.count - before
+    assert len(received) == MESSAGES
+    executor.shutdown()
+    node.destroy_node()
+    return built
+
+
+def test_a_message_costs_one_wait_set(ros_context: None, monkeypatch: pytest.MonkeyPatch) -> None:
+    """rclpy's handler wakes its executor twice (once the message is taken, once its callback
+    has run): each message then costs one more wait set, with nothing ready."""
+    waits = WaitSetCount(monkeypatch)
+    rclpy_waits = waits_for_messages(SingleThreadedExecutor(), waits)
+    wakeless_waits = waits_for_messages(WakelessExecutor(), waits)
+    # per message: the wait that finds it, then the idle one; rclpy's woken one between
+    assert rclpy_waits == 3 * MESSAGES and wakeless_waits == 2 * MESSAGES, (
+        rclpy_waits,
+        wakeless_waits,
+    )
