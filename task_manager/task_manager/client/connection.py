@@ -87,10 +87,12 @@ class Connection:
         callback: Callable[..., None],
         key: str = '',
         with_info: bool = False,
+        raw: bool = False,
     ) -> None:
         """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us
         (under `key`, the topic unless told: a second reader of a topic has a key of its own).
-        `callback(message)`, or `callback(message, info)` `with_info` (rclpy's MessageInfo).
+        `callback(message)`, or `callback(message, info)` `with_info` (rclpy's MessageInfo);
+        `raw`, the message is its serialized bytes (to read with rclpy's deserialize_message).
 
         What `callback` raises is logged, not spread: it would end the executor thread, and
         with it every call of the client.
@@ -126,6 +128,7 @@ class Connection:
             topic,
             guarded,
             profile,
+            raw=raw,
             # the node's writers are made with the QoS asked: no incompatible-QoS handlers
             event_callbacks=SubscriptionEventCallbacks(
                 matched=matched, use_default_callbacks=False

@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 from rclpy.subscription import MessageInfo
 from rclpy.task import Future
 from task_manager_msgs.msg import ActiveTaskArray
@@ -50,11 +51,17 @@ class ActiveTasks:
     is transient local: the lists published while the Task Manager's writer is still learning
     of it come as its history. Of that history, the lists up to the latest one the client had
     when it started following are dropped: they are over.
+
+    The latest list is kept as its bytes and read when asked for: a client that never asks
+    (a gateway follows the events) does not convert each list, as long as the active tasks,
+    into Python (3 ms for 500 tasks).
     """
 
     def __init__(self, connection: Connection) -> None:
         self._connection = connection
+        self._latest_bytes: bytes | None = None
         self._latest: list[ActiveTaskInfo] | None = None
+        """`_latest_bytes` read, once asked for (None until then)."""
         self._latest_place: Place | None = None
         self._followed_from: Place | None = None
         self._following = False
@@ -66,6 +73,7 @@ class ActiveTasks:
             qos.LATEST_ACTIVE_TASKS,
             self._on_latest,
             with_info=True,
+            raw=True,
         )
 
     def latest(self, timeout_sec: float | None = None) -> list[ActiveTaskInfo]:
@@ -73,13 +81,19 @@ class ActiveTasks:
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         lock = self._connection.lock
         with lock:
-            if not lock.wait_for(lambda: self._latest is not None, timeout_sec):
+            if not lock.wait_for(lambda: self._latest_bytes is not None, timeout_sec):
                 raise TaskManagerUnavailable(f'no active task list within {timeout_sec} s')
-            return list(self._latest or [])
+            return list(self._read_latest())
 
     def has(self, task_id: str) -> bool:
-        """Whether the latest list has this task."""
-        return any(t.task_id == task_id for t in self._latest or [])
+        """Whether the latest list has this task (call it holding the client's lock)."""
+        return any(t.task_id == task_id for t in self._read_latest())
+
+    def _read_latest(self) -> list[ActiveTaskInfo]:
+        """The latest list read from its bytes, once (the client's lock held)."""
+        if self._latest is None and self._latest_bytes is not None:
+            self._latest = _infos(deserialize_message(self._latest_bytes, ActiveTaskArray))
+        return self._latest or []
 
     def follow(self) -> None:
         """Subscribe (once) to every list; wait until the Task Manager's publisher reaches
@@ -87,7 +101,7 @@ class ActiveTasks:
         lock = self._connection.lock
         if self._connection.connected:
             with lock:  # the list of the moment arrives with the match: wait, to know it
-                lock.wait_for(lambda: self._latest is not None, self._connection.timeout_sec)
+                lock.wait_for(lambda: self._latest_bytes is not None, self._connection.timeout_sec)
         with lock:
             subscribe = not self._following
             self._following = True
@@ -105,9 +119,9 @@ class ActiveTasks:
         if self._connection.connected:
             self._connection.wait_matched({EVERY_ACTIVE_LIST}, self._connection.timeout_sec)
 
-    def _on_latest(self, message: ActiveTaskArray, info: MessageInfo) -> None:
+    def _on_latest(self, message: bytes, info: MessageInfo) -> None:
         with self._connection.lock:
-            self._latest = _infos(message)
+            self._latest_bytes, self._latest = message, None
             self._latest_place = place_of(info)
             self._connection.lock.notify_all()
 
