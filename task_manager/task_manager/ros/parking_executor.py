@@ -14,10 +14,9 @@ another, whose waiter answers) cost a rebuild of the wait set in Python. Here a 
 with them, at most RUN_AHEAD_LIMIT, so that tasks waking each other never starve ready entities;
 the entities found ready by one wait are still all handled before any of them.
 
-A service, a client or a subscription that had a message taken in a turn is taken from again
-at the end of that turn, within the same limit, until it has none (rclpy_tools.wakeless_executor):
-rclpy takes one message per entity per wait, so a burst of 500 goals cost 500 wait sets on
-ExecuteTask's send_goal alone.
+A service or a client that had a request (a response) taken in a turn is taken from again at
+the end of that turn, within the same limit, until it has none: rclpy takes one message per
+entity per wait, so a burst of 500 goals cost 500 wait sets on ExecuteTask's send_goal alone.
 
 What gathers the changes of a turn (a history commit, a list published whole) is queued with
 `spawn_after_turn`: it runs once nothing else is ready, just before the executor waits again;
@@ -42,13 +41,17 @@ reads the note after each step. Nothing else about futures changes.
 
 import threading
 from collections import deque
-from collections.abc import Callable, Coroutine, Generator, Iterator
+from collections.abc import Callable, Coroutine, Generator
 from typing import Any
 
+from rclpy.client import Client
+from rclpy.exceptions import InvalidHandle
+from rclpy.executors import TimeoutException, await_or_execute
 from rclpy.node import Node
+from rclpy.service import Service
 from rclpy.task import Future, Task
 
-from task_manager.rclpy_tools.wakeless_executor import Take, WakelessExecutor, Work
+from task_manager.rclpy_tools.wakeless_executor import Execute, Take, WakelessExecutor
 
 _noted = threading.local()
 # tasks run, and messages taken, at the end of a turn before the executor waits again
@@ -115,22 +118,25 @@ class ParkingExecutor(WakelessExecutor):
     def __init__(self) -> None:
         super().__init__()
         self._ready: deque[Task[Any]] = deque()
+        # services and clients a message was taken from this turn: maybe more are waiting
+        self._taken: deque[tuple[Service[Any, Any] | Client[Any, Any], Node, Take]] = deque()
         self._after_turn: deque[Task[Any]] = deque()
         # whether this turn has waited and found work: what is queued meanwhile, in the
         # executor's thread, runs at the turn's end without a wake-up
         self._waited = False
         self._thread = 0
 
-    def _begin_turn(self) -> None:
+    def _wait_for_ready_callbacks(self, *args: Any, **kwargs: Any) -> Any:
+        """rclpy's turn (the tasks in progress, a wait, the entities found ready), then the tasks
+        that turn woke or created and those they woke in turn, and the next messages of the
+        services and clients it took from, at most RUN_AHEAD_LIMIT, before the next wait."""
         self._waited = False
         self._thread = threading.get_ident()
-
-    def _has_rest_of_turn(self) -> bool:
-        return bool(self._ready or self._after_turn or self._taken)
-
-    def _rest_of_turn(self) -> Iterator[Work]:
-        """The tasks the turn woke or created and those they woke in turn, and the next
-        messages of what it took from, at most RUN_AHEAD_LIMIT, before the next wait."""
+        try:
+            yield from super()._wait_for_ready_callbacks(*args, **kwargs)
+        except TimeoutException:
+            if not (self._ready or self._after_turn):
+                raise  # nothing left of this turn: spin_once(timeout) returns
         self._waited = True
         limit_reached = True
         for _ in range(RUN_AHEAD_LIMIT):
@@ -195,6 +201,49 @@ class ParkingExecutor(WakelessExecutor):
             self._tasks.append((task, None, None))  # resumed like any task if it waits
         return task, None, None
 
+    def _next_take(self) -> tuple[Task[None], Any, Node] | None:
+        while self._taken and not self._is_shutdown:
+            entity, node, take = self._taken.popleft()
+            if self.can_execute(entity):
+                return self._make_handler(entity, node, take), entity, node
+        return None
+
+    def _take_service(self, srv: Service[Any, Any]) -> Execute | None:
+        """rclpy's take of one request, but None when there was none."""
+        try:
+            with srv.handle:
+                request, header = srv.handle.service_take_request(srv.srv_type.Request)
+        except InvalidHandle:
+            return None
+        if header is None:
+            return None
+
+        async def execute() -> None:
+            response = await await_or_execute(srv.callback, request, srv.srv_type.Response())
+            srv.send_response(response, header)
+
+        return execute
+
+    def _take_client(self, client: Client[Any, Any]) -> Execute | None:
+        """rclpy's take of one response, but None when there was none."""
+        try:
+            with client.handle:
+                header, response = client.handle.take_response(client.srv_type.Response)
+        except InvalidHandle:
+            return None
+        if header is None:
+            return None
+
+        async def execute() -> None:
+            try:
+                future = client.get_pending_request(header.request_id.sequence_number)
+            except KeyError:
+                return  # the request was cancelled
+            future._set_executor(self)
+            future.set_result(response)
+
+        return execute
+
     def create_task(self, callback: Callable[..., Any], *args: Any, **kwargs: Any) -> Task[Any]:
         task = _ParkingTask(self, callback, args, kwargs)
         self._resume(task)
@@ -202,9 +251,19 @@ class ParkingExecutor(WakelessExecutor):
 
     def _make_handler(self, entity: Any, node: Node, take_from_wait_list: Take) -> Task[None]:
         """The handler of a ready entity (a service request, a message), as a parking task (see
-        `_handler_task`)."""
+        `_handler_task`). A service or client it takes a message from is noted, to be taken from
+        again at the end of the turn."""
+        take = take_from_wait_list
+        if isinstance(entity, Service | Client):
+
+            def take(taken_from: Any) -> Execute | None:
+                execute = take_from_wait_list(taken_from)
+                if execute is not None:
+                    self._taken.append((taken_from, node, take_from_wait_list))
+                return execute
+
         self._waited = True  # rclpy makes handlers for what its wait found
-        return super()._make_handler(entity, node, take_from_wait_list)
+        return super()._make_handler(entity, node, take)
 
     def _handler_task(self, entity: Any, take: Take) -> Task[None]:
         """An async callback awaiting a future (ExecuteTask's get_result answers, one per task in

@@ -378,35 +378,3 @@ def test_a_message_costs_one_wait_set(ros_context: None, monkeypatch: pytest.Mon
         rclpy_waits,
         wakeless_waits,
     )
-
-
-def waits_for_a_burst_of_messages(executor: SingleThreadedExecutor, waits: WaitSetCount) -> int:
-    """Wait sets built from BURST messages published at once to the last one taken."""
-    node = rclpy.create_node(f'message_burst_{os.getpid()}')
-    topic = f'/message_burst_{os.getpid()}'
-    received: list[Empty] = []
-    node.create_subscription(Empty, topic, received.append, DEEP_RELIABLE)
-    publisher = node.create_publisher(Empty, topic, DEEP_RELIABLE)
-    assert wait_until_ready(lambda: publisher.get_subscription_count() == 1, 5.0)
-    executor.add_node(node)
-    for _ in range(BURST):
-        publisher.publish(Empty())
-    before = waits.count
-    deadline = time.monotonic() + 10.0
-    while len(received) < BURST and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=5.0)
-    built = waits.count - before
-    assert len(received) == BURST
-    executor.shutdown()
-    node.destroy_node()
-    return built
-
-
-def test_waiting_messages_are_taken_in_the_turn_that_found_the_first(
-    ros_context: None, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    # rclpy takes one message per subscription per wait
-    waits = WaitSetCount(monkeypatch)
-    rclpy_waits = waits_for_a_burst_of_messages(SingleThreadedExecutor(), waits)
-    wakeless_waits = waits_for_a_burst_of_messages(WakelessExecutor(), waits)
-    assert rclpy_waits >= BURST and wakeless_waits <= BURST // 5, (rclpy_waits, wakeless_waits)
