@@ -8,12 +8,11 @@ from collections.abc import Callable
 from typing import Any
 
 import rclpy
-from rclpy.callback_groups import CallbackGroup
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
-from rclpy.subscription import MessageInfo, Subscription
+from rclpy.subscription import MessageInfo
 from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskEventArray
@@ -89,13 +88,11 @@ class Connection:
         key: str = '',
         with_info: bool = False,
         raw: bool = False,
-        callback_group: CallbackGroup | None = None,
-    ) -> Subscription[Any]:
+    ) -> None:
         """Subscribe to a topic of the Task Manager, noting whether a publisher reaches us
         (under `key`, the topic unless told: a second reader of a topic has a key of its own).
         `callback(message)`, or `callback(message, info)` `with_info` (rclpy's MessageInfo);
         `raw`, the message is its serialized bytes (to read with rclpy's deserialize_message).
-        Returns the subscription.
 
         What `callback` raises is logged, not spread: it would end the executor thread, and
         with it every call of the client.
@@ -126,13 +123,12 @@ class Connection:
             for listener in listeners:
                 listener.put(connected)
 
-        return self.node.create_subscription(
+        self.node.create_subscription(
             msg_type,
             topic,
             guarded,
             profile,
             raw=raw,
-            callback_group=callback_group,
             # the node's writers are made with the QoS asked: no incompatible-QoS handlers
             event_callbacks=SubscriptionEventCallbacks(
                 matched=matched, use_default_callbacks=False

@@ -6,11 +6,9 @@ import weakref
 from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
-from rclpy.callback_groups import CallbackGroup
-from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
-from rclpy.subscription import MessageInfo, Subscription
+from rclpy.subscription import MessageInfo
 from rclpy.task import Future
 from task_manager_msgs.msg import ActiveTaskArray
 
@@ -54,11 +52,9 @@ class ActiveTasks:
     of it come as its history. Of that history, the lists up to the latest one the client had
     when it started following are dropped: they are over.
 
-    The latest list is read when asked for, from the reader itself: once a first list has come
-    (which wakes whoever waits for one), the client's executor no longer waits on that reader,
-    so a client that never asks (a gateway follows the events) takes no executor turn and
-    converts nothing for the three lists a task makes. The reader keeps the newest (depth 1);
-    `latest()` takes it, kept as bytes, and converts it once.
+    The latest list is kept as its bytes and read when asked for: a client that never asks
+    (a gateway follows the events) does not convert each list, as long as the active tasks,
+    into Python (3 ms for 500 tasks).
     """
 
     def __init__(self, connection: Connection) -> None:
@@ -71,14 +67,13 @@ class ActiveTasks:
         self._following = False
         self.listeners = Listeners[list[ActiveTaskInfo]](connection.lock)
         """Who gets every list from `follow()` on."""
-        self._reader = connection.subscribe(
+        connection.subscribe(
             ActiveTaskArray,
             ACTIVE_TASKS_TOPIC,
             qos.LATEST_ACTIVE_TASKS,
             self._on_latest,
             with_info=True,
             raw=True,
-            callback_group=ReadOnDemand(lambda: self._latest_bytes is None),
         )
 
     def latest(self, timeout_sec: float | None = None) -> list[ActiveTaskInfo]:
@@ -95,30 +90,10 @@ class ActiveTasks:
         return any(t.task_id == task_id for t in self._read_latest())
 
     def _read_latest(self) -> list[ActiveTaskInfo]:
-        """The newest list, taken from the reader if a newer one came, read from its bytes
-        once (the client's lock held)."""
-        self._take_newest()
+        """The latest list read from its bytes, once (the client's lock held)."""
         if self._latest is None and self._latest_bytes is not None:
             self._latest = _infos(deserialize_message(self._latest_bytes, ActiveTaskArray))
         return self._latest or []
-
-    def _take_newest(self) -> None:
-        """Take what the reader holds (the client's lock held); nothing once it is destroyed."""
-        try:
-            reader = self._reader.handle
-            with reader:
-                while (taken := reader.take_message(ActiveTaskArray, True)) is not None:
-                    self._keep(taken[0], place_of(taken[1]))
-        except InvalidHandle:
-            return
-
-    def _keep(self, message: bytes, place: Place) -> None:
-        """Keep `message` unless it is older than the list kept (the executor's thread can take
-        one just before the caller takes a newer), the client's lock held."""
-        kept = self._latest_place
-        if kept is not None and place[0] == kept[0] and place[1] <= kept[1]:
-            return
-        self._latest_bytes, self._latest, self._latest_place = message, None, place
 
     def follow(self) -> None:
         """Subscribe (once) to every list; wait until the Task Manager's publisher reaches
@@ -131,7 +106,6 @@ class ActiveTasks:
             subscribe = not self._following
             self._following = True
             if subscribe:
-                self._take_newest()
                 self._followed_from = self._latest_place
         if subscribe:
             self._connection.subscribe(
@@ -147,7 +121,8 @@ class ActiveTasks:
 
     def _on_latest(self, message: bytes, info: MessageInfo) -> None:
         with self._connection.lock:
-            self._keep(message, place_of(info))
+            self._latest_bytes, self._latest = message, None
+            self._latest_place = place_of(info)
             self._connection.lock.notify_all()
 
     def _on_change(self, message: ActiveTaskArray, info: MessageInfo) -> None:
@@ -156,25 +131,6 @@ class ActiveTasks:
         if start is not None and writer == start[0] and number <= start[1]:
             return  # history from before follow()
         self.listeners.put(_infos(message))
-
-
-class ReadOnDemand(CallbackGroup):
-    """A reentrant group whose subscriptions the executor waits on only while `waiting()` is
-    true (their readers are taken from by whoever asks); the QoS events of their readers (a
-    publisher matched) are waited on always."""
-
-    def __init__(self, waiting: Callable[[], bool]) -> None:
-        super().__init__()
-        self._waiting = waiting
-
-    def can_execute(self, entity: Any) -> bool:
-        return self._waiting() if isinstance(entity, Subscription) else True
-
-    def beginning_execution(self, entity: Any) -> bool:
-        return True
-
-    def ending_execution(self, entity: Any) -> None:
-        pass
 
 
 def _infos(message: ActiveTaskArray) -> list[ActiveTaskInfo]:

@@ -414,29 +414,28 @@ def test_a_listener_that_starts_late_gets_no_list_that_was_over(
     assert 'stays' in seen and not seen & {'over-1', 'over-2', 'over-3'}, log.lists
 
 
-def test_the_latest_active_list_is_taken_from_its_reader_when_asked_for(
+def test_the_latest_active_list_is_read_only_when_asked_for(
     ros: RosHarness,
     launch_task_manager: LaunchTaskManager,
     topic_prefix: str,
     client: TaskManagerClient,
 ) -> None:
-    """Once a first list has come, the client's executor no longer waits on the reader of the
-    latest list (a gateway, which never asks, takes no turn for the lists a task makes);
-    active_tasks() takes the newest one from the reader."""
+    """The client keeps the newest list as its bytes: a client that never asks for it (a
+    gateway follows the events) converts no list into Python; active_tasks() reads it."""
     ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/hold')
     tm = launch_task_manager({'hold': action_task('hold', f'{topic_prefix}/hold')})
     client.wait_until_available()
-    assert client.active_tasks() == []
-    reader, executor = client._active._reader, client._connection._executor
-    assert not executor.can_execute(reader)
-
     tm.send('hold', {'order': 1}, task_id='held')
     tm.wait_in_progress('held')
+    active = client._active
     assert wait_until(
         lambda: (
-            [(t.task_id, t.status) for t in client.active_tasks()]
-            == [('held', TaskStatus.IN_PROGRESS)]
+            b'held' in (active._latest_bytes or b'')
+            and b'IN_PROGRESS' in (active._latest_bytes or b'')
         ),
         'the list with the held task in progress',
     )
-    assert not executor.can_execute(reader)
+    assert active._latest is None  # not read yet
+    listed = [(t.task_id, t.status) for t in client.active_tasks()]
+    assert listed == [('held', TaskStatus.IN_PROGRESS)]
+    assert active._latest is not None  # read once, kept until the next list
