@@ -35,6 +35,8 @@ TARGETS = Targets(latency=1.10, throughput=0.85)
 """Issue 40: at most 10 % slower at dispatch, at most 15 % fewer tasks/s on the burst."""
 DASHBOARD_STREAMS = 1
 CPU_SAMPLE_TASKS = 200
+NODE_ROLE = 'node'
+GATEWAY_ROLES = ('web gateway', 'MQTT bridge')
 
 
 @contextlib.contextmanager
@@ -101,8 +103,24 @@ class CpuPerTask:
 
         return (
             f'CPU ms per instant action task by process, {CPU_SAMPLE_TASKS} tasks one by one, '
-            f'median of the phases: {line(ALONE)}; {line(ATTACHED)}'
+            f'median of the phases: {line(ALONE)}; {line(ATTACHED)}; {self._over_the_node()}'
         )
+
+    def _over_the_node(self) -> str:
+        """Each gateway's CPU over the node's in the same phase: the machine's speed drifts by
+        as much as a half within an hour here, and moves both alike (2026-11-29)."""
+        attached = self.ms[ATTACHED.name]
+        node = attached.get(NODE_ROLE, [])
+        parts = []
+        for role in GATEWAY_ROLES:
+            ratios = [
+                ms / node_ms
+                for ms, node_ms in zip(attached.get(role, []), node, strict=False)
+                if node_ms
+            ]
+            if ratios:
+                parts.append(f'{role} {statistics.median(ratios):.2f}')
+        return f'over the node, attached: {", ".join(parts)}' if parts else ''
 
 
 class HeldRamps:
