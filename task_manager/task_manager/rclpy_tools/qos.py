@@ -1,6 +1,10 @@
 """QoS profiles of the Task Manager's ROS interfaces (see INTERFACES.md)."""
 
+from typing import Any
+
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 # Deep enough that a burst of hundreds of requests or results is not dropped.
@@ -57,11 +61,24 @@ ACTIVE_TASK_CHANGES = QoSProfile(
 
 
 def without_qos_events() -> PublisherEventCallbacks:
-    """For a publisher whose every reader is made with its QoS (an action's status and
-    feedback, the instance announcements): no incompatible-QoS handlers. rclpy adds two by
-    default to each publisher and subscription, each one more waitable in every wait set the
-    executor builds (at least three per task)."""
+    """No incompatible-QoS handlers for a publisher of the node. rclpy adds two by default to
+    each publisher and subscription, each one more waitable in every wait (at least three per
+    task): they log that a reader asked for a QoS the publisher does not offer. The node's
+    readers are made with its QoS (an action's status and feedback, the instance
+    announcements), and a reader of its public topics made otherwise is told by its own
+    handler, which rclpy and rclcpp add by default ("offering incompatible QoS")."""
     return PublisherEventCallbacks(use_default_callbacks=False)
+
+
+def drop_qos_events(node: Node, publisher: Publisher[Any] | None) -> None:
+    """Take out the incompatible-QoS handlers rclpy gave a publisher it made for the node
+    (its /parameter_events), as `without_qos_events` does for the node's own."""
+    if publisher is None:
+        return
+    for handler in publisher.event_handlers:
+        node.remove_waitable(handler)
+        handler.destroy()
+    publisher.event_handlers.clear()
 
 
 def subscription_without_qos_events() -> SubscriptionEventCallbacks:

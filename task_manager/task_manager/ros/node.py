@@ -96,6 +96,7 @@ class TaskManagerNode(Node):
             automatically_declare_parameters_from_overrides=True,
         )
         self._log = NodeLog.of(self)
+        qos.drop_qos_events(self, self._parameter_event_publisher)
         self.instances = InstanceWatch(self)
         self.settings = read_settings(self)
         self._specs = read_task_specs(self, reserved_names=set(SYSTEM_TASK_NAMES))
@@ -141,9 +142,14 @@ class TaskManagerNode(Node):
     def serve(self) -> None:
         """Serve ExecuteTask and publish active tasks and results (once, when no twin is seen)."""
         self._active_publisher = self.create_publisher(
-            ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS
+            ActiveTaskArray,
+            ACTIVE_TASKS_TOPIC,
+            qos.ACTIVE_TASKS,
+            event_callbacks=qos.without_qos_events(),
         )
-        self._result_publisher = self.create_publisher(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS)
+        self._result_publisher = self.create_publisher(
+            TaskDoneResult, RESULTS_TOPIC, qos.RESULTS, event_callbacks=qos.without_qos_events()
+        )
         self._results_service = self.create_service(
             GetTaskResults, GET_TASK_RESULTS_SERVICE, self._get_task_results
         )

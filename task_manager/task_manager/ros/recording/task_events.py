@@ -62,10 +62,16 @@ class TaskEventStream:
         """Create the publisher (when the node starts serving)."""
         if self.enabled:
             self._publisher = self._node.create_publisher(
-                TaskEvent, TASK_EVENTS_TOPIC, qos.TASK_EVENTS
+                TaskEvent,
+                TASK_EVENTS_TOPIC,
+                qos.TASK_EVENTS,
+                event_callbacks=qos.without_qos_events(),
             )
             self._batches = self._node.create_publisher(
-                TaskEventArray, TASK_EVENT_BATCHES_TOPIC, qos.TASK_EVENTS
+                TaskEventArray,
+                TASK_EVENT_BATCHES_TOPIC,
+                qos.TASK_EVENTS,
+                event_callbacks=qos.without_qos_events(),
             )
 
     def received(self, record: TaskRecord) -> None:

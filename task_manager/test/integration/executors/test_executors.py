@@ -20,6 +20,7 @@ from test_msgs.msg import Empty
 
 from task_manager.rclpy_tools.futures import resolved
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
+from task_manager.rclpy_tools.reusable_wait_set import ReusableWaitSet
 from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.rclpy_tools.wakeless_executor import WakelessExecutor
 from task_manager.ros import parking_executor
@@ -190,13 +191,21 @@ def test_a_coroutine_in_resolved_goes_on_when_its_future_completes_with_no_wake_
 
 
 class WaitSetCount:
-    """Counts the wait sets rclpy's executors build (one per wait), through the module they
-    make them with; nothing else about them changes."""
+    """Counts the waits of rclpy's executors (a wait set built for each, through the module
+    they make them with) and of ours (their reusable wait set's `wait`); nothing else about
+    them changes."""
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch) -> None:
         self.count = 0
         real = rclpy.executors._rclpy  # type: ignore[attr-defined]  # the binding it patches
         counter = self
+        wait = ReusableWaitSet.wait
+
+        def counted_wait(wait_set: ReusableWaitSet, timeout_nsec: int) -> Any:
+            counter.count += 1
+            return wait(wait_set, timeout_nsec)
+
+        monkeypatch.setattr(ReusableWaitSet, 'wait', counted_wait)
 
         class Counting:
             def __getattr__(self, name: str) -> Any:
