@@ -1,4 +1,5 @@
-"""Awaiting rclpy futures from coroutines, with bounds driven by timers: no thread, no polling.
+"""Awaiting rclpy futures from coroutines, with bounds driven by the node's timer of timeouts
+(rclpy_tools.timeouts): no thread, no polling.
 
 rclpy's executors resume a waiting coroutine only when they next wake up. When one task
 completes a future that another task awaits, nothing wakes the executor, and the waiting
@@ -14,6 +15,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from task_manager.rclpy_tools.cleanup import destroy_timer
+from task_manager.rclpy_tools.timeouts import timeouts_of
 
 T = TypeVar('T')
 
@@ -107,14 +109,14 @@ async def wait_for(node: Node, future: Future[Any], timeout_sec: float) -> bool:
     if timeout_sec <= 0:
         return False
     deadline: Future[None] = Future()
-    timer = node.create_timer(
+    timeouts = timeouts_of(node)
+    key = timeouts.after(
         timeout_sec, lambda: None if deadline.done() else deadline.set_result(None)
     )
     try:
         winner = await resolved(node, first_completed([future, deadline]))
     finally:
-        timer.cancel()
-        destroy_timer(node, timer)
+        timeouts.cancel(key)
     return winner == 0 or future.done()
 
 
@@ -135,13 +137,14 @@ async def wait_until_ready(node: Node, is_ready: Callable[[], bool], timeout_sec
             ready.set_result(None)
 
     checker = node.create_timer(READINESS_CHECK_PERIOD_SEC, check)
-    limit = node.create_timer(
+    timeouts = timeouts_of(node)
+    limit = timeouts.after(
         timeout_sec, lambda: None if deadline.done() else deadline.set_result(None)
     )
     try:
         await resolved(node, first_completed([ready, deadline]))
     finally:
-        for timer in (checker, limit):
-            timer.cancel()
-            destroy_timer(node, timer)
+        timeouts.cancel(limit)
+        checker.cancel()
+        destroy_timer(node, checker)
     return ready.done() or bool(is_ready())

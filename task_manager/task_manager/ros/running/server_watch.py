@@ -1,6 +1,7 @@
 """Noticing that the server behind running tasks is gone.
 
-While a runner has tasks in flight, a timer checks its server every `check_period_sec`:
+While a runner has tasks in flight, its server is checked every `check_period_sec` (on the
+node's timer of timeouts, rclpy_tools.timeouts):
 an action server must answer a harmless probe (a cancel request for a goal id that does
 not exist; one each check, so that an answer lost does not stop the probing), or give
 another sign of life (a goal's response, feedback, a result); a service must still be on
@@ -10,16 +11,15 @@ leaves the graph only when its DDS lease expires, so for services the bound coun
 that moment, the moment the loss becomes visible.
 """
 
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 from rclpy.node import Node
 from rclpy.task import Future
-from rclpy.timer import Timer
 
-from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.log import NodeLog
+from task_manager.rclpy_tools.timeouts import timeouts_of
 
 # A probe answers True (alive now), False (gone now), or a future that completes if alive.
 Probe = Callable[[], bool | Future[Any]]
@@ -64,7 +64,7 @@ class ServerWatch:
         self._settings = settings
         self._loss = loss
         self._in_flight: set[FailableExecution] = set()
-        self._timer: Timer | None = None
+        self._next_check: Hashable | None = None  # its key in the node's timeouts
         self._last_alive_ns = 0
 
     def _now_ns(self) -> int:
@@ -73,22 +73,26 @@ class ServerWatch:
     @property
     def watching(self) -> bool:
         """Whether tasks run on the server (its checks are on)."""
-        return self._timer is not None
+        return self._next_check is not None
 
     def track(self, execution: FailableExecution) -> None:
         """Watch the server while `execution` runs."""
         self._in_flight.add(execution)
-        if self._timer is None:
+        if self._next_check is None:
             self._last_alive_ns = self._now_ns()
-            self._timer = self._node.create_timer(self._settings.check_period_sec, self._check)
+            self._check_later()
         execution.outcome.add_done_callback(lambda _: self._untrack(execution))
+
+    def _check_later(self) -> None:
+        self._next_check = timeouts_of(self._node).after(
+            self._settings.check_period_sec, self._check
+        )
 
     def _untrack(self, execution: FailableExecution) -> None:
         self._in_flight.discard(execution)
-        if not self._in_flight and self._timer is not None:
-            self._timer.cancel()
-            destroy_timer(self._node, self._timer)
-            self._timer = None
+        if not self._in_flight and self._next_check is not None:
+            timeouts_of(self._node).cancel(self._next_check)
+            self._next_check = None
 
     def mark_alive(self) -> None:
         """The server gave a sign of life (a probe's answer, a goal's response, feedback, a
@@ -96,6 +100,7 @@ class ServerWatch:
         self._last_alive_ns = self._now_ns()
 
     def _check(self) -> None:
+        self._check_later()  # the next check first: one that raises must not end the watch
         self._send_probe()  # each tick: an answer lost must not leave the server unprobed
         if self._on_tick is not None:
             self._on_tick()

@@ -1,21 +1,21 @@
 """Running tasks on existing ROS 2 services."""
 
+from collections.abc import Hashable
 from typing import Any
 
 from rclpy.client import Client
 from rclpy.node import Node
 from rclpy.task import Future
-from rclpy.timer import Timer
 
 from task_manager.core.errors import TaskRequestError
 from task_manager.core.status import ErrorCode, TaskStatus
 from task_manager.core.task import TaskEnd, TaskRecord, status_for_service_response
 from task_manager.core.task_spec import TaskSpec
 from task_manager.messages.json_codec import message_from_json, message_to_dict
-from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.rclpy_tools.futures import wait_for, wait_until_ready
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 from task_manager.rclpy_tools.request_window import RequestWindow
+from task_manager.rclpy_tools.timeouts import timeouts_of
 from task_manager.ros.running.execution import RunnerTimeouts, TaskRunner
 from task_manager.ros.running.server_watch import ServerWatch, WatchSettings
 
@@ -38,7 +38,7 @@ class ServiceExecution:
         self._window = window
         self._spec = spec
         self._response_timeout_sec = response_timeout_sec
-        self._deadline: Timer | None = None
+        self._deadline: Hashable | None = None  # its key in the node's timeouts
         self.outcome: Future[Any] = Future()
         self._response_future = window.call_async(request)
         self._response_future.add_done_callback(self._on_response)
@@ -49,7 +49,7 @@ class ServiceExecution:
         if sent.cancelled() or self.outcome.done():
             return
         seconds = self._response_timeout_sec
-        self._deadline = self._node.create_timer(
+        self._deadline = timeouts_of(self._node).after(
             seconds,
             lambda: self.fail(f'service {self._spec.topic} gave no response within {seconds} s'),
         )
@@ -72,8 +72,7 @@ class ServiceExecution:
 
     def _clean_up(self) -> None:
         if self._deadline is not None:
-            self._deadline.cancel()
-            destroy_timer(self._node, self._deadline)
+            timeouts_of(self._node).cancel(self._deadline)
         if not self._response_future.done():
             self._window.forget(self._response_future)
 

@@ -1,0 +1,80 @@
+"""A node's timeouts on one timer: each action runs once its delay has passed, earliest first,
+unless cancelled; however many are pending, the node has one timer for them."""
+
+import os
+import time
+from collections.abc import Iterator
+
+import pytest
+import rclpy
+from rclpy.task import Future
+
+from task_manager.rclpy_tools.futures import wait_for
+from task_manager.rclpy_tools.timeouts import timeouts_of
+from task_manager.rclpy_tools.wakeless_executor import WakelessExecutor
+
+pytestmark = pytest.mark.ros
+TIMEOUT_SEC = 5.0
+
+
+@pytest.fixture
+def spun(ros_context: None) -> Iterator[tuple[WakelessExecutor, rclpy.node.Node]]:
+    node = rclpy.create_node(f'timeouts_{os.getpid()}')
+    executor = WakelessExecutor()
+    executor.add_node(node)
+    yield executor, node
+    executor.shutdown()
+    node.destroy_node()
+
+
+def spin_until(executor: WakelessExecutor, future: Future[None]) -> None:
+    executor.spin_until_future_complete(future, timeout_sec=TIMEOUT_SEC)
+    assert future.done()
+
+
+def test_actions_run_after_their_delays_earliest_first_on_one_timer(
+    spun: tuple[WakelessExecutor, rclpy.node.Node],
+) -> None:
+    executor, node = spun
+    timeouts = timeouts_of(node)
+    ran: list[str] = []
+    done: Future[None] = Future()
+    started = time.monotonic()
+
+    def late() -> None:
+        ran.append('late')
+        done.set_result(None)
+
+    timeouts.after(0.2, late)
+    timeouts.after(0.05, lambda: ran.append('early'))  # arms the timer earlier
+    cancelled = timeouts.after(0.1, lambda: ran.append('cancelled'))
+    timeouts.cancel(cancelled)
+    assert len(list(node.timers)) == 1
+    spin_until(executor, done)
+    assert ran == ['early', 'late'] and time.monotonic() - started >= 0.2
+
+
+def test_bounded_waits_make_no_timer_of_their_own(
+    spun: tuple[WakelessExecutor, rclpy.node.Node],
+) -> None:
+    """futures.wait_for made and destroyed a timer per wait: a change of the node's timers,
+    and so of the executor's wait set, twice per task."""
+    executor, node = spun
+    answered: Future[None] = Future()
+    never: Future[None] = Future()
+    results: list[bool] = []
+    done: Future[None] = Future()
+
+    async def waits() -> None:
+        results.append(await wait_for(node, never, 0.05))
+        answered.set_result(None)
+        results.append(await wait_for(node, answered, 0.05))
+        done.set_result(None)
+
+    timeouts_of(node)  # its one timer, made once
+    timers = list(node.timers)
+    executor.create_task(waits)
+    executor.spin_once(timeout_sec=0.0)  # up to the first wait's await
+    timers_while_waiting = list(node.timers)
+    spin_until(executor, done)
+    assert results == [False, True] and timers_while_waiting == timers
