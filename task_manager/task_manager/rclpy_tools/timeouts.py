@@ -15,6 +15,7 @@ import weakref
 from collections.abc import Callable, Hashable
 
 from rclpy.node import Node
+from rclpy.timer import Timer
 
 from task_manager.core.admission.deadlines import Deadlines
 
@@ -53,23 +54,34 @@ class Timeouts:
             self._deadlines.clear(key)
 
     def _arm(self) -> None:
-        at = self._deadlines.next_at()
-        self._armed_at = at
-        if at is None:
-            self._timer.cancel()
-            return
-        delay_sec = at - time.monotonic()
-        if not delay_sec < _LONGEST_ARM_SEC:  # NaN too
-            delay_sec = _LONGEST_ARM_SEC
-        self._timer.timer_period_ns = max(int(delay_sec * 1e9), 1)
-        self._timer.reset()
+        self._armed_at = self._deadlines.next_at()
+        arm_for(self._timer, self._armed_at)
 
     def _on_timer(self) -> None:
         with self._lock:
             due = self._deadlines.pop_due(time.monotonic())
             self._arm()
-        for action in due:
-            action()
+        errors = []
+        for action in due:  # one that raises (a bug) must not lose the others
+            try:
+                action()
+            except Exception as error:
+                errors.append(error)
+        if errors:
+            raise errors[0]
+
+
+def arm_for(timer: Timer, at: float | None) -> None:
+    """Make `timer` fire once at `at` (time.monotonic()), or never for None: a timer that finds
+    nothing due when it fires (at most an hour later) is armed again by its owner."""
+    if at is None:
+        timer.cancel()
+        return
+    delay_sec = at - time.monotonic()
+    if not delay_sec < _LONGEST_ARM_SEC:  # NaN too
+        delay_sec = _LONGEST_ARM_SEC
+    timer.timer_period_ns = max(int(delay_sec * 1e9), 1)
+    timer.reset()
 
 
 def timeouts_of(node: Node) -> Timeouts:

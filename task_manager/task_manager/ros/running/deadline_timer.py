@@ -11,6 +11,7 @@ from enum import StrEnum
 from rclpy.node import Node
 
 from task_manager.core.admission.deadlines import Deadlines
+from task_manager.rclpy_tools.timeouts import arm_for
 
 _IDLE_PERIOD_SEC = 3600.0
 
@@ -52,18 +53,8 @@ class DeadlineTimer:
             self._deadlines.clear((task_id, deadline))
 
     def _arm(self) -> None:
-        at = self._deadlines.next_at()
-        self._armed_at = at
-        if at is None:
-            self._timer.cancel()
-            return
-        # at most an hour: a later deadline is armed again when the timer finds nothing due, and
-        # no delay can overflow rcl's signed 64-bit nanoseconds or leave the timer always due
-        delay_sec = at - time.monotonic()
-        if not delay_sec < _IDLE_PERIOD_SEC:  # NaN too
-            delay_sec = _IDLE_PERIOD_SEC
-        self._timer.timer_period_ns = max(int(delay_sec * 1e9), 1)
-        self._timer.reset()
+        self._armed_at = self._deadlines.next_at()
+        arm_for(self._timer, self._armed_at)
 
     def _on_timer(self) -> None:
         for action in self._deadlines.pop_due(time.monotonic()):

@@ -79,26 +79,30 @@ def node(ros_context: None) -> Iterator[rclpy.node.Node]:
     node.destroy_node()
 
 
-def test_the_wait_set_is_made_once_while_the_entities_stay(
-    node: rclpy.node.Node, monkeypatch: pytest.MonkeyPatch
-) -> None:
-    topic = Topic(node, 'kept')
+@pytest.fixture
+def executor(node: rclpy.node.Node) -> Iterator[WakelessExecutor]:
+    """A WakelessExecutor of the node, spun by the test."""
     executor = WakelessExecutor()
     executor.add_node(node)
+    yield executor
+    executor.shutdown()
+
+
+def test_the_wait_set_is_made_once_while_the_entities_stay(
+    node: rclpy.node.Node, executor: WakelessExecutor, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    topic = Topic(node, 'kept')
     counts = Counts(monkeypatch)
     for _ in range(MESSAGES):
         topic.send_and_spin(executor)
         executor.spin_once(timeout_sec=IDLE_WAIT_SEC)
     assert (counts.made, counts.waits) == (1, 2 * MESSAGES)  # rclpy's makes one per wait
-    executor.shutdown()
 
 
 def test_an_entity_made_or_destroyed_makes_it_again(
-    node: rclpy.node.Node, monkeypatch: pytest.MonkeyPatch
+    node: rclpy.node.Node, executor: WakelessExecutor, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     first = Topic(node, 'first')
-    executor = WakelessExecutor()
-    executor.add_node(node)
     first.send_and_spin(executor)
     counts = Counts(monkeypatch)
     second = Topic(node, 'second')
@@ -110,7 +114,6 @@ def test_an_entity_made_or_destroyed_makes_it_again(
     assert counts.made == 2
     with pytest.raises(InvalidHandle), second.subscription.handle:
         pass  # destroyed: the wait set released it
-    executor.shutdown()
 
 
 def test_an_entity_destroyed_from_another_thread_is_released_while_the_executor_waits(

@@ -78,3 +78,22 @@ def test_bounded_waits_make_no_timer_of_their_own(
     timers_while_waiting = list(node.timers)
     spin_until(executor, done)
     assert results == [False, True] and timers_while_waiting == timers
+
+
+def test_an_action_that_raises_loses_none_of_the_others(
+    spun: tuple[WakelessExecutor, rclpy.node.Node],
+) -> None:
+    """A bug of ours raising in one action is raised to the executor's caller (the node logs
+    it and goes on), after the actions due with it have run."""
+    executor, node = spun
+    timeouts = timeouts_of(node)
+    done: Future[None] = Future()
+
+    def raises() -> None:
+        raise ValueError('a bug')
+
+    timeouts.after(0.05, raises)
+    timeouts.after(0.05, lambda: done.set_result(None))
+    with pytest.raises(ValueError, match='a bug'):
+        executor.spin_until_future_complete(done, timeout_sec=TIMEOUT_SEC)
+    assert done.done()
