@@ -5,6 +5,9 @@ import itertools
 from collections.abc import Callable, Hashable
 from dataclasses import dataclass, field
 
+# cleared entries kept beyond as many as the live ones before they are dropped at once
+_SPARE_CLEARED = 64
+
 
 @dataclass(order=True)
 class _Entry:
@@ -37,6 +40,18 @@ class Deadlines:
         entry = self._by_key.pop(key, None)
         if entry is not None:
             entry.live = False
+            if len(self._heap) > 2 * len(self._by_key) + _SPARE_CLEARED:
+                self._drop_cleared()
+
+    def heap_size(self) -> int:
+        """Entries kept, the cleared ones not yet dropped included (for tests)."""
+        return len(self._heap)
+
+    def _drop_cleared(self) -> None:
+        """Drop the cleared entries at once: a deadline cleared long before it is due (a
+        bounded wait that ended early) would otherwise be kept until then."""
+        self._heap = [entry for entry in self._heap if entry.live]
+        heapq.heapify(self._heap)
 
     def next_at(self) -> float | None:
         """When the earliest pending deadline is due; None when there is none."""

@@ -54,3 +54,19 @@ def test_only_the_latest_deadline_of_each_key_fires_once_when_due(
 
     assert sorted(fired) == sorted(key for key, at in latest.items() if at <= now)
     assert len(deadlines) == sum(1 for at in latest.values() if at > now)
+
+
+def test_deadlines_cleared_long_before_they_are_due_are_not_kept() -> None:
+    """A bounded wait that ends early clears its deadline: 10,000 of them, each due in two
+    minutes, must not stay in memory until then."""
+    deadlines = Deadlines()
+    fired: list[int] = []
+    deadlines.set('kept', 200.0, lambda: fired.append(-1))
+    for key in range(10_000):
+        deadlines.set(key, 120.0, functools.partial(fired.append, key))
+        deadlines.clear(key)
+    assert len(deadlines) == 1 and deadlines.heap_size() <= 2 + 64
+    assert deadlines.next_at() == 200.0
+    for action in deadlines.pop_due(300.0):
+        action()
+    assert fired == [-1]
