@@ -61,14 +61,20 @@ class Timeouts:
         with self._lock:
             due = self._deadlines.pop_due(time.monotonic())
             self._arm()
-        errors = []
-        for action in due:  # one that raises (a bug) must not lose the others
-            try:
-                action()
-            except Exception as error:
-                errors.append(error)
-        if errors:
-            raise errors[0]
+        run_each(due)
+
+
+def run_each(actions: list[Callable[[], None]]) -> None:
+    """Run every action due; one that raises (a bug) loses none of the others, and the first
+    error is raised once all have run (the node's loop logs it and goes on)."""
+    errors = []
+    for action in actions:
+        try:
+            action()
+        except Exception as error:
+            errors.append(error)
+    if errors:
+        raise errors[0]
 
 
 def arm_for(timer: Timer, at: float | None) -> None:

@@ -11,7 +11,7 @@ from enum import StrEnum
 from rclpy.node import Node
 
 from task_manager.core.admission.deadlines import Deadlines
-from task_manager.rclpy_tools.timeouts import arm_for
+from task_manager.rclpy_tools.timeouts import arm_for, run_each
 
 _IDLE_PERIOD_SEC = 3600.0
 
@@ -57,6 +57,6 @@ class DeadlineTimer:
         arm_for(self._timer, self._armed_at)
 
     def _on_timer(self) -> None:
-        for action in self._deadlines.pop_due(time.monotonic()):
-            action()
-        self._arm()
+        due = self._deadlines.pop_due(time.monotonic())
+        self._arm()  # first: an action that sets a deadline arms for it if it comes earlier
+        run_each(due)

@@ -64,6 +64,7 @@ class ServerWatch:
         self._settings = settings
         self._loss = loss
         self._in_flight: set[FailableExecution] = set()
+        self._timeouts = timeouts_of(node)
         self._next_check: Hashable | None = None  # its key in the node's timeouts
         self._last_alive_ns = 0
 
@@ -84,14 +85,12 @@ class ServerWatch:
         execution.outcome.add_done_callback(lambda _: self._untrack(execution))
 
     def _check_later(self) -> None:
-        self._next_check = timeouts_of(self._node).after(
-            self._settings.check_period_sec, self._check
-        )
+        self._next_check = self._timeouts.after(self._settings.check_period_sec, self._check)
 
     def _untrack(self, execution: FailableExecution) -> None:
         self._in_flight.discard(execution)
         if not self._in_flight and self._next_check is not None:
-            timeouts_of(self._node).cancel(self._next_check)
+            self._timeouts.cancel(self._next_check)
             self._next_check = None
 
     def mark_alive(self) -> None:

@@ -38,6 +38,7 @@ class ServiceExecution:
         self._window = window
         self._spec = spec
         self._response_timeout_sec = response_timeout_sec
+        self._node_timeouts = timeouts_of(node)
         self._deadline: Hashable | None = None  # its key in the node's timeouts
         self.outcome: Future[Any] = Future()
         self._response_future = window.call_async(request)
@@ -49,7 +50,7 @@ class ServiceExecution:
         if sent.cancelled() or self.outcome.done():
             return
         seconds = self._response_timeout_sec
-        self._deadline = timeouts_of(self._node).after(
+        self._deadline = self._node_timeouts.after(
             seconds,
             lambda: self.fail(f'service {self._spec.topic} gave no response within {seconds} s'),
         )
@@ -72,7 +73,7 @@ class ServiceExecution:
 
     def _clean_up(self) -> None:
         if self._deadline is not None:
-            timeouts_of(self._node).cancel(self._deadline)
+            self._node_timeouts.cancel(self._deadline)
         if not self._response_future.done():
             self._window.forget(self._response_future)
 

@@ -12,6 +12,7 @@ from rclpy.task import Future
 from task_manager.rclpy_tools.futures import wait_for
 from task_manager.rclpy_tools.timeouts import timeouts_of
 from task_manager.rclpy_tools.wakeless_executor import WakelessExecutor
+from task_manager.ros.running.deadline_timer import Deadline, DeadlineTimer
 
 pytestmark = pytest.mark.ros
 TIMEOUT_SEC = 5.0
@@ -94,6 +95,25 @@ def test_an_action_that_raises_loses_none_of_the_others(
 
     timeouts.after(0.05, raises)
     timeouts.after(0.05, lambda: done.set_result(None))
+    with pytest.raises(ValueError, match='a bug'):
+        executor.spin_until_future_complete(done, timeout_sec=TIMEOUT_SEC)
+    assert done.done()
+
+
+def test_a_task_deadline_that_raises_loses_none_of_the_others(
+    spun: tuple[WakelessExecutor, rclpy.node.Node],
+) -> None:
+    """The node's DeadlineTimer ran its due actions in a plain loop: one that raised lost the
+    others due with it (a task's timeout never ending it)."""
+    executor, node = spun
+    deadlines = DeadlineTimer(node)
+    done: Future[None] = Future()
+
+    def raises() -> None:
+        raise ValueError('a bug')
+
+    deadlines.set('first', Deadline.RUN, 0.05, raises)
+    deadlines.set('second', Deadline.RUN, 0.05, lambda: done.set_result(None))
     with pytest.raises(ValueError, match='a bug'):
         executor.spin_until_future_complete(done, timeout_sec=TIMEOUT_SEC)
     assert done.done()
