@@ -32,7 +32,7 @@ ROBOT = 'bench_robot'
 def running_bridge(ctx: BenchContext) -> Iterator[tuple[BrokerProcess, FleetClient]]:
     broker = BrokerProcess(ctx.log_dir / 'mqtt_broker', [ROBOT])
     broker.start()
-    bridge = BridgeProcess(ROBOT, broker.url(ROBOT), ctx.log_dir / 'mqtt_acked')
+    bridge = BridgeProcess(ROBOT, broker.url(ROBOT), ctx.log_dir / 'mqtt_acked', nice=None)
     try:
         with FleetClient(broker.url(), client_id='bench-cloud') as fleet:
             if not fleet.wait_online([ROBOT], config.CONNECT_TIMEOUT_SEC):

@@ -50,7 +50,7 @@ def running_adapter(ctx: BenchContext) -> Iterator[tuple[RawClient, str]]:
     mapping.write_text(yaml.safe_dump({'navigation': navigation}))
     broker = BrokerProcess(ctx.log_dir / 'vda5050_broker', MANUFACTURER, [SERIAL], [MASTER_USER])
     broker.start()
-    adapter = AdapterProcess(broker, mapping=mapping)
+    adapter = AdapterProcess(broker, mapping=mapping, nice=None)  # as users start it
     prefix = broker.vehicle(SERIAL).prefix
     try:
         password = broker.passwords[MASTER_USER]

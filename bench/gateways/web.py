@@ -40,7 +40,7 @@ HTTP_TIMEOUT_SEC = 30.0
 def running_gateway(ctx: BenchContext) -> Iterator[tuple[GatewayProcess, httpx.Client]]:
     token_file = ctx.log_dir / 'web_token'
     token_file.write_text('bench-token-0123456789\n')
-    gateway = GatewayProcess(token_file)
+    gateway = GatewayProcess(token_file, nice=None)  # as users start it
     headers = {'Authorization': f'Bearer {gateway.token}'}
     try:
         # TCP_NODELAY, as browsers set it: else the body of a POST waits for the ACK of its

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from task_manager.client import TaskManagerClient
+from task_manager.cpu_priority import GATEWAY_NICENESS, add_nice_argument, lower_cpu_priority
 from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_mqtt.bridge import Bridge
 from task_manager_mqtt.settings import (
@@ -44,6 +45,7 @@ DEFAULTS: dict[str, Any] = {
     'max_payload_bytes': DEFAULT_MAX_PAYLOAD_BYTES,
     'keepalive_sec': 10,
     'reconnect_max_sec': 2,
+    'nice': GATEWAY_NICENESS,
 }
 LOG_FORMAT = 'task-manager-mqtt: [%(levelname)s] %(message)s'
 LOG = logging.getLogger('task_manager_mqtt')
@@ -80,6 +82,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         '--reconnect-max-sec', type=int, help='longest wait between connection attempts (2 s)'
     )
+    add_nice_argument(parser, default=None)  # the file's, else DEFAULTS'
     return parser.parse_args(argv)
 
 
@@ -111,6 +114,7 @@ def settings_from(options: dict[str, Any]) -> BridgeSettings:
         max_payload_bytes=int(values['max_payload_bytes']),
         keepalive_sec=int(values['keepalive_sec']),
         reconnect_max_sec=int(values['reconnect_max_sec']),
+        nice=values['nice'],
     )
 
 
@@ -122,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     except SettingsError as error:
         print(f'task-manager-mqtt: {error}', file=sys.stderr)
         return EXIT_USAGE
+    lower_cpu_priority(settings.nice)
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())

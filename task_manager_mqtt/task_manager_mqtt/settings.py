@@ -13,6 +13,7 @@ from urllib.parse import unquote, urlsplit
 
 import yaml
 
+from task_manager.cpu_priority import GATEWAY_NICENESS, MAX_NICENESS
 from task_manager.gateway.secret_file import exposure_warning
 
 DEFAULT_PREFIX = 'task_manager/v1'
@@ -109,6 +110,9 @@ class BridgeSettings:
     """The longest wait between two connection attempts (they start 1 s apart, doubling):
     how soon after a broker's return the results waiting are sent. Raise it for a fleet of
     thousands of robots on one broker, so that a broker restart is not met by all at once."""
+    nice: int = GATEWAY_NICENESS
+    """The bridge's nice value (task_manager.cpu_priority): 0 keeps the priority it was started
+    with."""
 
     def __post_init__(self) -> None:
         check_name('robot_id', self.robot_id)
@@ -117,6 +121,8 @@ class BridgeSettings:
                                 'trailing "/"')  # fmt: skip
         if any(c in self.prefix for c in '+#'):
             raise SettingsError(f'prefix {self.prefix!r} may not hold "+" or "#"')
+        if type(self.nice) is not int or not 0 <= self.nice <= MAX_NICENESS:
+            raise SettingsError(f'nice {self.nice!r}: a whole number from 0 to {MAX_NICENESS}')
 
     @property
     def acked_file(self) -> Path:

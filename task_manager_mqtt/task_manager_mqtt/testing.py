@@ -13,7 +13,7 @@ import paho.mqtt.client as mqtt
 from paho.mqtt.enums import CallbackAPIVersion
 from paho.mqtt.reasoncodes import ReasonCode
 
-from task_manager.testing.process import NodeProcess
+from task_manager.testing.process import TEST_NICENESS, NodeProcess, nice_option
 from task_manager_mqtt.broker import READY_LINE, MosquittoBroker
 
 BRIDGE_EXECUTABLE = str(Path(sys.executable).with_name('task-manager-mqtt'))
@@ -27,12 +27,18 @@ TESTER = 'tester'
 
 
 class BridgeProcess(NodeProcess):
-    """`task-manager-mqtt --robot-id R --broker-url U --state-file F [args]`."""
+    """`task-manager-mqtt --robot-id R --broker-url U --state-file F [--nice N] [args]`."""
 
     def __init__(
-        self, robot_id: str, broker_url: str, state_file: Path, *args: str, wait: bool = True
+        self,
+        robot_id: str,
+        broker_url: str,
+        state_file: Path,
+        *args: str,
+        wait: bool = True,
+        nice: int | None = TEST_NICENESS,
     ) -> None:
-        """`wait`: until it is connected to the broker."""
+        """`wait`: until it is connected to the broker; `nice`: None for the bridge's default."""
         command = [
             BRIDGE_EXECUTABLE,
             '--robot-id',
@@ -41,6 +47,7 @@ class BridgeProcess(NodeProcess):
             broker_url,
             '--state-file',
             str(state_file),
+            *nice_option(nice),
             *args,
         ]
         super().__init__(None, command=command)

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from task_manager.testing.gateway import Robot
+from task_manager.testing.process import TEST_NICENESS
 from task_manager_mqtt.broker import CLOUD_USER
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.testing import ROBOT, TESTER, BridgeProcess, BrokerProcess
@@ -30,9 +31,11 @@ def start_bridge(broker: BrokerProcess, tmp_path: Path) -> Iterator[Callable[...
     output printed (pytest shows it when the test failed)."""
     bridges: list[BridgeProcess] = []
 
-    def start(*args: str, wait: bool = True, url: str = '') -> BridgeProcess:
+    def start(
+        *args: str, wait: bool = True, url: str = '', nice: int | None = TEST_NICENESS
+    ) -> BridgeProcess:
         bridge = BridgeProcess(
-            ROBOT, url or broker.url(ROBOT), tmp_path / 'acked', *args, wait=wait
+            ROBOT, url or broker.url(ROBOT), tmp_path / 'acked', *args, wait=wait, nice=nice
         )
         bridges.append(bridge)
         return bridge

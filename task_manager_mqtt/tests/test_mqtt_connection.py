@@ -1,13 +1,16 @@
 """The bridge's connection: retained state, last will, credentials, ACL, a broker not there."""
 
 import json
+import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from task_manager.cpu_priority import GATEWAY_NICENESS
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
+from task_manager.testing.process import thread_nice_values
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.fleet_types import RobotView
 from task_manager_mqtt.settings import DEFAULT_PREFIX as PREFIX
@@ -89,6 +92,14 @@ def test_another_account_cannot_take_over_a_bridges_connection(
     assert bridge.stop() == 0
     assert not [line for line in bridge.log_lines if 'lost the broker' in line], bridge.log_lines
     assert sum('connected to the broker' in line for line in bridge.log_lines) == 1
+
+
+def test_the_bridge_runs_nicer_than_the_robot(
+    robot: Robot, start_bridge: Callable[..., BridgeProcess]
+) -> None:
+    bridge = start_bridge(nice=None)  # as users start it; connected to the broker and the node
+    own = os.getpriority(os.PRIO_PROCESS, 0)
+    assert thread_nice_values(bridge.process.pid) == {max(own, GATEWAY_NICENESS)}
 
 
 def test_wrong_credentials_exit_2_with_one_line(

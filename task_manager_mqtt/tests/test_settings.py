@@ -41,6 +41,14 @@ def test_the_file_gives_settings_and_options_win(tmp_path: Path) -> None:
     assert settings.broker.tls.ca_file == '/etc/ca.pem'
 
 
+def test_the_bridge_runs_at_nice_10_unless_the_file_or_an_option_says(tmp_path: Path) -> None:
+    config = tmp_path / 'bridge.yaml'
+    config.write_text('robot_id: robot7\nnice: 15\n')
+    assert settings_from({'robot_id': 'r'}).nice == 10
+    assert settings_from({'config': config}).nice == 15
+    assert settings_from({'config': config, 'nice': 0}).nice == 0
+
+
 @pytest.mark.parametrize(
     ('options', 'message'),
     [
@@ -48,6 +56,9 @@ def test_the_file_gives_settings_and_options_win(tmp_path: Path) -> None:
         ({'robot_id': 'a/b'}, 'one topic level'),
         ({'robot_id': 'r', 'prefix': '/x'}, 'prefix'),
         ({'robot_id': 'r', 'colour': 'red'}, "unknown settings \\['colour'\\]"),
+        ({'robot_id': 'r', 'nice': 20}, 'nice 20: a whole number from 0 to 19'),
+        ({'robot_id': 'r', 'nice': '5'}, "nice '5': a whole number"),
+        ({'robot_id': 'r', 'nice': True}, 'nice True: a whole number'),
     ],
 )
 def test_unusable_settings_are_named(options: dict[str, str], message: str) -> None:

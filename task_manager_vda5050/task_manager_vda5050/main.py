@@ -23,6 +23,7 @@ from task_manager_mqtt.settings import Broker, SettingsError
 
 from task_manager.client import TaskManagerClient
 from task_manager.core.errors import TaskManagerError, TaskManagerUnavailable
+from task_manager.cpu_priority import GATEWAY_NICENESS, add_nice_argument, lower_cpu_priority
 from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_vda5050.adapter import STATE_PERIOD_SEC, Adapter
 from task_manager_vda5050.link import Link
@@ -56,6 +57,7 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         '--state-period-sec', type=float, default=STATE_PERIOD_SEC, help='state at least every (30)'
     )
     parser.add_argument('--keepalive-sec', type=int, default=10, help='MQTT keep-alive (10 s)')
+    add_nice_argument(parser, default=GATEWAY_NICENESS)
     return parser.parse_args(argv)
 
 
@@ -70,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     prepare_ros_process()
     logging.basicConfig(level=logging.INFO, format=LOG_FORMAT, stream=sys.stderr)
     options = _arguments(argv)
+    lower_cpu_priority(options.nice)
     try:
         vehicle = Vehicle(options.manufacturer, options.serial_number, options.interface_name)
         broker = _broker(options)

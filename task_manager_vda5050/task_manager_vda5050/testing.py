@@ -17,7 +17,7 @@ from task_manager_mqtt.broker import READY_LINE
 from task_manager.client import TaskManagerClient, TaskState
 from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import WaitTimeoutError
-from task_manager.testing.process import NodeProcess
+from task_manager.testing.process import TEST_NICENESS, NodeProcess, nice_option
 from task_manager_vda5050.broker import VdaBroker
 from task_manager_vda5050.mapping import DEMO_MAPPING
 from task_manager_vda5050.topics import timestamp
@@ -51,10 +51,15 @@ class BrokerProcess(VdaBroker):
 
 class AdapterProcess(NodeProcess):
     """`task-manager-vda5050` for SERIAL of MANUFACTURER with the demo's mapping (or
-    `mapping`)."""
+    `mapping`); `nice`: None for the adapter's default."""
 
     def __init__(
-        self, broker: VdaBroker, *args: str, wait: bool = True, mapping: Path = DEMO_MAPPING
+        self,
+        broker: VdaBroker,
+        *args: str,
+        wait: bool = True,
+        mapping: Path = DEMO_MAPPING,
+        nice: int | None = TEST_NICENESS,
     ) -> None:
         password_file = broker.folder / f'{SERIAL}.password'
         password_file.write_text(broker.passwords[SERIAL])
@@ -70,6 +75,7 @@ class AdapterProcess(NodeProcess):
             str(password_file),
             '--mapping',
             str(mapping),
+            *nice_option(nice),
             *args,
         ]
         super().__init__(None, command=command)

@@ -1,6 +1,6 @@
-"""The adapter's start: the node's declared tasks are asked again until the start's deadline,
-as a newcomer can find the node's parameter services seconds after its action (seen on a
-loaded machine: more than the client's 5 s, and the adapter died with a traceback)."""
+"""The adapter's start: its nice value; the node's declared tasks are asked again until the
+start's deadline, as a newcomer can find the node's parameter services seconds after its action
+(seen on a loaded machine: more than the client's 5 s, and the adapter died with a traceback)."""
 
 import time
 from typing import Any
@@ -8,7 +8,8 @@ from typing import Any
 import pytest
 
 from task_manager.core.errors import TaskManagerUnavailable
-from task_manager_vda5050.main import _declared_tasks
+from task_manager.cpu_priority import GATEWAY_NICENESS
+from task_manager_vda5050.main import _arguments, _declared_tasks
 
 DECLARED = [{'task_name': 'navigate', 'blocking': True}]
 
@@ -37,3 +38,18 @@ def test_past_the_deadline_the_last_error_is_raised() -> None:
     client = ParameterServicesFoundLate(misses=10**6)
     with pytest.raises(TaskManagerUnavailable, match='list_parameters is not available'):
         _declared_tasks(client, time.monotonic() + 0.05)  # type: ignore[arg-type]
+
+
+REQUIRED = ['--manufacturer', 'acme', '--serial-number', 'r1', '--mapping', 'mapping.yaml']
+
+
+def test_the_adapter_runs_at_nice_10_unless_told() -> None:
+    assert _arguments(REQUIRED).nice == GATEWAY_NICENESS
+    assert _arguments([*REQUIRED, '--nice', '0']).nice == 0
+
+
+def test_a_nice_value_out_of_range_is_refused(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as stopped:
+        _arguments([*REQUIRED, '--nice', '20'])
+    assert stopped.value.code == 2
+    assert '--nice: 20 is not between 0 and 19' in capsys.readouterr().err

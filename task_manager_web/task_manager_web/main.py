@@ -11,6 +11,7 @@ import logging
 import sys
 
 from task_manager.client import TaskManagerClient
+from task_manager.cpu_priority import GATEWAY_NICENESS, add_nice_argument, lower_cpu_priority
 from task_manager.process_setup import end_within, prepare_ros_process
 from task_manager_web.app import Settings, create_app
 from task_manager_web.door_link import end_event_streams
@@ -69,12 +70,14 @@ def _arguments(argv: list[str] | None) -> argparse.Namespace:
         f'({HEADER_TIMEOUT_SEC:g})',
     )
     add_door_arguments(parser, "e.g. the robot's name")
+    add_nice_argument(parser, default=GATEWAY_NICENESS)
     return parser.parse_args(argv)
 
 
 def main(argv: list[str] | None = None) -> None:
     prepare_ros_process()
     arguments = _arguments(argv)
+    lower_cpu_priority(arguments.nice)
     logging.basicConfig(
         level=logging.INFO, format='[%(levelname)s] [task_manager_web]: %(message)s'
     )

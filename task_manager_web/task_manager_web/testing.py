@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import httpx
 
 from task_manager.testing.gateway import TIMEOUT_SEC, wait_until
-from task_manager.testing.process import NodeProcess
+from task_manager.testing.process import TEST_NICENESS, NodeProcess, nice_option
 from task_manager_web.doors.tokens import Role, read_token_file
 
 if TYPE_CHECKING:  # the dashboard's tests only: the bench runs gateways without a browser
@@ -22,14 +22,12 @@ START_TIMEOUT_SEC = 20.0
 
 
 class GatewayProcess(NodeProcess):
-    """`task-manager-web --port 0 --token-file F [args]`; its URL once it listens, and the
-    first admin token of F ('' for none)."""
+    """`task-manager-web --port 0 --token-file F [--nice N] [args]`; its URL once it listens,
+    and the first admin token of F ('' for none). `nice`: None for the gateway's default."""
 
-    def __init__(self, token_file: Path, *args: str) -> None:
-        super().__init__(
-            None,
-            command=[GATEWAY_EXECUTABLE, '--port', '0', '--token-file', str(token_file), *args],
-        )
+    def __init__(self, token_file: Path, *args: str, nice: int | None = TEST_NICENESS) -> None:
+        command = [GATEWAY_EXECUTABLE, '--port', '0', '--token-file', str(token_file)]
+        super().__init__(None, command=[*command, *nice_option(nice), *args])
         match = re.search(DASHBOARD_LINE, self.wait_for_log(DASHBOARD_LINE, START_TIMEOUT_SEC))
         assert match is not None
         self.url = match['url']

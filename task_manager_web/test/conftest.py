@@ -16,6 +16,7 @@ from playwright.sync_api import Page, Route, expect
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, ScriptedRobot, SharedBaseRobot
 from task_manager.testing.harness import RosHarness
+from task_manager.testing.process import TEST_NICENESS
 from task_manager_web.doors_testing import blank_page as blank_page
 from task_manager_web.doors_testing import browser as browser
 from task_manager_web.testing import GatewayProcess, HeldRead, gateway_client
@@ -33,8 +34,8 @@ def start_gateway(tmp_path: Path) -> Iterator[Callable[..., GatewayProcess]]:
     gateways: list[GatewayProcess] = []
     token_file = _token_file(tmp_path)
 
-    def start(*args: str) -> GatewayProcess:
-        gateway = GatewayProcess(token_file, *args)
+    def start(*args: str, nice: int | None = TEST_NICENESS) -> GatewayProcess:
+        gateway = GatewayProcess(token_file, *args, nice=nice)
         gateways.append(gateway)
         return gateway
 

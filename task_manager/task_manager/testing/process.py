@@ -1,5 +1,6 @@
 """Run the Task Manager as users do: a subprocess with a parameters file."""
 
+import contextlib
 import os
 import shutil
 import signal
@@ -22,6 +23,25 @@ TASKCTL_REACH_SEC = 15.0
 
 # launch(tasks: {key: entry}, **node_parameters) -> a probe connected to the running node
 LaunchTaskManager = Callable[..., Any]
+
+TEST_NICENESS = 0
+"""The nice value the tests start a gateway at: their own priority. The tests run beside each
+other on a few cores, where a gateway yielding the CPU (task_manager.cpu_priority) would be
+slowed by the other tests' nodes, not by its own work."""
+
+
+def nice_option(nice: int | None) -> list[str]:
+    """A gateway's `--nice` option for `nice` (None: none, the gateway's default)."""
+    return [] if nice is None else ['--nice', str(nice)]
+
+
+def thread_nice_values(pid: int) -> set[int]:
+    """The nice values of the threads of process `pid` (on Linux a nice value is a thread's)."""
+    values = set()
+    for thread in os.listdir(f'/proc/{pid}/task'):
+        with contextlib.suppress(ProcessLookupError):  # a thread that ended meanwhile
+            values.add(os.getpriority(os.PRIO_PROCESS, int(thread)))
+    return values
 
 
 def task_manager_executable() -> str:
