@@ -41,6 +41,8 @@ def running_bridge(ctx: BenchContext) -> Iterator[tuple[BrokerProcess, FleetClie
     finally:
         bridge.stop()
         broker.stop()
+        with (ctx.log_dir / 'mqtt_bridge.log').open('a') as log:
+            log.write('\n'.join(bridge.log_lines) + '\n')
 
 
 def mqtt_task_ms(fleet: FleetClient) -> float:
