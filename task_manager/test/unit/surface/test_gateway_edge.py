@@ -1,7 +1,8 @@
 """The public surface a gateway stands on: what the web gateway, the MQTT bridge, the VDA 5050
 adapter and the fleet console import of `task_manager` is the client, the protocol, the
-gateway package, core's values and the process set-up (task_manager/gateway/__init__.py says
-so), and the contract that keeps them off the node allows no indirect import."""
+gateway package, core's values, the process set-up and the nice value
+(task_manager/gateway/__init__.py says so), and the contract that keeps them off the node
+allows no indirect import."""
 
 import ast
 import configparser
@@ -15,6 +16,7 @@ EDGE = (
     'task_manager.gateway',
     'task_manager.core',
     'task_manager.process_setup',
+    'task_manager.cpu_priority',
 )
 TESTING = 'task_manager.testing'
 """Also imported by a gateway's own test fixtures (its testing modules)."""
