@@ -8,7 +8,10 @@ bytes of the ended tasks as well as their number and age.
 
 Changes are buffered and written by `flush`, one transaction for all the changes of one
 executor turn, so a burst of 500 results is one commit, not 500. Each ended task gets a
-`sequence` number that only grows, so a consumer can ask for "everything after N".
+`sequence` number that only grows, so a consumer can ask for "everything after N", and that is
+never given again by this file: the last one given is kept beside the rows, so that retention
+deleting every ended row (a robot idle longer than the age kept) does not start them again at
+1, where the MQTT bridge and the fleet's history would take them for results already had.
 
 The file uses WAL journaling: readers never block the writer. Nothing here knows ROS.
 """
@@ -35,7 +38,7 @@ from task_manager.core.schedules.store import SCHEDULES_SCHEMA, ScheduleStore
 from task_manager.core.task import TaskRecord
 from task_manager.core.text.json_text import compact_json
 
-SCHEMA_VERSION = 4
+SCHEMA_VERSION = 5
 MEMORY = ':memory:'
 
 _SCHEMA_V1 = """
@@ -83,8 +86,14 @@ UPDATE tasks SET size = {ROW_OVERHEAD_BYTES} + {
 }
 """
 
+# Version 5: the last sequence number given, which retention may have deleted the row of.
+_SCHEMA_V5 = """
+CREATE TABLE last_sequence (value INTEGER NOT NULL);
+INSERT INTO last_sequence SELECT coalesce(max(sequence), 0) FROM tasks
+"""
+
 # Each step upgrades the schema from the version before it; index 0 creates version 1.
-_MIGRATIONS = (_SCHEMA_V1, _SCHEMA_V2, _SCHEMA_V3, _SCHEMA_V4)
+_MIGRATIONS = (_SCHEMA_V1, _SCHEMA_V2, _SCHEMA_V3, _SCHEMA_V4, _SCHEMA_V5)
 
 
 class HistoryError(Exception):
@@ -184,7 +193,11 @@ class TaskHistory:
             self.close()
             raise
         self._next_entry = self._max('entry') + 1
-        self._next_sequence = self._max('sequence') + 1
+        self._stored_sequence = int(
+            self._db.execute('SELECT value FROM last_sequence').fetchone()[0]
+        )
+        """The last sequence number given, as the file holds it."""
+        self._next_sequence = max(self._max('sequence'), self._stored_sequence) + 1
         self._ended_bytes = int(
             self._db.execute(
                 'SELECT coalesce(sum(size), 0) FROM tasks WHERE sequence IS NOT NULL'
@@ -264,7 +277,16 @@ class TaskHistory:
         rows = list(self._pending.values())
         with self.transaction():
             self._db.executemany(_UPSERT, rows)
+            stored = self._store_last_sequence()
+        self._stored_sequence = stored
         self._pending.clear()
+
+    def _store_last_sequence(self) -> int:
+        """Within a transaction: keep the last sequence number given, if it moved; it."""
+        given = self._next_sequence - 1
+        if given != self._stored_sequence:
+            self._db.execute('UPDATE last_sequence SET value = ?', (given,))
+        return given
 
     # ---- reading ----------------------------------------------------------------------
 
@@ -294,6 +316,8 @@ class TaskHistory:
                 )
                 self._ended_bytes += ended.size
                 closed.append(ended)
+            stored = self._store_last_sequence()
+        self._stored_sequence = stored
         return closed
 
     def query(self, query: HistoryQuery) -> list[HistoryRow]:

@@ -108,6 +108,27 @@ def test_sequences_only_grow_across_restarts_and_an_id_may_come_again(tmp_path: 
     assert [(r.task_id, r.sequence) for r in rows] == [('same', 1), ('same', 2)]
 
 
+def test_a_sequence_is_never_given_again_once_retention_deleted_every_ended_task(
+    tmp_path: Path,
+) -> None:
+    """A robot idle longer than the age kept: its next start deletes every ended row, and the
+    next result still follows the last one the cloud has (not 1, which it has had)."""
+    path = str(tmp_path / 'h.sqlite')
+    first = TaskHistory(path)
+    for index in range(3):
+        first.write(ended(f'old{index}', at=1000.0))
+    first.flush()
+    first.close()
+    second = TaskHistory(path)
+    assert second.prune(max_results=0, max_age_days=1, now=1000.0 + 2 * 86400) == 3
+    second.close()
+    third = TaskHistory(path)
+
+    assert third.write(ended('new')) == 4
+    third.flush()
+    assert [(r.task_id, r.sequence) for r in third.query(HistoryQuery())] == [('new', 4)]
+
+
 def test_tasks_left_unfinished_by_a_crash_are_closed_once_at_the_next_start(
     tmp_path: Path,
 ) -> None:
@@ -227,6 +248,11 @@ def test_a_first_version_file_is_opened_and_upgraded(tmp_path: Path) -> None:
     assert (old.task_id, old.paused_sec, old.pauses) == ('old', 0.0, '[]')
     assert old.size == ROW_OVERHEAD_BYTES + 21  # version 4 measures the rows before it
     assert history.schedule_store().load() == ([], [])  # version 2 adds the schedules
+    history.prune(max_results=0, max_age_days=1, now=10 * 86400.0)  # both rows deleted
+    history.close()
+    reopened = TaskHistory(str(path))
+    assert reopened.write(ended('newer')) == 3  # version 5 kept the last sequence given
+    reopened.close()
 
 
 def test_a_paused_task_is_stored_with_its_pauses_and_paused_time(tmp_path: Path) -> None:
