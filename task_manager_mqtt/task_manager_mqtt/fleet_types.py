@@ -32,7 +32,8 @@ class RobotView:
     """Active tasks left out of `active_tasks` so that its message fit the broker's limit."""
     tasks: list[Document] = field(default_factory=list)
     last_sequence: int = 0
-    """Of the last result passed on (results at or below it are duplicates)."""
+    """Of the last result passed on (one that comes again with the same sequence and task id
+    is a duplicate; a lower one with another task is passed on: a new history of the robot)."""
     duplicates: int = 0
     """Results delivered again (after a reconnection) and not passed on."""
 

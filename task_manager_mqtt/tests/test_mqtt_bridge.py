@@ -3,6 +3,7 @@
 
 import json
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, cast
 
 import pytest
@@ -167,6 +168,30 @@ def test_a_restarted_bridge_sends_what_ended_meanwhile_and_nothing_again(
     wait_until(lambda: len(results) >= len(ended), 'the results that ended meanwhile')
     assert [t['task_id'] for t in results] == ended
     assert online.robots[ROBOT].duplicates == 0
+
+
+def test_a_robot_whose_history_began_again_is_heard_by_the_cloud(
+    start_robot: Callable[[], Robot],
+    start_bridge: Callable[..., BridgeProcess],
+    fleet: FleetClient,
+    tmp_path: Path,
+) -> None:
+    """The robot restarted with a new history file (reinstalled, or its history moved): its
+    results carry sequence numbers the cloud has had, with other tasks, and still reach it."""
+    robot, bridge = start_robot(), start_bridge()
+    assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
+    before = [fleet.start_task(ROBOT, 'instant', {'data': True}).result() for _ in range(3)]
+    assert bridge.stop() == 0 and robot.process.stop() == 0
+    for part in tmp_path.glob('history.sqlite*'):
+        part.unlink()
+    start_robot()
+    start_bridge()
+    assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
+
+    after = fleet.start_task(ROBOT, 'instant', {'data': True}).result()
+
+    assert after['status'] == 'DONE'
+    assert after['sequence'] <= before[-1]['sequence']  # a number the cloud had
 
 
 def test_bad_requests_get_an_error_reply_and_start_nothing(

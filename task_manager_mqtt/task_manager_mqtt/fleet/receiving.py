@@ -3,8 +3,9 @@ requests and the results of its tasks (to the futures waiting for them, and to t
 its task events and dead letters, its retained state documents (kept as a RobotView), and the
 messages that cannot be read.
 
-Each robot's results are told apart by sequence number: one delivered twice (after a
-reconnection) is passed on once. With `hold_results`, every delivery of a result is handed over
+Each robot's results are told apart by sequence number and task id: one delivered twice (after
+a reconnection) is passed on once, and a robot whose history began again is still heard
+(fleet/passed_results.py). With `hold_results`, every delivery of a result is handed over
 with the means to acknowledge it, and the broker keeps it until then.
 """
 
@@ -14,6 +15,7 @@ from collections.abc import Callable
 from concurrent.futures import Future
 
 from task_manager.protocol.strict_json import load_within
+from task_manager_mqtt.fleet.passed_results import PassedResults
 from task_manager_mqtt.fleet_types import Document, RobotView
 from task_manager_mqtt.topics import ANY_ROBOT, TopicName, Topics
 
@@ -53,6 +55,8 @@ class FleetReceiver:
         self._replies: dict[str, Future[Document]] = {}
         # key: (robot id, task id), value: its result, once it comes
         self._results: dict[tuple[str, str], Future[Document]] = {}
+        # key: robot id, value: its results passed on lately
+        self._passed: dict[str, PassedResults] = {}
         self._handlers: dict[str, Callable[[str, Document], None]] = {
             TopicName.REPLY: self._on_reply,
             TopicName.RESULT: self._on_result,
@@ -146,13 +150,25 @@ class FleetReceiver:
 
     def _on_result(self, robot_id: str, task: Document) -> None:
         sequence = int(task.get('sequence') or 0)
+        task_id = str(task.get('task_id', ''))
         with self._lock:
             robot = self._robot(robot_id)
-            if sequence and sequence <= robot.last_sequence:
-                robot.duplicates += 1  # delivered again after a reconnection
-                return
-            robot.last_sequence = max(robot.last_sequence, sequence)
-            result = self._results.pop((robot_id, task.get('task_id', '')), None)
+            if sequence:
+                passed = self._passed.setdefault(robot_id, PassedResults())
+                if not passed.first_time(sequence, task_id):
+                    robot.duplicates += 1  # delivered again after a reconnection
+                    return
+                if sequence <= robot.last_sequence:
+                    LOG.info(
+                        '%s: result %d of task %s after result %d: a new history of the robot '
+                        '(or a result that came late), passed on',
+                        robot_id,
+                        sequence,
+                        task_id,
+                        robot.last_sequence,
+                    )
+                robot.last_sequence = sequence
+            result = self._results.pop((robot_id, task_id), None)
         if result is not None and not result.done():
             result.set_result(task)
         for callback in self.result_callbacks:
