@@ -1,5 +1,5 @@
 """The fleet history on SQLite and on a real PostgreSQL server: each result stored once by its
-robot and sequence, the filters, what is refused, and the schema's migrations."""
+robot, sequence and task, the filters, what is refused, and the schema's migrations."""
 
 import threading
 from collections.abc import Iterator
@@ -54,7 +54,7 @@ def keys(documents: list[dict[str, Any]]) -> list[tuple[str, int]]:
     return [(d['robot_id'], d['sequence']) for d in documents]
 
 
-def test_a_result_is_stored_once_by_robot_and_sequence(history: FleetHistory) -> None:
+def test_a_result_is_stored_once_by_robot_sequence_and_task(history: FleetHistory) -> None:
     assert history.store('robot1', task(1)) is True
     assert history.store('robot1', task(1)) is False  # delivered again
     assert history.store('robot2', task(1)) is True  # another robot's sequence 1
@@ -65,6 +65,16 @@ def test_a_result_is_stored_once_by_robot_and_sequence(history: FleetHistory) ->
     ]
     assert history.count() == 3
     assert history.count('robot1') == 2
+
+
+def test_a_robot_whose_history_began_again_has_its_new_results_stored(
+    history: FleetHistory,
+) -> None:
+    """Reinstalled, a robot numbers its results from 1 again, with other tasks."""
+    assert history.store_many([('robot1', task(n)) for n in (1, 2)]) == [True, True]
+    again = [('robot1', task(n, task_id=f'new-{n}')) for n in (1, 2, 2)]
+    assert history.store_many(again) == [True, True, False]
+    assert history.count('robot1') == 4
 
 
 def test_a_batch_partly_stored_before_says_which_of_it_are_new(history: FleetHistory) -> None:
@@ -212,12 +222,13 @@ def test_a_database_at_the_first_revision_is_upgraded_in_place(database_url: str
 
     history = FleetHistory.open(database_url)
     try:
-        assert history.revision() == head_revision() == '0003'
+        assert history.revision() == head_revision() == '0004'
         indexes = {i['name'] for i in inspect(history.engine).get_indexes('results')}
         assert {'ix_results_ended_id', 'ix_results_task_name_ended_id'} <= indexes
         assert 'ix_results_task_name_ended' not in indexes  # 0002's, made again by 0003
         assert [d['task_id'] for d in history.query(HistoryFilter())] == ['old']
-        assert history.store('robot1', task(1)) is False  # the key held across the upgrade
+        assert history.store('robot1', task(1, task_id='old')) is False  # the key held
+        assert history.store('robot1', task(1)) is True  # another task: 0004's key
     finally:
         history.close()
 

@@ -4,8 +4,8 @@ It follows every robot under the prefix through one FleetClient (a persistent se
 broker keeps what robots send while the console is away) and stores each robot's results in
 the FleetHistory exactly once, in order (store/ingest.py): a result is acknowledged to the
 broker only once it is stored (or refused for good), so that one received while the database
-is away stays with the broker, and one received twice is stored once (its robot and sequence
-are its key).
+is away stays with the broker, and one received twice is stored once (its robot, sequence and
+task id are its key).
 
 Requests to robots go through `client` (the FleetClient's calls: cancel, pause, resume,
 reprioritize, confirm, stop, ...), each checked first: a robot id and task ids that can name

@@ -1,9 +1,10 @@
 """`FleetHistory`: every result of every robot, stored exactly once, in a SQL database.
 
 SQLite (a file, the default) or PostgreSQL (psycopg 3), behind SQLAlchemy Core. A result's key
-is its robot's id and its `sequence` in that robot's own history: a result delivered again
-(results come at least once) is not stored again (`INSERT ... ON CONFLICT DO NOTHING`, on both
-databases). The schema is versioned with Alembic: `open` creates it, or upgrades an older
+is its robot's id, its `sequence` in that robot's own history and its task id: a result
+delivered again (results come at least once) is not stored again (`INSERT ... ON CONFLICT DO
+NOTHING`, on both databases), and a robot whose history began again (numbered from 1 again,
+other tasks) is. The schema is versioned with Alembic: `open` creates it, or upgrades an older
 database in place, before anything is stored.
 
 Exceptions:
@@ -39,6 +40,7 @@ from task_manager.core.bounds import (
 )
 from task_manager.core.text.request_text import text_problem
 from task_manager_console.store.rows import BadResultError, Document, document_of, row_of, utc
+from task_manager_console.store.schema import RESULT_KEY as KEY
 from task_manager_console.store.schema import results
 
 LOG = logging.getLogger('task_manager_console.history')
@@ -104,7 +106,7 @@ class FleetHistory:
         self._insert_rows = (
             f'INSERT INTO results ({", ".join(column.name for column in columns)}) '
             f'VALUES ({", ".join([mark] * len(columns))}) '
-            'ON CONFLICT (robot_id, sequence) DO NOTHING'
+            'ON CONFLICT (robot_id, sequence, task_id) DO NOTHING'
         )
         """The rows' INSERT in the driver's own terms (executemany, no statement to compile)."""
 
@@ -128,7 +130,8 @@ class FleetHistory:
 
     def store(self, robot_id: str, task: Document) -> bool:
         """Store `robot_id`'s result `task` (a Task document); True if it is new, False if it
-        was stored before (the same robot and sequence). BadResultError if it cannot be a row."""
+        was stored before (the same robot, sequence and task). BadResultError if it cannot be a
+        row."""
         return self.store_many([(robot_id, task)])[0]
 
     def store_many(self, items: Sequence[tuple[str, Document]]) -> list[bool]:
@@ -153,19 +156,19 @@ class FleetHistory:
             pass
         statement = (
             self._insert(results)
-            .on_conflict_do_nothing(index_elements=['robot_id', 'sequence'])
-            .returning(results.c.robot_id, results.c.sequence)
+            .on_conflict_do_nothing(index_elements=list(KEY))
+            .returning(*(results.c[name] for name in KEY))
         )
         try:
             with self.engine.begin() as connection:
-                inserted = {(r.robot_id, r.sequence) for r in connection.execute(statement, rows)}
+                inserted = {tuple(r) for r in connection.execute(statement, rows)}
         except (OperationalError, InterfaceError) as error:  # the database, not the rows
             raise DatabaseUnavailable(f'cannot store in {self.url}: {_why(error)}') from error
         except SQLAlchemyError as error:  # what the rows hold (a value the database refuses)
             raise BadResultError(f'the database refused it: {_why(error)}') from error
         new: list[bool] = []
         for row in rows:
-            key = (row['robot_id'], row['sequence'])
+            key = tuple(row[name] for name in KEY)
             new.append(key in inserted)
             inserted.discard(key)
         return new

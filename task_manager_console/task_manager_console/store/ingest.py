@@ -6,7 +6,7 @@ While the database is away a batch is tried again, after 0.5 s, doubling up to 5
 it is acknowledged: the broker keeps those results, and the rest wait with it (the console's
 MQTT Receive Maximum bounds what it holds). A result that can never be a row (BadResultError) is
 reported and acknowledged; a batch the database refuses is stored row by row to find the row it
-refuses. A result received twice is stored once (its robot and sequence are its key).
+refuses. A result received twice is stored once (its robot, sequence and task id are its key).
 """
 
 import logging

@@ -31,13 +31,16 @@ metadata = MetaData(
     }
 )
 
+RESULT_KEY = ('robot_id', 'sequence', 'task_id')
+"""A result's exactly-once key: its robot, its sequence in the robot's history and its task."""
+
 results = Table(
     'results',
     metadata,
     # SQLite's ROWID alias must be INTEGER; PostgreSQL gets a 64-bit key
     Column('id', BigInteger().with_variant(Integer, 'sqlite'), primary_key=True),
     Column('robot_id', String(TEXT_MAX_CHARACTERS), nullable=False),
-    # the robot's history sequence: with robot_id, the exactly-once key
+    # the robot's history sequence: with robot_id and task_id, the exactly-once key
     Column('sequence', BigInteger, nullable=False),
     Column('task_id', String(TEXT_MAX_CHARACTERS), nullable=False),
     Column('task_name', String(TEXT_MAX_CHARACTERS), nullable=False),
@@ -55,8 +58,9 @@ results = Table(
     # what rows.py keeps of the rest of its Task document
     Column('details', JSON, nullable=False),
     Column('stored_at', DateTime, nullable=False),
-    # the exactly-once key: a result delivered again is not stored again
-    UniqueConstraint('robot_id', 'sequence'),
+    # the exactly-once key: a result delivered again is not stored again, and a robot whose
+    # history began again (its sequence numbers from 1 again, other tasks) is stored
+    UniqueConstraint(*RESULT_KEY),
 )
 
 # The history's queries (newest first: by ended, then id; by robot, task, name, status, source
