@@ -276,7 +276,7 @@ class Bridge:
                 'first start: the results after sequence %d are sent (none from before)',
                 newest_sequence,
             )
-            self.outbox.start_at(newest_sequence)
+            self.outbox.start_at(newest_sequence, newest[0].task_id if newest else '')
         elif newest_sequence < self.outbox.acked:
             LOG.warning(
                 'the history ends at sequence %d, before the last acknowledged (%d): a new '
@@ -285,6 +285,30 @@ class Bridge:
                 self.outbox.acked,
             )
             self.outbox.start_at(0)
+        elif self._another_task_at_acked():
+            LOG.warning(
+                'result %d of the history is not task %s, the last acknowledged: a new history; '
+                'sending all of it',
+                self.outbox.acked,
+                self.outbox.acked_task_id,
+            )
+            self.outbox.start_at(0)
+
+    def _another_task_at_acked(self) -> bool:
+        """Whether the node's history numbers the last acknowledged result with another task:
+        a new history that grew past it while the bridge was away (a history file never gives
+        a number twice). Not known, so False, if the state file has no task id (written before
+        it kept one) or retention deleted that result."""
+        if not (self.outbox.acked and self.outbox.acked_task_id):
+            return False
+        found = self.client.history(
+            after_sequence=self.outbox.acked - 1, limit=1, oldest_first=True
+        )
+        return (
+            bool(found)
+            and found[0].sequence == self.outbox.acked
+            and (found[0].task_id != self.outbox.acked_task_id)
+        )
 
     def _on_event(self, event: TaskEvent) -> None:
         document = event_json(event)
@@ -380,10 +404,11 @@ class Bridge:
     def _publish_result(self, sequence: int, document: dict[str, Any]) -> None:
         self.outbox.before_send()
         info = self._publish(self.topics.result, document, 1, False)
+        task_id = str(document.get('task_id', ''))
         if info is None:  # nothing of it fits in a message (logged): it is never sent
-            self.outbox.skip(sequence)
+            self.outbox.skip(sequence, task_id)
         else:
-            self.outbox.mark_sent(sequence, info.mid)
+            self.outbox.mark_sent(sequence, info.mid, task_id)
 
     # ---- retained state -----------------------------------------------------------------------
 

@@ -1,9 +1,11 @@
 """Which results the broker has: by the history's sequence numbers, the last acknowledged on disk.
 
 Results go out in sequence order. `sent` is the last handed to the MQTT client; `acked` the
-last one the broker acknowledged with every one before it, kept in a file (written with an
-atomic rename), so that a restart of the bridge sends again what was not acknowledged and
-nothing else. Thread-safe: acknowledgements arrive on the MQTT client's thread.
+last one the broker acknowledged with every one before it, kept in a file with its task's id
+(written with an atomic rename), so that a restart of the bridge sends again what was not
+acknowledged and nothing else, and can tell the node's history from a new one that numbers
+other tasks from 1 again (a file of one line, from before the task id was kept, is read).
+Thread-safe: acknowledgements arrive on the MQTT client's thread.
 """
 
 import contextlib
@@ -18,10 +20,12 @@ class ResultOutbox:
         self._lock = threading.Lock()
         self.known = acked_file.exists()
         """Whether a previous run left its acknowledged sequence (else: start from now)."""
-        self.acked = _read(acked_file)
+        self.acked, self.acked_task_id = _read(acked_file)
         self.sent = self.acked
         # key: sequence, value: acknowledged; in the order sent (which is by sequence)
         self._unacked: dict[int, bool] = {}
+        # key: sequence not acknowledged yet, value: its task's id
+        self._task_ids: dict[int, str] = {}
         # key: message id of the MQTT client, value: the sequence it carries
         self._by_message: dict[int, int] = {}
         # acknowledgements that came while a result was being handed over, before its id
@@ -40,22 +44,24 @@ class ResultOutbox:
         with self._lock:
             self._early_acks = set()
 
-    def mark_sent(self, sequence: int, message_id: int) -> None:
-        """`sequence` was handed to the MQTT client as message `message_id`."""
+    def mark_sent(self, sequence: int, message_id: int, task_id: str = '') -> None:
+        """`sequence` (of task `task_id`) was handed to the MQTT client as `message_id`."""
         with self._lock:
             early, self._early_acks = self._early_acks or set(), None
             self.sent = max(self.sent, sequence)
             self._unacked[sequence] = False
+            self._task_ids[sequence] = task_id
             self._by_message[message_id] = sequence
             if message_id in early:  # acknowledged before publish() returned
                 self._acknowledge(message_id)
 
-    def skip(self, sequence: int) -> None:
+    def skip(self, sequence: int, task_id: str = '') -> None:
         """`sequence` will never be sent (nothing of it fits in a message): as acknowledged."""
         with self._lock:
             self._early_acks = None
             self.sent = max(self.sent, sequence)
             self._unacked[sequence] = True
+            self._task_ids[sequence] = task_id
             self._advance()
 
     def on_ack(self, message_id: int) -> None:
@@ -75,13 +81,16 @@ class ResultOutbox:
         with self._lock:
             self.sent = self.acked
             self._unacked.clear()
+            self._task_ids.clear()
 
-    def start_at(self, sequence: int) -> None:
-        """Treat everything up to `sequence` as acknowledged (a first start: from now)."""
+    def start_at(self, sequence: int, task_id: str = '') -> None:
+        """Treat everything up to `sequence` (of task `task_id`) as acknowledged (a first start:
+        from now; 0: the whole history)."""
         with self._lock:
             self.acked = self.sent = sequence
+            self.acked_task_id = task_id
             self.known = True
-            _write(self._file, sequence)
+            _write(self._file, sequence, task_id)
 
     def _acknowledge(self, message_id: int) -> None:
         sequence = self._by_message.pop(message_id)
@@ -92,26 +101,30 @@ class ResultOutbox:
 
     def _advance(self) -> None:
         """`acked` past every acknowledged sequence at the head of those unacknowledged."""
-        advanced = self.acked
+        advanced, task_id = self.acked, self.acked_task_id
         while self._unacked:
             first = next(iter(self._unacked))
             if not self._unacked[first]:
                 break
             del self._unacked[first]
-            advanced = max(advanced, first)
+            first_task_id = self._task_ids.pop(first, '')
+            if first > advanced:
+                advanced, task_id = first, first_task_id
         if advanced != self.acked:
-            self.acked = advanced
-            _write(self._file, advanced)
+            self.acked, self.acked_task_id = advanced, task_id
+            _write(self._file, advanced, task_id)
 
 
-def _read(path: Path) -> int:
+def _read(path: Path) -> tuple[int, str]:
+    """The last acknowledged sequence and its task's id ('' if the file does not say)."""
     with contextlib.suppress(OSError, ValueError):
-        return max(int(path.read_text().strip() or 0), 0)
-    return 0
+        sequence, _, rest = path.read_text().partition('\n')
+        return max(int(sequence.strip() or 0), 0), rest.partition('\n')[0]
+    return 0, ''
 
 
-def _write(path: Path, sequence: int) -> None:
+def _write(path: Path, sequence: int, task_id: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     partial = path.with_name(f'{path.name}.partial')
-    partial.write_text(f'{sequence}\n')
+    partial.write_text(f'{sequence}\n{task_id}\n')
     os.replace(partial, path)

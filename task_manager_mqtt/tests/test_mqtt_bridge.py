@@ -194,6 +194,33 @@ def test_a_robot_whose_history_began_again_is_heard_by_the_cloud(
     assert after['sequence'] <= before[-1]['sequence']  # a number the cloud had
 
 
+def test_a_new_history_that_grew_past_the_last_acknowledged_is_sent_from_its_start(
+    start_robot: Callable[[], Robot],
+    start_bridge: Callable[..., BridgeProcess],
+    fleet: FleetClient,
+    tmp_path: Path,
+) -> None:
+    """The robot restarted with a new history file while its bridge was away, and ended more
+    tasks than the bridge had sent: the bridge's last acknowledged number is another task's
+    there, so it sends the new history from its start, not from that number on."""
+    robot, bridge = start_robot(), start_bridge()
+    assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
+    fleet.start_task(ROBOT, 'instant', {'data': True}).result()
+    assert bridge.stop() == 0 and robot.process.stop() == 0
+    for part in tmp_path.glob('history.sqlite*'):
+        part.unlink()
+    start_robot()
+    with TaskManagerClient('new_history_test', timeout_sec=TIMEOUT_SEC) as client:
+        ended = [client.run_task('instant', {'data': True}).task_id for _ in range(3)]
+    results: list[dict[str, Any]] = []
+    fleet.on_result(lambda _, task: results.append(task))
+
+    start_bridge()
+
+    wait_until(lambda: len(results) >= len(ended), 'the new history from its start')
+    assert [(t['sequence'], t['task_id']) for t in results] == list(enumerate(ended, start=1))
+
+
 def test_bad_requests_get_an_error_reply_and_start_nothing(
     online: FleetClient, broker: BrokerProcess
 ) -> None:

@@ -67,3 +67,20 @@ def test_a_first_start_begins_from_now(tmp_path: Path) -> None:
     assert not outbox.known
     outbox.start_at(41)
     assert outbox.is_next(42) and ResultOutbox(tmp_path / 'state' / 'acked').acked == 41
+
+
+def test_the_last_acknowledged_is_kept_with_its_task_id(tmp_path: Path) -> None:
+    outbox = ResultOutbox(tmp_path / 'acked')
+    for sequence in (1, 2):
+        outbox.before_send()
+        outbox.mark_sent(sequence, 100 + sequence, f'task-{sequence}')
+    outbox.on_ack(102)
+    outbox.on_ack(101)
+    kept = ResultOutbox(tmp_path / 'acked')
+    assert (kept.acked, kept.acked_task_id) == (2, 'task-2')
+
+
+def test_a_file_written_before_the_task_id_was_kept_is_read(tmp_path: Path) -> None:
+    (tmp_path / 'acked').write_text('41\n')
+    outbox = ResultOutbox(tmp_path / 'acked')
+    assert (outbox.known, outbox.acked, outbox.acked_task_id) == (True, 41, '')
