@@ -304,11 +304,9 @@ class Bridge:
         found = self.client.history(
             after_sequence=self.outbox.acked - 1, limit=1, oldest_first=True
         )
-        return (
-            bool(found)
-            and found[0].sequence == self.outbox.acked
-            and (found[0].task_id != self.outbox.acked_task_id)
-        )
+        if not found or found[0].sequence != self.outbox.acked:
+            return False  # retention deleted it: not known
+        return found[0].task_id != self.outbox.acked_task_id
 
     def _on_event(self, event: TaskEvent) -> None:
         document = event_json(event)

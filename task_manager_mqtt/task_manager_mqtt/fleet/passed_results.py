@@ -22,8 +22,6 @@ class PassedResults:
 
     def __init__(self) -> None:
         self._ring = array('q', bytes(8 * RECENT_RESULTS))
-        self.last_sequence = 0
-        """Of the last result passed on."""
 
     def first_time(self, sequence: int, task_id: str) -> bool:
         """Whether this result was not passed on among the recent ones; it is then counted as
@@ -33,5 +31,4 @@ class PassedResults:
         if self._ring[slot] == key:
             return False
         self._ring[slot] = key
-        self.last_sequence = sequence
         return True
