@@ -141,11 +141,11 @@ def test_a_result_that_cannot_be_sent_counts_as_acknowledged(tmp_path: Any) -> N
     outbox = ResultOutbox(tmp_path / 'acked')
     outbox.start_at(4)
     outbox.before_send()
-    outbox.mark_sent(5, message_id=1)
+    outbox.mark_sent(5, message_id=1, task_id='five')
     outbox.before_send()
-    outbox.skip(6)
+    outbox.skip(6, task_id='six')
 
     assert (outbox.sent, outbox.acked) == (6, 4)  # 5 waits for its acknowledgement
     outbox.on_ack(1)
-    assert outbox.acked == 6
-    assert (tmp_path / 'acked').read_text() == '6\n'
+    assert (outbox.acked, outbox.acked_task_id) == (6, 'six')
+    assert (tmp_path / 'acked').read_text() == '6\nsix\n'
