@@ -170,6 +170,25 @@ def test_a_restarted_bridge_sends_what_ended_meanwhile_and_nothing_again(
     assert online.robots[ROBOT].duplicates == 0
 
 
+def _results_then_a_new_history(
+    count: int,
+    start_robot: Callable[[], Robot],
+    start_bridge: Callable[..., BridgeProcess],
+    fleet: FleetClient,
+    folder: Path,
+) -> list[dict[str, Any]]:
+    """`count` results through the bridge, then both stopped and the robot started again with
+    a new history file (its old one deleted), its bridge not; the results."""
+    robot, bridge = start_robot(), start_bridge()
+    assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
+    results = [fleet.start_task(ROBOT, 'instant', {'data': True}).result() for _ in range(count)]
+    assert bridge.stop() == 0 and robot.process.stop() == 0
+    for part in folder.glob('history.sqlite*'):
+        part.unlink()
+    start_robot()
+    return results
+
+
 def test_a_robot_whose_history_began_again_is_heard_by_the_cloud(
     start_robot: Callable[[], Robot],
     start_bridge: Callable[..., BridgeProcess],
@@ -178,13 +197,7 @@ def test_a_robot_whose_history_began_again_is_heard_by_the_cloud(
 ) -> None:
     """The robot restarted with a new history file (reinstalled, or its history moved): its
     results carry sequence numbers the cloud has had, with other tasks, and still reach it."""
-    robot, bridge = start_robot(), start_bridge()
-    assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
-    before = [fleet.start_task(ROBOT, 'instant', {'data': True}).result() for _ in range(3)]
-    assert bridge.stop() == 0 and robot.process.stop() == 0
-    for part in tmp_path.glob('history.sqlite*'):
-        part.unlink()
-    start_robot()
+    before = _results_then_a_new_history(3, start_robot, start_bridge, fleet, tmp_path)
     start_bridge()
     assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
 
@@ -203,13 +216,7 @@ def test_a_new_history_that_grew_past_the_last_acknowledged_is_sent_from_its_sta
     """The robot restarted with a new history file while its bridge was away, and ended more
     tasks than the bridge had sent: the bridge's last acknowledged number is another task's
     there, so it sends the new history from its start, not from that number on."""
-    robot, bridge = start_robot(), start_bridge()
-    assert fleet.wait_online([ROBOT], TIMEOUT_SEC)
-    fleet.start_task(ROBOT, 'instant', {'data': True}).result()
-    assert bridge.stop() == 0 and robot.process.stop() == 0
-    for part in tmp_path.glob('history.sqlite*'):
-        part.unlink()
-    start_robot()
+    _results_then_a_new_history(1, start_robot, start_bridge, fleet, tmp_path)
     with TaskManagerClient('new_history_test', timeout_sec=TIMEOUT_SEC) as client:
         ended = [client.run_task('instant', {'data': True}).task_id for _ in range(3)]
     results: list[dict[str, Any]] = []
