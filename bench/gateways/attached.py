@@ -21,7 +21,7 @@ from bench.gateways.web import HTTP_TIMEOUT_SEC, running_gateway
 from bench.harness import config
 from bench.harness.client import ActiveTasksWatcher
 from bench.harness.context import BenchContext
-from bench.harness.processes import cpu_seconds_by_role
+from bench.harness.processes import cpu_seconds_by_role, nice_by_role
 from bench.harness.replies import BenchError
 from bench.harness.report import Row
 from bench.harness.stats import ratio
@@ -81,12 +81,15 @@ class CpuPerTask:
         self._ctx = ctx
         # key: setting's name, value: per role, ms of CPU per task in each phase
         self.ms: dict[str, dict[str, list[float]]] = {ALONE.name: {}, ATTACHED.name: {}}
+        self.nice: dict[str, int] = {}
+        """Each gateway's nice value, as it ran (issue 40: their default is 10)."""
 
     def measure(self, setting: Setting) -> None:
         before = cpu_seconds_by_role()
         for _ in range(CPU_SAMPLE_TASKS):
             self._ctx.fibonacci_task_ms()
         after = cpu_seconds_by_role()
+        self.nice.update((r, n) for r, n in nice_by_role().items() if r in GATEWAY_ROLES)
         for role, seconds in after.items():
             per_task_ms = (seconds - before.get(role, 0.0)) * 1000 / CPU_SAMPLE_TASKS
             self.ms[setting.name].setdefault(role, []).append(per_task_ms)
@@ -120,7 +123,8 @@ class CpuPerTask:
             ]
             if ratios:
                 parts.append(f'{role} {statistics.median(ratios):.2f}')
-        return f'over the node, attached: {", ".join(parts)}' if parts else ''
+        nice = ', '.join(f'{role} {value}' for role, value in sorted(self.nice.items()))
+        return f'over the node, attached: {", ".join(parts)}; nice: {nice}' if parts else ''
 
 
 class HeldRamps:

@@ -183,5 +183,14 @@ def cpu_seconds_by_role() -> dict[str, float]:
     return used
 
 
+def nice_by_role() -> dict[str, int]:
+    """The nice value of each running child of the bench, by role (its main thread's)."""
+    values: dict[str, int] = {}
+    for process in psutil.Process(os.getpid()).children(recursive=True):
+        with contextlib.suppress(psutil.Error):
+            values[_role(' '.join(process.cmdline()))] = process.nice()
+    return values
+
+
 def _role(command: str) -> str:
     return next((role for piece, role in PROCESS_ROLES if piece in command), 'other')
