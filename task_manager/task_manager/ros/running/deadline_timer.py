@@ -4,16 +4,10 @@ The deadlines themselves are kept in core/admission/deadlines.py (no rclpy); a q
 running task costs no timer of its own.
 """
 
-import time
 from collections.abc import Callable
 from enum import StrEnum
 
-from rclpy.node import Node
-
-from task_manager.core.admission.deadlines import Deadlines
-from task_manager.rclpy_tools.timeouts import arm_for, run_each
-
-_IDLE_PERIOD_SEC = 3600.0
+from task_manager.rclpy_tools.timeouts import DeadlinesOnTimer
 
 
 class Deadline(StrEnum):
@@ -29,34 +23,16 @@ class Deadline(StrEnum):
     """The backoff before its next attempt."""
 
 
-class DeadlineTimer:
-    """Runs each task's deadline actions when due, from one rclpy timer."""
-
-    def __init__(self, node: Node) -> None:
-        self._deadlines = Deadlines()
-        self._armed_at: float | None = None
-        self._timer = node.create_timer(_IDLE_PERIOD_SEC, self._on_timer)
-        self._timer.cancel()
+class DeadlineTimer(DeadlinesOnTimer):
+    """Runs each task's deadline actions when due, from one rclpy timer of its own."""
 
     def set(
         self, task_id: str, what: Deadline, delay_sec: float, action: Callable[[], None]
     ) -> None:
         """Run `action` in `delay_sec`, unless this deadline of the task is cleared or set again."""
-        at = time.monotonic() + delay_sec
-        self._deadlines.set((task_id, what), at, action)
-        if self._armed_at is None or at < self._armed_at:
-            self._arm()
+        self._set_deadline((task_id, what), delay_sec, action)
 
     def clear(self, task_id: str, *what: Deadline) -> None:
         """Forget these deadlines of the task (all of them when none is named)."""
         for deadline in what or tuple(Deadline):
-            self._deadlines.clear((task_id, deadline))
-
-    def _arm(self) -> None:
-        self._armed_at = self._deadlines.next_at()
-        arm_for(self._timer, self._armed_at)
-
-    def _on_timer(self) -> None:
-        due = self._deadlines.pop_due(time.monotonic())
-        self._arm()  # first: an action that sets a deadline arms for it if it comes earlier
-        run_each(due)
+            self._clear_deadline((task_id, deadline))
