@@ -13,13 +13,11 @@ priority; raising it again needs one, so a process started nicer keeps its nice 
 
 import argparse
 import os
-from pathlib import Path
 
 GATEWAY_NICENESS = 10
 """A gateway's nice value unless told otherwise: the kernel's weight of a nice-10 thread is about
 a tenth of a nice-0 one's, so a busy gateway slows the node's turns little."""
 MAX_NICENESS = 19
-THREADS_DIR = Path('/proc/self/task')
 
 
 def niceness(text: str) -> int:
@@ -28,9 +26,14 @@ def niceness(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f'{text!r} is not a whole number') from None
-    if not 0 <= value <= MAX_NICENESS:
+    if not is_niceness(value):
         raise argparse.ArgumentTypeError(f'{value} is not between 0 and {MAX_NICENESS}')
     return value
+
+
+def is_niceness(value: object) -> bool:
+    """Whether `value` is a nice value a gateway takes: a whole number from 0 to MAX_NICENESS."""
+    return type(value) is int and 0 <= value <= MAX_NICENESS
 
 
 def add_nice_argument(parser: argparse.ArgumentParser, default: int | None) -> None:
@@ -49,16 +52,19 @@ def lower_cpu_priority(nice: int) -> int:
     the nice value of its first thread afterwards. On Linux a nice value is a thread's, and a
     new thread takes its creator's: this is called before rclpy, DDS or a server start theirs,
     and sets the few already running too."""
-    for thread in _threads():
+    for thread in thread_ids():
         current = os.getpriority(os.PRIO_PROCESS, thread)
         if nice > current:
             os.setpriority(os.PRIO_PROCESS, thread, nice)
     return os.getpriority(os.PRIO_PROCESS, 0)
 
 
-def _threads() -> list[int]:
-    """This process's thread ids (0, the calling thread, where /proc is not there to list)."""
+def thread_ids(process: int | str = 'self') -> list[int]:
+    """The thread ids of `process` (a pid; this one by default), from /proc; for this process
+    where /proc is not there to list, [0]: the calling thread."""
     try:
-        return [int(name) for name in os.listdir(THREADS_DIR)]
+        return [int(name) for name in os.listdir(f'/proc/{process}/task')]
     except OSError:
+        if process != 'self':
+            raise
         return [0]

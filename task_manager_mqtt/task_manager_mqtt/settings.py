@@ -13,7 +13,7 @@ from urllib.parse import unquote, urlsplit
 
 import yaml
 
-from task_manager.cpu_priority import GATEWAY_NICENESS, MAX_NICENESS
+from task_manager.cpu_priority import GATEWAY_NICENESS, MAX_NICENESS, is_niceness
 from task_manager.gateway.secret_file import exposure_warning
 
 DEFAULT_PREFIX = 'task_manager/v1'
@@ -121,7 +121,7 @@ class BridgeSettings:
                                 'trailing "/"')  # fmt: skip
         if any(c in self.prefix for c in '+#'):
             raise SettingsError(f'prefix {self.prefix!r} may not hold "+" or "#"')
-        if type(self.nice) is not int or not 0 <= self.nice <= MAX_NICENESS:
+        if not is_niceness(self.nice):
             raise SettingsError(f'nice {self.nice!r}: a whole number from 0 to {MAX_NICENESS}')
 
     @property

@@ -12,6 +12,7 @@ from typing import Any
 
 import yaml
 
+from task_manager.cpu_priority import thread_ids
 from task_manager.testing.harness import WaitTimeoutError
 from task_manager.testing.output_reader import OutputReader
 
@@ -38,9 +39,9 @@ def nice_option(nice: int | None) -> list[str]:
 def thread_nice_values(pid: int) -> set[int]:
     """The nice values of the threads of process `pid` (on Linux a nice value is a thread's)."""
     values = set()
-    for thread in os.listdir(f'/proc/{pid}/task'):
+    for thread in thread_ids(pid):
         with contextlib.suppress(ProcessLookupError):  # a thread that ended meanwhile
-            values.add(os.getpriority(os.PRIO_PROCESS, int(thread)))
+            values.add(os.getpriority(os.PRIO_PROCESS, thread))
     return values
 
 
