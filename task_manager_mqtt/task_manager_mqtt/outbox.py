@@ -11,7 +11,16 @@ Thread-safe: acknowledgements arrive on the MQTT client's thread.
 import contextlib
 import os
 import threading
+from dataclasses import dataclass
 from pathlib import Path
+
+
+@dataclass
+class _Sent:
+    """A result handed to the MQTT client and not yet past `acked`."""
+
+    task_id: str
+    acked: bool = False
 
 
 class ResultOutbox:
@@ -22,10 +31,8 @@ class ResultOutbox:
         """Whether a previous run left its acknowledged sequence (else: start from now)."""
         self.acked, self.acked_task_id = _read(acked_file)
         self.sent = self.acked
-        # key: sequence, value: acknowledged; in the order sent (which is by sequence)
-        self._unacked: dict[int, bool] = {}
-        # key: sequence not acknowledged yet, value: its task's id
-        self._task_ids: dict[int, str] = {}
+        # key: sequence; in the order sent (which is by sequence)
+        self._unacked: dict[int, _Sent] = {}
         # key: message id of the MQTT client, value: the sequence it carries
         self._by_message: dict[int, int] = {}
         # acknowledgements that came while a result was being handed over, before its id
@@ -49,8 +56,7 @@ class ResultOutbox:
         with self._lock:
             early, self._early_acks = self._early_acks or set(), None
             self.sent = max(self.sent, sequence)
-            self._unacked[sequence] = False
-            self._task_ids[sequence] = task_id
+            self._unacked[sequence] = _Sent(task_id)
             self._by_message[message_id] = sequence
             if message_id in early:  # acknowledged before publish() returned
                 self._acknowledge(message_id)
@@ -60,8 +66,7 @@ class ResultOutbox:
         with self._lock:
             self._early_acks = None
             self.sent = max(self.sent, sequence)
-            self._unacked[sequence] = True
-            self._task_ids[sequence] = task_id
+            self._unacked[sequence] = _Sent(task_id, acked=True)
             self._advance()
 
     def on_ack(self, message_id: int) -> None:
@@ -81,7 +86,6 @@ class ResultOutbox:
         with self._lock:
             self.sent = self.acked
             self._unacked.clear()
-            self._task_ids.clear()
 
     def start_at(self, sequence: int, task_id: str = '') -> None:
         """Treat everything up to `sequence` (of task `task_id`) as acknowledged (a first start:
@@ -94,22 +98,22 @@ class ResultOutbox:
 
     def _acknowledge(self, message_id: int) -> None:
         sequence = self._by_message.pop(message_id)
-        if sequence not in self._unacked:
+        sent = self._unacked.get(sequence)
+        if sent is None:
             return  # sent before resend_unacked() and not yet again: it will be
-        self._unacked[sequence] = True
+        sent.acked = True
         self._advance()
 
     def _advance(self) -> None:
         """`acked` past every acknowledged sequence at the head of those unacknowledged."""
         advanced, task_id = self.acked, self.acked_task_id
         while self._unacked:
-            first = next(iter(self._unacked))
-            if not self._unacked[first]:
+            first, sent = next(iter(self._unacked.items()))
+            if not sent.acked:
                 break
             del self._unacked[first]
-            first_task_id = self._task_ids.pop(first, '')
             if first > advanced:
-                advanced, task_id = first, first_task_id
+                advanced, task_id = first, sent.task_id
         if advanced != self.acked:
             self.acked, self.acked_task_id = advanced, task_id
             _write(self._file, advanced, task_id)
