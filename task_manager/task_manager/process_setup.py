@@ -18,13 +18,18 @@ the program's module, and so rclpy, is imported, which is how their console scri
   `__init__`: `import_type_support` is loaded at once, `generate_py` when it is first asked for.
 
 `end_within()` is how each of them ends once its work is done: its ROS entities are destroyed
-within a bound, or the process exits anyway (see there).
+within a bound, or the process exits anyway (see there). A program that runs a node of the
+default context takes SIGINT and SIGTERM itself (`block_stop_signals`, `on_stop_signal`) rather
+than leaving them to rclpy, whose handler shuts the context down from a thread of its own while
+the program's main thread goes on: an executor then fails on the context gone, or a node is
+destroyed while the context ends under it.
 """
 
 import faulthandler
 import importlib
 import importlib.util
 import os
+import signal
 import sys
 import threading
 from collections.abc import Callable
@@ -40,6 +45,8 @@ a second when nothing goes wrong)."""
 
 
 BLAS_THREADS_VARIABLE = 'OPENBLAS_NUM_THREADS'
+STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
+"""The signals that ask one of our ROS 2 programs to end cleanly (Ctrl-C, a service manager)."""
 
 
 def prepare_ros_process() -> None:
@@ -87,6 +94,23 @@ def _code_generator_on_demand(package: ModuleType) -> Any:
         return generating.generate_py
 
     return __getattr__
+
+
+def block_stop_signals() -> None:
+    """Block STOP_SIGNALS in this thread and so in every thread it starts from now on; first
+    thing in a program, before rclpy or DDS start a thread a signal could be delivered to."""
+    signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+
+
+def on_stop_signal(stop: Callable[[], object], program: str) -> None:
+    """Call `stop` from a thread of its own when the first of STOP_SIGNALS comes (they must be
+    blocked in every thread: block_stop_signals)."""
+
+    def wait() -> None:
+        signal.sigwait(STOP_SIGNALS)
+        stop()
+
+    threading.Thread(target=wait, name=f'{program}-signals', daemon=True).start()
 
 
 def end_within(release: Callable[[], None], program: str, exit_code: int) -> None:

@@ -20,14 +20,20 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.action.server import ActionServer, CancelResponse, GoalResponse, ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.event_handler import EventHandler
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
 from task_manager_demo_msgs.action import Dock, NavigateToPose, Spin
 from task_manager_demo_msgs.srv import TakePhoto, UploadPhotos
 
-from task_manager.process_setup import end_within, prepare_ros_process
+from task_manager.process_setup import (
+    block_stop_signals,
+    end_within,
+    on_stop_signal,
+    prepare_ros_process,
+)
 from task_manager_demo.motion import DriveToPose, Motion, Pose, Speeds, SpinBy
 from task_manager_demo.robot_interface import (
     DOCK_ACTION,
@@ -301,20 +307,26 @@ class SimRobot(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Console script `task-manager-demo-robot`: run the simulated robot until interrupted."""
+    """Console script `task-manager-demo-robot`: run the simulated robot until SIGINT or SIGTERM
+    (Ctrl-C), then end it cleanly: taken by a thread of ours, not by rclpy's handler, whose
+    shutdown of the context from a thread of its own races the node's end (process_setup)."""
+    block_stop_signals()
     prepare_ros_process()
-    rclpy.init(args=args if args is not None else sys.argv)
+    rclpy.init(
+        args=args if args is not None else sys.argv,
+        signal_handler_options=SignalHandlerOptions.NO,
+    )
     node = None
     executor = SingleThreadedExecutor()
     try:
         node = SimRobot()
         executor.add_node(node)
-        executor.spin()
+        stopped: Future[bool] = Future()
+        on_stop_signal(lambda: executor.create_task(stopped.set_result, True), NODE_NAME)
+        executor.spin_until_future_complete(stopped)
     except ConfigurationError as error:
         rclpy.logging.get_logger(NODE_NAME).fatal(f'invalid configuration: {error}')
         return EXIT_CONFIGURATION_ERROR
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
     finally:
         end_within(lambda: _release(executor, node), 'task-manager-demo-robot', 0)
     return 0

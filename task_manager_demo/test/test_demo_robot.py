@@ -2,6 +2,7 @@
 
 import itertools
 import math
+import signal
 from collections.abc import Iterator
 from typing import Any
 
@@ -220,3 +221,16 @@ def test_the_uplink_drops_uploads_until_as_many_as_asked_failed_in_a_row(
     ]
     assert (uploaded.success, uploaded.photos_uploaded) == (True, 2)
     assert not client.upload(1).success  # dropping again only after a success
+
+
+def test_sigterm_ends_the_robot_cleanly_as_ctrl_c_does() -> None:
+    """A service manager's SIGTERM ends the robot as Ctrl-C does (exit 0), the robot taking its
+    stop signals itself rather than rclpy's handler (without which it was killed: -15)."""
+    stopping = DemoProcess('sim_robot_stopped', robot_command(*ROBOT_PARAMETERS))
+    try:
+        stopping.wait_for_line(ROBOT_READY_LOG, START_TIMEOUT_SEC)
+        stopping.signal_group(signal.SIGTERM)
+        assert stopping.wait_exit(TIMEOUT_SEC) == 0, stopping.output
+    finally:
+        if stopping.child.wait(0) is None:
+            stopping.stop()

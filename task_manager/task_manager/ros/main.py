@@ -6,12 +6,9 @@ at once. The signals are blocked in every thread and received by one thread that
 waits for them and hands the shutdown to the executor as a task.
 """
 
-import signal
 import sys
 
-from task_manager.process_setup import prepare_ros_process
-
-SHUTDOWN_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+from task_manager.process_setup import STOP_SIGNALS, block_stop_signals, prepare_ros_process
 
 
 def main(args: list[str] | None = None) -> int:
@@ -20,11 +17,11 @@ def main(args: list[str] | None = None) -> int:
     # importing rclpy pulls in numpy, whose thread pool would otherwise get the signals.
     # Hence the node's modules are imported only now, and importing this module has no
     # effect on the importer's signals.
-    signal.pthread_sigmask(signal.SIG_BLOCK, SHUTDOWN_SIGNALS)
+    block_stop_signals()
     prepare_ros_process()
     from task_manager.ros.node_process import run
 
-    return run(args if args is not None else sys.argv, SHUTDOWN_SIGNALS)
+    return run(args if args is not None else sys.argv, set(STOP_SIGNALS))
 
 
 if __name__ == '__main__':

@@ -8,7 +8,6 @@ a failure at any of them must neither free the goal from tracking nor stop the n
 """
 
 import importlib
-import signal
 import sys
 from collections.abc import Callable
 from typing import Any
@@ -48,11 +47,11 @@ def inject(step: str) -> None:
 
 def main() -> int:
     step, args = sys.argv[1], [sys.argv[0], *sys.argv[3:]]  # argv[2]: the node's executable
-    from task_manager.ros.main import SHUTDOWN_SIGNALS
+    from task_manager.process_setup import block_stop_signals
     from task_manager.ros.main import main as run_node
 
     # blocked before the node's modules start threads, as task-manager does (see ros/main.py)
-    signal.pthread_sigmask(signal.SIG_BLOCK, SHUTDOWN_SIGNALS)
+    block_stop_signals()
     inject(step)
     print(READY_LINE + step, flush=True)
     return run_node(args)
