@@ -32,6 +32,7 @@ from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.text.json_text import compact_json
 from task_manager.gateway.documents import declared_json, event_json, iso, task_json
 from task_manager.protocol.errors import RefusalCode
+from task_manager_mqtt.active_list import ActiveList
 from task_manager_mqtt.connection import (
     RECONNECT_MIN_SEC,
     connect,
@@ -95,8 +96,7 @@ class Bridge:
         # the rest belongs to the worker
         self._broker_up = False
         self._declared: dict[str, Any] | None = None
-        # key: task id, value: its Task document
-        self._active: dict[str, dict[str, Any]] = {}
+        self._active = ActiveList()
         self._active_queued = False
         self._connection_queued = False
         self._dead_letters = 0
@@ -263,7 +263,7 @@ class Bridge:
         tasks = [declared_json(entry) for entry in self.client.declared_tasks()]
         self._declared = {'timestamp': now, 'tasks': tasks}
         self._publish(self.topics.tasks, self._declared, 1, True)
-        self._active = {s.task_id: task_json(s) for s in self.client.task_states()}
+        self._active.replace(task_json(s) for s in self.client.task_states())
         self._publish_active()
         self._set_start_point()
 
@@ -312,10 +312,10 @@ class Bridge:
         document = event_json(event)
         self._publish(self.topics.event, document, 0, False)
         if event.kind == TaskEventKind.ENDED:
-            self._active.pop(event.task.task_id, None)
+            self._active.discard(event.task.task_id)
             self._send_result(event.task, document['task'])
         else:
-            self._active[event.task.task_id] = document['task']
+            self._active.put(event.task.task_id, document['task'])
         self._queue_active()
 
     def _answer(self, payload: bytes, message_id: int, qos: int, retained: bool) -> None:
@@ -419,8 +419,9 @@ class Bridge:
     def _publish_active(self) -> None:
         self._active_queued = False
         if self._broker_up:
-            document = {'timestamp': iso(datetime.now(UTC)), 'tasks': list(self._active.values())}
-            self._publish(self.topics.active_tasks, document, 1, True)
+            now = iso(datetime.now(UTC))
+            document, payload = self._active.document(now), self._active.payload(now)
+            self._publish(self.topics.active_tasks, document, 1, True, payload)
 
     def _queue_connection(self) -> None:
         """Publish the connection document once the jobs queued now are done."""
@@ -446,14 +447,20 @@ class Bridge:
         }
 
     def _publish(
-        self, topic: str, document: dict[str, Any], qos: int, retain: bool
+        self,
+        topic: str,
+        document: dict[str, Any],
+        qos: int,
+        retain: bool,
+        encoded: bytes | None = None,
     ) -> mqtt.MQTTMessageInfo | None:
-        """Publish `document`, made to fit in a message (outgoing.py); None if nothing fits.
+        """Publish `document` (`encoded`: its JSON text, if made already), made to fit in a
+        message (outgoing.py); None if nothing fits.
 
         Never a message over the limit: the broker would drop the connection, and the MQTT
         client would send that message again at every reconnection."""
         name = topic.rsplit('/', 1)[-1]
-        payload = self._outgoing.fitted(name, document, self._largest_payload)
+        payload = self._outgoing.fitted(name, document, self._largest_payload, encoded)
         if payload is None:
             return None
         return self.mqtt.publish(topic, payload, qos=qos, retain=retain)

@@ -48,10 +48,13 @@ class Outgoing:
         # key: topic name, value: when a document of it was last logged as made smaller
         self._logged: dict[str, float] = {}
 
-    def fitted(self, topic_name: str, document: Document, max_bytes: int) -> bytes | None:
+    def fitted(
+        self, topic_name: str, document: Document, max_bytes: int, encoded: bytes | None = None
+    ) -> bytes | None:
         """The payload of `document` for the topic `topic_name` (reply, result, ...) in at
-        most `max_bytes`; None when nothing that fits can be made of it."""
-        payload = _encoded(document)
+        most `max_bytes`; None when nothing that fits can be made of it. `encoded`: the
+        document's JSON text, when the caller has it already (active_list.py)."""
+        payload = _encoded(document) if encoded is None else encoded
         if len(payload) <= max_bytes:
             return payload
         if topic_name == TopicName.REPLY and isinstance(document.get('tasks'), list):
