@@ -108,6 +108,7 @@ class Bridge:
         self.mqtt = self._mqtt_client(settings.broker)
         self._unsubscribe = [
             client.on_task_event(lambda event: self._jobs.put(partial(self._on_event, event))),
+            client.on_events_lost(lambda _: self._jobs.put(self._on_events_lost)),
             client.on_connection_change(
                 lambda up: self._jobs.put(partial(self._on_node_change, up))
             ),
@@ -317,6 +318,17 @@ class Bridge:
         else:
             self._active.put(event.task.task_id, document['task'])
         self._queue_active()
+
+    def _on_events_lost(self) -> None:
+        """Events went missing (the client fell behind the node; it logged how many): the
+        active list is read again. A result among them is sent from the history by number."""
+        try:
+            self._active.replace(task_json(s) for s in self.client.task_states())
+        except TaskManagerUnavailable as error:
+            LOG.warning('cannot read the active tasks again after events went missing: %s', error)
+            return
+        self._queue_active()
+        self._catch_up()
 
     def _answer(self, payload: bytes, message_id: int, qos: int, retained: bool) -> None:
         """One reply or one dead letter, then the acknowledgement, whatever the message holds

@@ -10,6 +10,8 @@ import pytest
 
 from task_manager.client import TaskManagerClient
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.lost_events import batch_writer, event_batch, flood_while_stopped
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.fleet_types import FleetError
 from task_manager_mqtt.settings import (
@@ -168,6 +170,28 @@ def test_a_restarted_bridge_sends_what_ended_meanwhile_and_nothing_again(
     wait_until(lambda: len(results) >= len(ended), 'the results that ended meanwhile')
     assert [t['task_id'] for t in results] == ended
     assert online.robots[ROBOT].duplicates == 0
+
+
+def test_a_task_whose_end_went_missing_leaves_the_active_list(
+    ros: RosHarness, online: FleetClient, bridge: BridgeProcess
+) -> None:
+    """The bridge stopped (SIGSTOP) while more batches of task events came than it keeps: the
+    ENDED of a task among those lost never comes, so once it goes on the bridge reads the
+    active list again from the node (the client logs how many batches went missing). Here
+    `pre` is a task only the events knew (the test stands in for the node's writer): before,
+    it stayed active for good."""
+    writer = batch_writer(ros)
+    writer.publish(event_batch('pre'))
+    assert online.wait_for(lambda robots: _active_ids(robots) >= {'pre'}), 'pre never active'
+
+    flood_while_stopped(writer, bridge.process.pid)
+
+    bridge.wait_for_log(r'\d+ batch\(es\) of task events went missing', TIMEOUT_SEC)
+    assert online.wait_for(lambda robots: 'pre' not in _active_ids(robots)), 'pre still active'
+
+
+def _active_ids(robots: dict[str, Any]) -> set[str]:
+    return {task['task_id'] for task in robots[ROBOT].active_tasks}
 
 
 def _results_then_a_new_history(

@@ -4,7 +4,9 @@ The client is thread-based (its executor spins in a thread of its own): its bloc
 run in worker threads, and what it reports on its executor thread (task events, the node
 coming and going) is handed to the event loop with `call_soon_threadsafe`, one wake-up for
 what came meanwhile. Each event is turned into JSON once, then offered to every open event
-stream; with no stream open, it is not turned into anything.
+stream; with no stream open, it is not turned into anything. When events went missing (the
+client fell behind the node), every open stream ends with an `overflow` event after what it
+has: a page that gets one opens the stream again and starts from the tasks as they are.
 
 The blocking calls have three pools of threads, so that no kind of request waits behind
 another: reads, starts, and control (stop, cancel, pause, resume, schedule changes). A flood
@@ -27,6 +29,7 @@ from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.text.json_text import compact_json
 from task_manager.gateway.documents import event_json
 from task_manager_web.door_link import DoorLink
+from task_manager_web.event_stream import EventStream
 
 T = TypeVar('T')
 NOT_CONNECTED = (
@@ -48,6 +51,7 @@ class NodeLink(DoorLink):
         self._unsubscribe = [
             client.on_task_event(self._on_event),
             client.on_connection_change(self._on_connection_change),
+            client.on_events_lost(self._on_events_lost),
         ]
 
     def close(self) -> None:
@@ -116,6 +120,14 @@ class NodeLink(DoorLink):
         # no stream open, no one to tell: a stream opened later starts with what it reads
         if self._streams:
             self._hand_over('task', compact_json(event_json(event)))
+
+    def _on_events_lost(self, batches: int) -> None:
+        if self._streams:
+            notice = {
+                'message': f'{batches} batch(es) of task events went missing (the gateway fell '
+                'behind the Task Manager): reconnect'
+            }
+            self._hand_over(EventStream.OVERFLOW, compact_json(notice))
 
     def _on_connection_change(self, connected: bool) -> None:
         self._hand_over('connection', compact_json({'connected': connected}))

@@ -3,6 +3,7 @@ and goings as the stream reports them."""
 
 import contextlib
 import json
+import re
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -10,6 +11,8 @@ import httpx
 import pytest
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
+from task_manager.testing.harness import RosHarness
+from task_manager.testing.lost_events import batch_writer, flood_while_stopped
 from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
@@ -134,3 +137,26 @@ def test_the_stream_ends_with_bye_when_the_gateway_stops(
     assert gateway.stop() == 0
 
     assert events.next() == ('bye', {'message': 'the gateway stops'})
+
+
+def test_a_stream_ends_with_overflow_when_the_gateway_lost_events(
+    ros: RosHarness, robot: Robot, gateway: GatewayProcess, events: Stream
+) -> None:
+    """The gateway stopped (SIGSTOP) while more batches of task events came than it keeps: when
+    it goes on, an open stream ends with `overflow` saying how many went missing, after the
+    events before the gap (the page then opens the stream again and reads the tasks as they
+    are). The batches come from the test, standing in for the node's writer."""
+    assert events.next() == ('hello', {'connected': True})
+    writer = batch_writer(ros)
+
+    flood_while_stopped(writer, gateway.process.pid)
+
+    seen = events.until(lambda kind, _: kind == 'overflow')
+    missing = seen[-1][1]['message']
+    assert re.fullmatch(
+        r'\d+ batch\(es\) of task events went missing \(the gateway fell behind the Task '
+        r'Manager\): reconnect',
+        missing,
+    ), missing
+    numbers = [int(data['task']['task_id'][1:]) for kind, data in seen if kind == 'task']
+    assert numbers == sorted(numbers), numbers

@@ -2,6 +2,7 @@
 background thread; the topics it subscribes to and which of them a publisher reaches."""
 
 import threading
+import time
 import traceback
 import uuid
 from collections.abc import Callable
@@ -30,6 +31,22 @@ DEFAULT_TIMEOUT_SEC = 5.0
 # A request is sent again after this long without a reply, then after twice as long, ...:
 # a reply sent before DDS matched this client's reply reader is lost.
 SERVICE_RETRY_SEC = 0.5
+LOST_EVENTS_LOG_SEC = 10.0
+"""The most often the client logs that task events went missing (with the count since)."""
+
+# Where a message stands in its publisher's stream: the writer, and the message's number in it.
+Place = tuple[bytes, int]
+
+
+def place_of(info: MessageInfo) -> Place:
+    """The writer's id and the message's sequence number (its source time where the middleware
+    numbers nothing: the writer's own clock, so still ordered within one writer)."""
+    gid = info['publisher_gid']
+    sequence = info['publication_sequence_number']
+    return (
+        bytes(gid['data']) if gid else b'',
+        info['source_timestamp'] if sequence is None else sequence,
+    )
 
 
 class Connection:
@@ -153,7 +170,14 @@ class Connection:
 
 class EventFeed:
     """The task events, as /task_manager/task_event_batches carries them (the node's events
-    of a turn in one message, in order): subscribed to once, on first use, and who listens."""
+    of a turn in one message, in order): subscribed to once, on first use, and who listens.
+
+    The middleware numbers each writer's messages one after the other: a number skipped is a
+    batch the reader overwrote before the client took it (a client that fell behind the node
+    by more than the reader's depth, 1,000 batches). The events after it are delivered, then
+    `lost` is told how many batches went missing, and the client logs it (at most once in
+    LOST_EVENTS_LOG_SEC).
+    """
 
     def __init__(
         self, connection: Connection, on_message: Callable[[TaskEventMessage], None]
@@ -163,6 +187,11 @@ class EventFeed:
         self._subscribed = False
         self.listeners = Listeners[TaskEvent](connection.lock)
         """Who gets every event (put by whoever `on_message` is: the client's task tracker)."""
+        self.lost = Listeners[int](connection.lock)
+        """Who is told how many batches went missing, each time some did."""
+        self._last: Place | None = None
+        self._lost_unlogged = 0
+        self._lost_logged_at = -LOST_EVENTS_LOG_SEC
 
     @property
     def connected(self) -> bool:
@@ -175,12 +204,41 @@ class EventFeed:
             self._subscribed = True
         if subscribe:
             self._connection.subscribe(
-                TaskEventArray, TASK_EVENT_BATCHES_TOPIC, qos.TASK_EVENTS, self._on_batch
+                TaskEventArray,
+                TASK_EVENT_BATCHES_TOPIC,
+                qos.TASK_EVENTS,
+                self._on_batch,
+                with_info=True,
             )
 
-    def _on_batch(self, batch: TaskEventArray) -> None:
+    def _on_batch(self, batch: TaskEventArray, info: MessageInfo) -> None:
+        missed = self._missed(info)
         for message in batch.events:
             self._on_message(message)
+        if missed:
+            self._log_lost(missed)
+            self.lost.put(missed)
+
+    def _missed(self, info: MessageInfo) -> int:
+        """How many batches of this one's writer came between the last one taken and it (0
+        from a writer not seen before, or where the middleware numbers nothing)."""
+        place = place_of(info)
+        last, self._last = self._last, place
+        if info['publication_sequence_number'] is None or last is None or last[0] != place[0]:
+            return 0
+        return max(place[1] - last[1] - 1, 0)
+
+    def _log_lost(self, missed: int) -> None:
+        self._lost_unlogged += missed
+        now = time.monotonic()
+        if now - self._lost_logged_at < LOST_EVENTS_LOG_SEC:
+            return
+        NodeLog.of(self._connection.node).warning(
+            f'{self._lost_unlogged} batch(es) of task events went missing: this client fell '
+            'behind the Task Manager and its reader overwrote them; who follows the events is '
+            'told (on_events_lost)'
+        )
+        self._lost_unlogged, self._lost_logged_at = 0, now
 
     def follow(self, timeout_sec: float | None = None) -> None:
         """Subscribe (once); wait until connected, if the Task Manager publishes the events.

@@ -12,7 +12,7 @@ from rclpy.subscription import MessageInfo
 from rclpy.task import Future
 from task_manager_msgs.msg import ActiveTaskArray
 
-from task_manager.client.connection import Connection, EventFeed
+from task_manager.client.connection import Connection, EventFeed, Place, place_of
 from task_manager.client.listeners import Callback, Inbox, Listeners, drain
 from task_manager.client.records import ActiveTaskInfo, TaskEvent, TaskResult, status_of
 from task_manager.core.errors import TaskManagerUnavailable
@@ -24,21 +24,6 @@ T = TypeVar('T')
 
 # The key of the deep reader of the active lists, beside the topic's own (the latest list).
 EVERY_ACTIVE_LIST = f'{ACTIVE_TASKS_TOPIC} (every list)'
-
-
-# Where a list stands in its publisher's stream: the writer, and the list's number in it.
-Place = tuple[bytes, int]
-
-
-def place_of(info: MessageInfo) -> Place:
-    """The writer's id and the list's sequence number (its source time where the middleware
-    numbers nothing: the writer's own clock, so still ordered within one writer)."""
-    gid = info['publisher_gid']
-    sequence = info['publication_sequence_number']
-    return (
-        bytes(gid['data']) if gid else b'',
-        info['source_timestamp'] if sequence is None else sequence,
-    )
 
 
 class ActiveTasks:
@@ -200,6 +185,18 @@ class Watching:
         """
         self._events.subscribe()
         return self._events.listeners.add(Callback(callback, NodeLog.of(self.node)))
+
+    def on_events_lost(self, callback: Callable[[int], None]) -> Callable[[], None]:
+        """Call `callback(batches)` when task events went missing; returns the unsubscribe.
+
+        A client that falls behind the Task Manager by more than its reader holds (1,000
+        batches of up to 100 events) loses the oldest: `batches` of them, found from the
+        numbers the middleware gives each message. What a caller keeps from the events (an
+        active list, a task's last state) should then be read again (`task_states`). It
+        runs on the executor thread, after the events of the batch that showed the gap.
+        """
+        self._events.subscribe()
+        return self._events.lost.add(Callback(callback, NodeLog.of(self.node)))
 
 
 def _from_now(

@@ -6,6 +6,7 @@ from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import pytest
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskEventArray
 from test_msgs.action import Fibonacci
@@ -22,6 +23,7 @@ from task_manager.core.status import TaskStatus
 from task_manager.rclpy_tools import qos
 from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
+from task_manager.testing.lost_events import batch_writer, event_batch
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import (
     ScriptedActionServer,
@@ -238,7 +240,8 @@ def test_every_event_of_500_tasks_at_once_reaches_the_client_in_order_in_fewer_m
     """The node publishes a turn's events as one TaskEventArray on
     /task_manager/task_event_batches, which the client follows: of 500 tasks started at once,
     each has RECEIVED, STARTED and ENDED, in that order, the same events in the same order as
-    /task_manager/task_events carries one by one, in fewer messages than events."""
+    /task_manager/task_events carries one by one, in fewer messages than events; no batch is
+    said to be lost."""
     ScriptedActionServer(ros.node, Fibonacci, f'{topic_prefix}/fib', on_goal=lambda g: g.succeed())
     launch_task_manager(
         {
@@ -260,6 +263,8 @@ def test_every_event_of_500_tasks_at_once_reaches_the_client_in_order_in_fewer_m
     batches_before = len(batches.snapshot())
     received: list[tuple[str, str]] = []
     client.on_task_event(lambda event: received.append((event.task.task_id, str(event.kind))))
+    lost: list[int] = []
+    client.on_events_lost(lost.append)
     ids = [f'burst-{index:03d}' for index in range(BURST)]
 
     handles = [client.start_task('fib', {'order': 1}, task_id=task_id) for task_id in ids]
@@ -312,6 +317,7 @@ def test_every_event_of_500_tasks_at_once_reaches_the_client_in_order_in_fewer_m
     assert [pair for pair in received if pair[0] != 'first'] == published
     assert len(batches.snapshot()) - batches_before < len(published)
     assert len(published) == 3 * BURST
+    assert lost == []  # none missing, none said to be
 
 
 class ListLog:
@@ -439,3 +445,45 @@ def test_the_latest_active_list_is_read_only_when_asked_for(
     listed = [(t.task_id, t.status) for t in client.active_tasks()]
     assert listed == [('held', TaskStatus.IN_PROGRESS)]
     assert active._latest is not None  # read once, kept until the next list
+
+
+def test_events_a_client_fell_too_far_behind_for_are_told_as_lost(
+    ros: RosHarness, client: TaskManagerClient
+) -> None:
+    """A client held up while more batches come than its reader keeps (1,000) loses the
+    oldest: it is told how many, after the events that came, from the numbers the middleware
+    gives each message. The batches here are published by the test (a stand-in for the
+    node's writer, the same topic and QoS)."""
+    count = 3 * qos.DEEP_QUEUE_DEPTH
+    beside = ros.record(
+        TaskEventArray,
+        TASK_EVENT_BATCHES_TOPIC,
+        QoSProfile(depth=2 * count, reliability=ReliabilityPolicy.RELIABLE),
+    )
+    seen: list[str] = []
+    lost: list[int] = []
+    held, released = threading.Event(), threading.Event()
+
+    def take(event: Any) -> None:
+        seen.append(event.task.task_id)
+        if event.task.task_id == 'hold':
+            held.set()
+            released.wait(TIMEOUT_SEC)
+
+    client.on_task_event(take)
+    client.on_events_lost(lost.append)
+    writer = batch_writer(ros, readers=2)  # the client's and the recorder beside it
+    try:
+        writer.publish(event_batch('hold'))
+        assert held.wait(TIMEOUT_SEC), 'the client never got the first batch'
+        for number in range(count):
+            writer.publish(event_batch(f'b{number}'))
+        beside.wait_until(lambda messages: len(messages) == count + 1, TIMEOUT_SEC, 'all sent')
+    finally:
+        released.set()
+
+    wait_until(lambda: seen and seen[-1] == f'b{count - 1}', 'the last batch taken')
+    taken = seen[1:]
+    assert taken == sorted(taken, key=lambda task_id: int(task_id[1:])), 'out of order'
+    assert lost, 'no loss told'
+    assert len(taken) + sum(lost) == count, (len(taken), lost)
