@@ -189,7 +189,8 @@ class EventFeed:
         """Who gets every event (put by whoever `on_message` is: the client's task tracker)."""
         self.lost = Listeners[int](connection.lock)
         """Who is told how many batches went missing, each time some did."""
-        self._last: Place | None = None
+        # key: a writer of the batches, value: the number of the last batch taken from it
+        self._last_numbers: dict[bytes, int] = {}
         self._lost_unlogged = 0
         self._lost_logged_at = -LOST_EVENTS_LOG_SEC
 
@@ -220,13 +221,14 @@ class EventFeed:
             self.lost.put(missed)
 
     def _missed(self, info: MessageInfo) -> int:
-        """How many batches of this one's writer came between the last one taken and it (0
-        from a writer not seen before, or where the middleware numbers nothing)."""
-        place = place_of(info)
-        last, self._last = self._last, place
-        if info['publication_sequence_number'] is None or last is None or last[0] != place[0]:
+        """How many batches of this one's writer came between the last one taken from it and
+        it (0 from a writer not seen before, or where the middleware numbers nothing)."""
+        if info['publication_sequence_number'] is None:
             return 0
-        return max(place[1] - last[1] - 1, 0)
+        writer, number = place_of(info)
+        last = self._last_numbers.get(writer)
+        self._last_numbers[writer] = number
+        return 0 if last is None else max(number - last - 1, 0)
 
     def _log_lost(self, missed: int) -> None:
         self._lost_unlogged += missed
