@@ -4,6 +4,7 @@ and goings as the stream reports them."""
 import contextlib
 import json
 import re
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -12,10 +13,11 @@ import pytest
 
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check, wait_until
 from task_manager.testing.harness import RosHarness
-from task_manager.testing.lost_events import batch_writer, flood_while_stopped
+from task_manager.testing.lost_events import batch_writer, event_batch, flood_while_stopped
 from task_manager_web.testing import GatewayProcess
 
 pytestmark = pytest.mark.ros
+STREAM_TIMEOUT_SEC = 2 * TIMEOUT_SEC
 
 
 class Stream:
@@ -27,9 +29,13 @@ class Stream:
         self._lines = response.iter_lines()
 
     def next(self) -> tuple[str, Any]:
-        """The next event: (its kind, its data)."""
+        """The next event: (its kind, its data); AssertionError if none comes within
+        STREAM_TIMEOUT_SEC (keepalive comments come meanwhile, each 15 s)."""
+        deadline = time.monotonic() + STREAM_TIMEOUT_SEC
         kind, data = '', ''
         for line in self._lines:
+            if time.monotonic() > deadline:
+                raise AssertionError(f'no event within {STREAM_TIMEOUT_SEC} s')
             if line.startswith('event: '):
                 kind = line[len('event: ') :]
             elif line.startswith('data: '):
@@ -148,6 +154,8 @@ def test_a_stream_ends_with_overflow_when_the_gateway_lost_events(
     are). The batches come from the test, standing in for the node's writer."""
     assert events.next() == ('hello', {'connected': True})
     writer = batch_writer(ros)
+    writer.publish(event_batch('first'))
+    assert events.next()[1]['task']['task_id'] == 'first'  # the gateway took one of its batches
 
     flood_while_stopped(writer, gateway.process.pid)
 
@@ -158,5 +166,6 @@ def test_a_stream_ends_with_overflow_when_the_gateway_lost_events(
         r'Manager\): reconnect',
         missing,
     ), missing
-    numbers = [int(data['task']['task_id'][1:]) for kind, data in seen if kind == 'task']
+    flooded = [data['task']['task_id'] for kind, data in seen if kind == 'task']
+    numbers = [int(task_id[1:]) for task_id in flooded if task_id != 'after']
     assert numbers == sorted(numbers), numbers

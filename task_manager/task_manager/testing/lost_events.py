@@ -36,10 +36,15 @@ def batch_writer(ros: RosHarness, readers: int = 1) -> Any:
 
 def flood_while_stopped(writer: Any, pid: int, count: int = MORE_THAN_KEPT) -> None:
     """Publish `count` batches (tasks `b0`, `b1`, ...) while process `pid` is stopped
-    (SIGSTOP, then SIGCONT): its reader of them gets only the newest and finds the gap."""
+    (SIGSTOP, then SIGCONT), then one more (`after`) once the writer reaches it again: its
+    reader, which must have taken a batch of this writer before, finds the gap (from the
+    newest the writer kept for it, or from `after` if its lease ran out meanwhile and the
+    writer dropped it)."""
     os.kill(pid, signal.SIGSTOP)
     try:
         for number in range(count):
             writer.publish(event_batch(f'b{number}'))
     finally:
         os.kill(pid, signal.SIGCONT)
+    wait_until(lambda: writer.get_subscription_count() >= 1, 'the stopped reader again')
+    writer.publish(event_batch('after'))
