@@ -8,7 +8,7 @@ waits for them and hands the shutdown to the executor as a task.
 
 import sys
 
-from task_manager.process_setup import STOP_SIGNALS, block_stop_signals, prepare_ros_process
+from task_manager.process_setup import block_stop_signals, prepare_ros_process
 
 
 def main(args: list[str] | None = None) -> int:
@@ -21,7 +21,7 @@ def main(args: list[str] | None = None) -> int:
     prepare_ros_process()
     from task_manager.ros.node_process import run
 
-    return run(args if args is not None else sys.argv, set(STOP_SIGNALS))
+    return run(args if args is not None else sys.argv)
 
 
 if __name__ == '__main__':

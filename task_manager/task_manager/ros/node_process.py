@@ -17,7 +17,7 @@ from task_manager.core.errors import ConfigurationError
 from task_manager.core.names import EXECUTE_TASK_ACTION, NODE_NAME
 from task_manager.core.params_file import check_params_file, params_files
 from task_manager.middleware_watchdog import MiddlewareWatchdog
-from task_manager.process_setup import end_within
+from task_manager.process_setup import STOP_SIGNALS, end_within
 from task_manager.rclpy_tools.futures import wake
 from task_manager.ros import parking_executor
 from task_manager.ros.instances import describe
@@ -31,13 +31,11 @@ EXIT_MIDDLEWARE_STUCK = 3
 DRAIN_MAX_CALLBACKS = 1000
 
 
-def _receive_signals(
-    node: TaskManagerNode, stopped: Future[Any], shutdown_signals: set[signal.Signals]
-) -> None:
-    signal.sigwait(shutdown_signals)
+def _receive_signals(node: TaskManagerNode, stopped: Future[Any]) -> None:
+    signal.sigwait(STOP_SIGNALS)
     assert node.executor is not None
     node.executor.create_task(node.shut_down, stopped)
-    signal.sigwait(shutdown_signals)
+    signal.sigwait(STOP_SIGNALS)
     get_logger(NODE_NAME).warning('second signal: exiting without waiting for tasks')
     if not stopped.done():
         stopped.set_result(False)
@@ -81,8 +79,8 @@ def _refuse_configuration(error: Exception) -> int:
     return EXIT_CONFIGURATION_ERROR
 
 
-def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
-    """Run the node; `shutdown_signals` must already be blocked in every thread."""
+def run(args: list[str]) -> int:
+    """Run the node; STOP_SIGNALS must already be blocked in every thread."""
     try:
         for path in params_files(args):
             check_params_file(path)
@@ -101,16 +99,14 @@ def run(args: list[str], shutdown_signals: set[signal.Signals]) -> int:
         return _refuse_configuration(error)
     code = 1  # an error of ours, raised on
     try:
-        code = _serve(executor, node, shutdown_signals)
+        code = _serve(executor, node)
     finally:
         node.close_history()  # before the bound: the ends are written whatever DDS does
         end_within(lambda: _release(executor, node), PROGRAM, code)
     return code
 
 
-def _serve(
-    executor: SingleThreadedExecutor, node: TaskManagerNode, shutdown_signals: set[signal.Signals]
-) -> int:
+def _serve(executor: SingleThreadedExecutor, node: TaskManagerNode) -> int:
     """Serve until a shutdown signal (or an older Task Manager found); the exit code."""
     stopped: Future[Any] = Future()
     exit_code = [0]
@@ -123,9 +119,7 @@ def _serve(
         return EXIT_ANOTHER_TASK_MANAGER
     node.serve()
     node.instances.older.add_done_callback(lambda _: _yield_to_older(node, stopped, exit_code))
-    threading.Thread(
-        target=_receive_signals, args=(node, stopped, shutdown_signals), daemon=True
-    ).start()
+    threading.Thread(target=_receive_signals, args=(node, stopped), daemon=True).start()
     watchdog = _watch_the_middleware(node.settings.middleware_watchdog_timeout_sec)
     try:
         _serve_until(executor, stopped)
