@@ -264,7 +264,7 @@ class Bridge:
         tasks = [declared_json(entry) for entry in self.client.declared_tasks()]
         self._declared = {'timestamp': now, 'tasks': tasks}
         self._publish(self.topics.tasks, self._declared, 1, True)
-        self._active.replace(task_json(s) for s in self.client.task_states())
+        self._read_active()
         self._publish_active()
         self._set_start_point()
 
@@ -319,11 +319,15 @@ class Bridge:
             self._active.put(event.task.task_id, document['task'])
         self._queue_active()
 
+    def _read_active(self) -> None:
+        """The active list as the node has it now."""
+        self._active.replace(task_json(s) for s in self.client.task_states())
+
     def _on_events_lost(self) -> None:
         """Events went missing (the client fell behind the node; it logged how many): the
         active list is read again. A result among them is sent from the history by number."""
         try:
-            self._active.replace(task_json(s) for s in self.client.task_states())
+            self._read_active()
         except TaskManagerUnavailable as error:
             LOG.warning('cannot read the active tasks again after events went missing: %s', error)
             return
