@@ -15,10 +15,17 @@ import threading
 import time
 import traceback
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from typing import Any
 
-from task_manager.client import TaskEvent, TaskManagerClient
-from task_manager.core.bounds import REASON_MAX_CHARACTERS, VDA5050_WAITING_MAX_BYTES, cut_text
+from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
+from task_manager.core.bounds import (
+    IDS_MAX,
+    REASON_MAX_CHARACTERS,
+    VDA5050_WAITING_MAX_BYTES,
+    cut_text,
+)
+from task_manager.core.status import TaskStatus
 from task_manager_vda5050.inbound import read_inbound
 from task_manager_vda5050.link import Link
 from task_manager_vda5050.mapping import Mapping
@@ -82,11 +89,32 @@ class Connected:
     """The broker is back: the state and the factsheet go out again."""
 
 
+class EventsLost:
+    """Task events went missing (the client fell too far behind the Task Manager): the tasks
+    followed are read again."""
+
+
 class Stop:
     pass
 
 
-Item = Inbound | TaskEvent | Connected | Stop
+Item = Inbound | TaskEvent | Connected | EventsLost | Stop
+CAUGHT_UP = 'read again: task events of it went missing'
+"""The reason of an event that stands in for lost ones (see standing_in)."""
+
+
+def standing_in(task: TaskState) -> TaskEvent | None:
+    """The event that brings a follower of `task` to its state now, its own events lost: ENDED
+    once it has ended, else PAUSED or STARTED; None while it waits to start."""
+    if task.is_final:
+        kind = TaskEventKind.ENDED
+    elif task.status is TaskStatus.PAUSED:
+        kind = TaskEventKind.PAUSED
+    elif task.status is TaskStatus.IN_PROGRESS:
+        kind = TaskEventKind.STARTED
+    else:
+        return None
+    return TaskEvent(kind, datetime.now(UTC), task, CAUGHT_UP)
 
 
 class Adapter:
@@ -135,6 +163,7 @@ class Adapter:
 
     def start(self) -> None:
         self.client.on_task_event(self.items.put)
+        self.client.on_events_lost(lambda _batches: self.items.put(EventsLost()))
         self._thread.start()
 
     def stop(self, timeout_sec: float = 10.0) -> None:
@@ -178,9 +207,28 @@ class Adapter:
         elif isinstance(item, TaskEvent):
             self.orders.on_event(item)
             self.instant.on_event(item)
+        elif isinstance(item, EventsLost):
+            self._catch_up()
         elif isinstance(item, Connected):
             self.publish('factsheet')
             self.publish('state')
+
+    def _catch_up(self) -> None:
+        """The state now of each task followed stands in for its lost events, in the order
+        their events would have come (an order's steps, the tasks beside, its mission, then
+        the instant actions): one that ended is handled as ENDED, once."""
+        followed = [*self.orders.followed(), *self.instant.followed()]
+        LOG.warning('task events went missing: reading the %d tasks followed again', len(followed))
+        states: dict[str, TaskState] = {}
+        for first in range(0, len(followed), IDS_MAX):
+            ids = followed[first : first + IDS_MAX]
+            states.update((s.task_id, s) for s in self.client.task_states(ids))
+        for task_id in followed:
+            task = states.get(task_id)
+            event = standing_in(task) if task is not None else None
+            if event is not None:
+                self.orders.on_event(event)
+                self.instant.on_event(event)
 
     def _inbound(self, item: Inbound) -> None:
         if dropped := self.backlog.handled(len(item.payload)):

@@ -1,9 +1,10 @@
 """Task event batches published by a test, standing in for the node's writer (the same topic and
 QoS), to make a reader of them lose some: a client held up, or a gateway's process stopped,
-while more come than the reader keeps."""
+while more come than the reader keeps; or counted as the node publishes them."""
 
 import os
 import signal
+from collections.abc import Callable
 from typing import Any
 
 from task_manager_msgs.msg import TaskEvent, TaskEventArray
@@ -48,3 +49,19 @@ def flood_while_stopped(writer: Any, pid: int, count: int = MORE_THAN_KEPT) -> N
         os.kill(pid, signal.SIGCONT)
     wait_until(lambda: writer.get_subscription_count() >= 1, 'the stopped reader again')
     writer.publish(event_batch('after'))
+
+
+def batch_counter(ros: RosHarness) -> Callable[[], int]:
+    """How many batches of task events this test's reader has taken (from its first call on),
+    whoever published them."""
+    counted = [0]  # written by the executor thread only
+
+    def take(_: TaskEventArray) -> None:
+        counted[0] += 1
+
+    ros.on_executor(
+        lambda: ros.node.create_subscription(
+            TaskEventArray, TASK_EVENT_BATCHES_TOPIC, take, qos.TASK_EVENTS
+        )
+    )
+    return lambda: counted[0]

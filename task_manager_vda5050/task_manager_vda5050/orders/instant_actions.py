@@ -127,6 +127,10 @@ class InstantActions:
         except (TaskManagerError, ValueError) as error:
             self.state.set_action(action['actionId'], 'FAILED', f'not started: {error}')
 
+    def followed(self) -> list[str]:
+        """The ids of the instant actions' tasks that have not ended here."""
+        return list(self.tasks)
+
     def on_event(self, event: TaskEvent) -> None:
         action_id = self.tasks.get(event.task.task_id)
         if action_id is None:

@@ -67,6 +67,10 @@ class Orders:
         self.beside_active: set[str] = set()
         self._ended: set[str] = set()
         """The ids of the planned tasks that have ended."""
+        self._started_steps: list[str] = []
+        """The ids of the steps of the order's missions started, in the order they run."""
+        self._reached = -1
+        """The sequenceId of the order's last node reached."""
         self.last_base: tuple[str, int] = ('', 0)
         self._started_beside: set[str] = set()
         self._mission_ids: set[str] = set()
@@ -131,7 +135,7 @@ class Orders:
         if not stitched:  # the order before has no work left: forget it
             self.running = None  # its mission's end is not awaited
             self.tasks, self._ended, self._started_beside = {}, set(), set()
-            self._mission_ids = set()
+            self._mission_ids, self._started_steps, self._reached = set(), [], -1
         self._mission_ids.add(mission_id)
         self.state.take_order(order, stitched)
         self.last_base = segment.last_base
@@ -161,10 +165,18 @@ class Orders:
                 self._failed(segment, f'the Task Manager did not take the mission: {error}')
                 continue
             self.running = segment
+            self._started_steps.extend(t.task_id for t in segment.steps)
             if self.state.paused:
                 self.client.pause([segment.mission_id], source=SOURCE)
 
     # ---- progress ------------------------------------------------------------------------
+
+    def followed(self) -> list[str]:
+        """The ids of the order's tasks the Task Manager has and that have not ended here, in
+        the order their events come: the steps, the tasks beside, the running mission."""
+        steps = [task_id for task_id in self._started_steps if task_id not in self._ended]
+        mission = [self.running.mission_id] if self.running is not None else []
+        return [*steps, *sorted(self.beside_active), *mission]
 
     def on_event(self, event: TaskEvent) -> None:
         task_state = event.task
@@ -174,7 +186,7 @@ class Orders:
                 self._mission_ended(self.running, task_state)
             return
         planned = self.tasks.get(task_id)
-        if planned is None:
+        if planned is None or task_id in self._ended:  # (an event read again after its end)
             return
         if planned.action_id:
             status = ACTION_STATUS.get(str(task_state.status), 'WAITING')
@@ -199,7 +211,8 @@ class Orders:
             self._move(event.task.feedback)
         elif kind is TaskEventKind.ENDED:
             self.state.driving = False
-            if event.task.status is TaskStatus.DONE:
+            if event.task.status is TaskStatus.DONE and drive.sequence_id > self._reached:
+                self._reached = drive.sequence_id  # (not a drive before it, ended late)
                 self._move(event.task.result)
                 self.state.node_reached(drive.node_id, drive.sequence_id)
                 self._start_beside(
