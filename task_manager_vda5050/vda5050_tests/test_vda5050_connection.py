@@ -93,7 +93,8 @@ def test_an_order_whose_end_went_missing_is_read_again(
     batches of task events than its writer keeps: the ENDED events of the order's tasks are
     among those lost, so once it goes on it reads the tasks it follows again. Before, the
     vehicle stayed driving, its last node the first, its action waiting, for good. (Stopped for
-    less than the 5 s lease the node gives it: see the closing note of 2026-11-30.)"""
+    less than the 5 s lease its participant has: stopped longer, the adapter at times heard
+    nothing more from the node at all, not even on a reader made after it went on.)"""
     batches = batch_counter(ros)
     lost = order('order-lost', node('s', 0, 0.0, 0.0), node('f', 2, 8.0, 0.0, photo()))
     master.command('order', order=lost)
