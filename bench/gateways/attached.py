@@ -7,7 +7,9 @@ node setting (node_settings.compare): dispatch latency and burst throughput, eac
 the direct baseline measured beside it, then 1,000 held tasks until all are IN_PROGRESS
 against the same goals sent directly. The dashboard's stream is read by another process
 (bench/harness/stream_readers.py), as a browser would; the bridge runs as users start it
-(`task-manager-mqtt`), and the cloud's FleetClient (events on) follows the robot.
+(`task-manager-mqtt`), and the cloud's FleetClient follows the robot's results and active lists
+(events off; in the bench's process: moving it to a process of its own at
+nice 19 changed no row, 2026-11-30).
 """
 
 import contextlib
