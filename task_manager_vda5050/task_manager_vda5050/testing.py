@@ -51,7 +51,7 @@ class BrokerProcess(VdaBroker):
 
 class AdapterProcess(NodeProcess):
     """`task-manager-vda5050` for SERIAL of MANUFACTURER with the demo's mapping (or
-    `mapping`); `nice`: None for the adapter's default."""
+    `mapping`); `nice`: None for the adapter's default; `env`: added to its environment."""
 
     def __init__(
         self,
@@ -60,6 +60,7 @@ class AdapterProcess(NodeProcess):
         wait: bool = True,
         mapping: Path = DEMO_MAPPING,
         nice: int | None = TEST_NICENESS,
+        env: dict[str, str] | None = None,
     ) -> None:
         password_file = broker.folder / f'{SERIAL}.password'
         password_file.write_text(broker.passwords[SERIAL])
@@ -78,7 +79,7 @@ class AdapterProcess(NodeProcess):
             *nice_option(nice),
             *args,
         ]
-        super().__init__(None, command=command)
+        super().__init__(None, command=command, env=env)
         if wait:
             try:
                 self.wait_for_log(CONNECTED_LINE, START_TIMEOUT_SEC)

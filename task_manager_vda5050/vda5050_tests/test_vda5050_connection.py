@@ -14,7 +14,7 @@ from task_manager.core.status import TaskStatus
 from task_manager.rclpy_tools.qos import DEEP_QUEUE_DEPTH
 from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
-from task_manager.testing.lost_events import batch_counter
+from task_manager.testing.lost_events import LONG_LEASE, batch_counter
 from task_manager_vda5050.testing import (
     TIMEOUT_SEC,
     AdapterProcess,
@@ -86,15 +86,16 @@ def test_an_order_goes_on_while_the_broker_is_away_and_state_returns_with_it(
     assert (state['orderId'], state['nodeStates'], state['driving']) == ('order-away', [], False)
 
 
+@pytest.mark.parametrize('adapter_env', [LONG_LEASE])
 def test_an_order_whose_end_went_missing_is_read_again(
     master: Master, adapter: AdapterProcess, demo_robot: TaskManagerClient, ros: RosHarness
 ) -> None:
     """The adapter stopped (SIGSTOP) while its order ends and the Task Manager publishes more
     batches of task events than its writer keeps: the ENDED events of the order's tasks are
     among those lost, so once it goes on it reads the tasks it follows again. Before, the
-    vehicle stayed driving, its last node the first, its action waiting, for good. (Stopped for
-    less than the 5 s lease its participant has: stopped longer, the adapter at times heard
-    nothing more from the node at all, not even on a reader made after it went on.)"""
+    vehicle stayed driving, its last node the first, its action waiting, for good. (The adapter
+    has a 60 s lease here: stopped for longer than its lease, it at times heard nothing more
+    from the node at all; docs/faults-and-shutdown.md.)"""
     batches = batch_counter(ros)
     lost = order('order-lost', node('s', 0, 0.0, 0.0), node('f', 2, 8.0, 0.0, photo()))
     master.command('order', order=lost)

@@ -5,6 +5,7 @@ while more come than the reader keeps; or counted as the node publishes them."""
 import os
 import signal
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from task_manager_msgs.msg import TaskEvent, TaskEventArray
@@ -14,6 +15,10 @@ from task_manager.rclpy_tools import qos
 from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
 
+LONG_LEASE_PROFILE = Path(__file__).with_name('long_lease_fastdds.xml')
+LONG_LEASE = {'FASTDDS_DEFAULT_PROFILES_FILE': str(LONG_LEASE_PROFILE)}
+"""The environment of a process a test stops for a while: a 60 s lease, so that the others keep
+it matched (see long_lease_fastdds.xml)."""
 MORE_THAN_KEPT = 4 * qos.DEEP_QUEUE_DEPTH
 """Batches enough that a reader stopped meanwhile loses some: more than its depth and the
 writer's, and than the transport's buffers hold of them."""

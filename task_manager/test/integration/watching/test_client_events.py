@@ -381,7 +381,7 @@ def test_a_listener_gets_every_active_list_even_when_the_client_is_held_up(
         assert held.wait(TIMEOUT_SEC), 'the client never got the events of hold'
         assert tm.run('fib', {'order': 1}, task_id='quick').task_status == 'DONE'
         tm.active.wait_until(
-            lambda messages: [t.task_id for t in messages[-1].active_tasks] == [], TIMEOUT_SEC
+            lambda messages: bool(messages) and not messages[-1].active_tasks, TIMEOUT_SEC
         )
     finally:
         released.set()
