@@ -1,7 +1,8 @@
 """taskctl active [--watch] and taskctl results [--follow]."""
 
 import json
-from collections.abc import Iterator, Sequence
+import queue
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from datetime import UTC, datetime
 from typing import TypeAlias
@@ -13,6 +14,7 @@ from rich.text import Text
 
 from task_manager import (
     ActiveTaskInfo,
+    TaskEvent,
     TaskEventKind,
     TaskManagerClient,
     TaskResult,
@@ -146,14 +148,95 @@ def result_line(result: TaskResult, as_json: bool) -> str:
     )
 
 
+HISTORY_PAGE = 1000
+ABOVE_MAX = 1000
+"""Results shown above `ShownResults.floor` at most: more, and the numbers below them are taken
+for gone (numbers the Task Manager gave without an event: those it closed at a restart)."""
+
+
+class ShownResults:
+    """The history's numbers (`sequence`) of the results shown: `floor`, up to which each one
+    was shown or ended before the following began, and those shown above it (results shown
+    out of turn, their events having gone missing)."""
+
+    def __init__(self) -> None:
+        self.floor: int | None = None
+        self.above: set[int] = set()
+
+    def first_time(self, sequence: int) -> bool:
+        """Whether the result numbered `sequence` is new here; noted as shown. (0: a result
+        without a number, always new.)"""
+        if sequence <= 0:
+            return True
+        if self.floor is None:
+            self.floor = sequence
+            return True
+        if sequence <= self.floor or sequence in self.above:
+            return False
+        self.above.add(sequence)
+        while self.floor + 1 in self.above:
+            self.floor += 1
+            self.above.discard(self.floor)
+        if len(self.above) > ABOVE_MAX:
+            self.filled()
+        return True
+
+    def filled(self) -> None:
+        """The history was read after `floor`: what it no longer has is gone for good."""
+        if self.above:
+            self.floor = max(self.above)
+            self.above.clear()
+
+
 def new_results(client: TaskManagerClient) -> Iterator[TaskResult]:
     """Results as tasks end, from this call on: from ENDED events (with stamps) when they
     reach us, else plain."""
     if not client.events_connected:
         plain: Iterator[TaskResult] = client.results()
         return plain
-    events = client.task_events()
-    return (event.task.to_result() for event in events if event.kind is TaskEventKind.ENDED)
+    return _results_of_events(client)
+
+
+def _results_of_events(client: TaskManagerClient) -> Iterator[TaskResult]:
+    """The results the ENDED events carry, from this call on (not from the first `next()`),
+    each once; when events went missing (taskctl fell more than its reader keeps behind the
+    Task Manager), the results among them are read from the history (by number, after the
+    last one shown in turn), so that none is skipped."""
+    arrived: queue.SimpleQueue[TaskEvent | int] = queue.SimpleQueue()
+    stops = [client.on_task_event(arrived.put), client.on_events_lost(arrived.put)]
+    return _shown_once(client, arrived, stops)
+
+
+def _shown_once(
+    client: TaskManagerClient,
+    arrived: 'queue.SimpleQueue[TaskEvent | int]',
+    stops: list[Callable[[], None]],
+) -> Iterator[TaskResult]:
+    shown = ShownResults()
+    try:
+        while True:
+            item = arrived.get()
+            if isinstance(item, int):  # batches lost
+                yield from _missed_results(client, shown)
+            elif item.kind is TaskEventKind.ENDED and shown.first_time(item.task.sequence):
+                yield item.task.to_result()
+    finally:
+        for stop in stops:
+            stop()
+
+
+def _missed_results(client: TaskManagerClient, shown: ShownResults) -> Iterator[TaskResult]:
+    """The history's results after `shown.floor` not shown yet, oldest first, to its newest
+    (those whose events are still on the way are then not shown again). Before a first result
+    was shown there is no place to start from: the client's warning says events were lost."""
+    after = shown.floor
+    while after is not None:
+        page = client.history(after_sequence=after, limit=HISTORY_PAGE, oldest_first=True)
+        for state in page:
+            if shown.first_time(state.sequence):
+                yield state.to_result()
+        after = page[-1].sequence if len(page) == HISTORY_PAGE else None
+    shown.filled()
 
 
 def results(
