@@ -51,7 +51,7 @@ class BrokerProcess(VdaBroker):
 
 class AdapterProcess(NodeProcess):
     """`task-manager-vda5050` for SERIAL of MANUFACTURER with the demo's mapping (or
-    `mapping`); `nice`: None for the adapter's default; `env`: added to its environment."""
+    `mapping`); `nice`: None for the adapter's default."""
 
     def __init__(
         self,
@@ -60,7 +60,6 @@ class AdapterProcess(NodeProcess):
         wait: bool = True,
         mapping: Path = DEMO_MAPPING,
         nice: int | None = TEST_NICENESS,
-        env: dict[str, str] | None = None,
     ) -> None:
         password_file = broker.folder / f'{SERIAL}.password'
         password_file.write_text(broker.passwords[SERIAL])
@@ -79,7 +78,7 @@ class AdapterProcess(NodeProcess):
             *nice_option(nice),
             *args,
         ]
-        super().__init__(None, command=command, env=env)
+        super().__init__(None, command=command)
         if wait:
             try:
                 self.wait_for_log(CONNECTED_LINE, START_TIMEOUT_SEC)

@@ -52,16 +52,8 @@ def broker(request: pytest.FixtureRequest, tmp_path: Path) -> Iterator[BrokerPro
 
 
 @pytest.fixture
-def adapter_env() -> dict[str, str]:
-    """Added to the adapter's environment (a test's parameter, when it needs one)."""
-    return {}
-
-
-@pytest.fixture
-def adapter(
-    demo_robot: TaskManagerClient, broker: BrokerProcess, adapter_env: dict[str, str]
-) -> Iterator[AdapterProcess]:
-    adapter = AdapterProcess(broker, env=adapter_env)
+def adapter(demo_robot: TaskManagerClient, broker: BrokerProcess) -> Iterator[AdapterProcess]:
+    adapter = AdapterProcess(broker)
     yield adapter
     code = adapter.stop()
     assert adapter.killed or code == 0, '\n'.join(adapter.log_lines)

@@ -1,11 +1,9 @@
 """Task event batches published by a test, standing in for the node's writer (the same topic and
 QoS), to make a reader of them lose some: a client held up, or a gateway's process stopped,
-while more come than the reader keeps; or counted as the node publishes them."""
+while more come than the reader keeps."""
 
 import os
 import signal
-from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from task_manager_msgs.msg import TaskEvent, TaskEventArray
@@ -15,10 +13,6 @@ from task_manager.rclpy_tools import qos
 from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
 
-LONG_LEASE_PROFILE = Path(__file__).with_name('long_lease_fastdds.xml')
-LONG_LEASE = {'FASTDDS_DEFAULT_PROFILES_FILE': str(LONG_LEASE_PROFILE)}
-"""The environment of a process a test stops for a while: a 60 s lease, so that the others keep
-it matched (see long_lease_fastdds.xml)."""
 MORE_THAN_KEPT = 4 * qos.DEEP_QUEUE_DEPTH
 """Batches enough that a reader stopped meanwhile loses some: more than its depth and the
 writer's, and than the transport's buffers hold of them."""
@@ -54,19 +48,3 @@ def flood_while_stopped(writer: Any, pid: int, count: int = MORE_THAN_KEPT) -> N
         os.kill(pid, signal.SIGCONT)
     wait_until(lambda: writer.get_subscription_count() >= 1, 'the stopped reader again')
     writer.publish(event_batch('after'))
-
-
-def batch_counter(ros: RosHarness) -> Callable[[], int]:
-    """How many batches of task events this test's reader has taken (from its first call on),
-    whoever published them."""
-    counted = [0]  # written by the executor thread only
-
-    def take(_: TaskEventArray) -> None:
-        counted[0] += 1
-
-    ros.on_executor(
-        lambda: ros.node.create_subscription(
-            TaskEventArray, TASK_EVENT_BATCHES_TOPIC, take, qos.TASK_EVENTS
-        )
-    )
-    return lambda: counted[0]

@@ -1,24 +1,14 @@
 """taskctl history and taskctl stats as a user runs them: subprocesses against a real node."""
 
 import json
-import os
-import queue
 import re
-import signal
-import subprocess
-import threading
 from typing import Any
 
 from test_msgs.action import Fibonacci
 
-from task_manager.core.bounds import IDS_MAX
-from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness
-from task_manager.testing.lost_events import batch_counter
 from task_manager.testing.probe import TaskManagerProbe
 from task_manager.testing.process import (
-    TASKCTL,
-    TASKCTL_TIMEOUT_SEC,
     LaunchTaskManager,
     action_task,
     taskctl,
@@ -156,72 +146,3 @@ def test_a_bad_span_or_status_is_a_usage_error() -> None:
     assert bad_span.returncode == bad_status.returncode == bad_stats.returncode == 2
     assert "'2x' is not a span of time" in bad_span.stderr
     assert 'DONE, ERROR, CANCELED' in bad_status.stderr
-
-
-def test_results_follow_shows_the_results_whose_events_went_missing(
-    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
-) -> None:
-    """taskctl stopped (SIGSTOP) while a mission of 1,000 subtasks makes the node publish more
-    batches of task events than its writer keeps: once it goes on, the results of the events
-    it lost are read from the history, each shown once. Before, the follow skipped them
-    without a word (the client's warning goes to its log, which taskctl does not show)."""
-    tm = _launch(ros, launch_task_manager, topic_prefix)
-    batches = batch_counter(ros)
-    tm.run('math/fib', {'order': 1}, task_id='kept')
-    following = subprocess.Popen(
-        [TASKCTL, 'results', '--follow', '--limit', '0', '--json'],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
-        text=True,
-    )
-    lines = _lines_of(following)
-    try:
-        shown = _ids_until(lines, {'kept'})  # kept results shown: it follows the events
-        tm.run('math/fib', {'order': 1}, task_id='first')
-        shown += _ids_until(lines, {'first'})  # from its event: where the numbers start
-        os.kill(following.pid, signal.SIGSTOP)
-        try:
-            before = batches()
-            subtasks = [{'task_name': 'system/wait', 'task_data': '{"duration": 0.001}'}]
-            tm.run('system/mission', {'subtasks': subtasks * IDS_MAX}, task_id='flood')
-            assert batches() - before > qos.DEEP_QUEUE_DEPTH + 500
-        finally:
-            os.kill(following.pid, signal.SIGCONT)
-        tm.run('math/fib', {'order': 1}, task_id='last')
-        ended = {m.task_id for m in tm.results.snapshot()}
-        shown += _ids_until(lines, ended - set(shown))
-    finally:
-        following.send_signal(signal.SIGINT)
-        following.wait(TASKCTL_TIMEOUT_SEC)
-
-    assert len(ended) == IDS_MAX + 4  # the subtasks, the mission, kept, first and last
-    assert sorted(shown) == sorted(ended)  # each once
-
-
-def _ids_until(lines: 'queue.SimpleQueue[str]', expected: set[str]) -> list[str]:
-    """The task ids of the results taskctl prints (JSON `lines`, read by another thread) until
-    it has shown each of `expected`, within TASKCTL_TIMEOUT_SEC of the last one."""
-    shown: list[str] = []
-    while not expected <= set(shown):
-        try:
-            shown.append(json.loads(lines.get(timeout=TASKCTL_TIMEOUT_SEC))['task_id'])
-        except queue.Empty:
-            missing = sorted(expected - set(shown))
-            raise AssertionError(
-                f'{len(missing)} results never shown, e.g. {missing[:3]}'
-            ) from None
-    return shown
-
-
-def _lines_of(process: subprocess.Popen[str]) -> 'queue.SimpleQueue[str]':
-    """The lines `process` prints, as they come."""
-    lines: queue.SimpleQueue[str] = queue.SimpleQueue()
-    assert process.stdout is not None
-    stdout = process.stdout
-
-    def read() -> None:
-        for line in stdout:
-            lines.put(line)
-
-    threading.Thread(target=read, daemon=True).start()
-    return lines
