@@ -19,6 +19,7 @@ from task_manager.core.names import (
     GET_TASK_RESULTS_SERVICE,
     GET_TASK_STATES_SERVICE,
     HISTORY_QUERY_LIMIT_MAX,
+    IDS_MAX,
     LIST_PARAMETERS_SERVICE,
     QUERY_TASK_HISTORY_SERVICE,
 )
@@ -37,8 +38,10 @@ class HistoryQueries(ClientParts):
     ) -> list[TaskState]:
         """The current state of these tasks (active or ended and kept), or of every active one.
 
-        Ids the Task Manager does not know are left out.
+        Ids the Task Manager does not know are left out; at most IDS_MAX ids (ValueError).
         """
+        if len(task_ids) > IDS_MAX:
+            raise ValueError(f'at most {IDS_MAX} task ids a call, got {len(task_ids)}')
         request = GetTaskStates.Request(task_ids=list(task_ids))
         response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
         return [TaskState.from_message(m) for m in response.tasks]

@@ -24,6 +24,7 @@ from task_manager.core.names import (
     GET_SCHEDULES_SERVICE,
     GET_TASK_RESULTS_SERVICE,
     GET_TASK_STATES_SERVICE,
+    IDS_MAX,
     NODE_NAME,
     QUERY_TASK_HISTORY_SERVICE,
     RESULTS_TOPIC,
@@ -76,6 +77,8 @@ PRUNE_PERIOD_SEC = 60.0
 PRUNE_BATCH = 5000
 # How long the ends of tasks closed at start wait for a results subscriber to match.
 CLOSED_PUBLISH_WAIT_SEC = 5.0
+# A warning about a request that may keep coming is logged at most this often.
+LOG_THROTTLE_SEC = 10.0
 RESTARTED_WHILE_RUNNING = (
     'the Task Manager stopped while this task ran (it was restarted); the task may or may not '
     'have finished on its server'
@@ -311,7 +314,13 @@ class TaskManagerNode(Node):
             response.tasks = active
             return response
         by_id = {state.task_id: state for state in active}
-        for task_id in request.task_ids:
+        if len(request.task_ids) > IDS_MAX:  # each id not active costs a history query
+            self.get_logger().warning(
+                f'get_task_states asked for {len(request.task_ids)} tasks: the first {IDS_MAX} '
+                'answered, the rest left out',
+                throttle_duration_sec=LOG_THROTTLE_SEC,
+            )
+        for task_id in request.task_ids[:IDS_MAX]:
             if task_id in by_id:
                 response.tasks.append(by_id[task_id])
             elif task_id and (stored := self.history.query(HistoryQuery(task_id=task_id, limit=1))):

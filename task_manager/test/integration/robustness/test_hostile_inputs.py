@@ -14,9 +14,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from rclpy.client import Client
-from task_manager_msgs.srv import GetSchedules
+from task_manager_msgs.srv import GetSchedules, GetTaskStates
 from test_msgs.action import Fibonacci
 
+from task_manager.client import TaskManagerClient
+from task_manager.core.bounds import IDS_MAX
 from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, WaitTimeoutError, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
@@ -203,3 +205,34 @@ def test_hostile_system_task_documents_get_one_answer_and_the_node_serves_on(
             accounting.unschedule()
 
     one_request()
+
+
+def test_states_of_more_tasks_than_a_request_may_name_answer_the_first_ones(
+    ros: RosHarness, accounting: Accounting
+) -> None:
+    """GetTaskStates with 1,001 ids (each one not active is a history query on the node's
+    executor): the first 1,000 are answered, the rest left out, and the log says so; the
+    client refuses such a list before it sends it."""
+    accounting.tm.run('drive', {'order': 1}, task_id='known')
+    client: Client[GetTaskStates.Request, GetTaskStates.Response] = ros.node.create_client(
+        GetTaskStates, '/task_manager/get_task_states'
+    )
+    try:
+        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
+
+        def states(ids: list[str]) -> list[str]:
+            request = GetTaskStates.Request(task_ids=ids)
+            answer = wait_for_future(client.call_async(request), TIMEOUT_SEC, 'states')
+            return [state.task_id for state in answer.tasks]
+
+        assert states([*['unknown'] * IDS_MAX, 'known']) == []
+        assert states([*['unknown'] * (IDS_MAX - 1), 'known']) == ['known']
+    finally:
+        ros.node.destroy_client(client)
+    process = accounting.tm.process  # type: ignore[attr-defined]
+    process.wait_for_log(f'get_task_states asked for {IDS_MAX + 1} tasks', TIMEOUT_SEC)
+    with (
+        TaskManagerClient('hostile_ids', timeout_sec=TIMEOUT_SEC) as tasks,
+        pytest.raises(ValueError, match='at most 1000 task ids'),
+    ):
+        tasks.task_states(['known'] * (IDS_MAX + 1))
