@@ -19,12 +19,7 @@ from datetime import UTC, datetime
 from typing import Any
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
-from task_manager.core.bounds import (
-    IDS_MAX,
-    REASON_MAX_CHARACTERS,
-    VDA5050_WAITING_MAX_BYTES,
-    cut_text,
-)
+from task_manager.core.bounds import REASON_MAX_CHARACTERS, VDA5050_WAITING_MAX_BYTES, cut_text
 from task_manager.core.status import TaskStatus
 from task_manager_vda5050.inbound import read_inbound
 from task_manager_vda5050.link import Link
@@ -219,10 +214,7 @@ class Adapter:
         the instant actions): one that ended is handled as ENDED, once."""
         followed = [*self.orders.followed(), *self.instant.followed()]
         LOG.warning('task events went missing: reading the %d tasks followed again', len(followed))
-        states: dict[str, TaskState] = {}
-        for first in range(0, len(followed), IDS_MAX):
-            ids = followed[first : first + IDS_MAX]
-            states.update((s.task_id, s) for s in self.client.task_states(ids))
+        states = {s.task_id: s for s in self.client.task_states(followed)}
         for task_id in followed:
             task = states.get(task_id)
             event = standing_in(task) if task is not None else None

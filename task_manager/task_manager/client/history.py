@@ -38,13 +38,19 @@ class HistoryQueries(ClientParts):
     ) -> list[TaskState]:
         """The current state of these tasks (active or ended and kept), or of every active one.
 
-        Ids the Task Manager does not know are left out; at most IDS_MAX ids (ValueError).
+        Ids the Task Manager does not know are left out. More than IDS_MAX ids (what it answers
+        in one request) are asked in several.
         """
-        if len(task_ids) > IDS_MAX:
-            raise ValueError(f'at most {IDS_MAX} task ids a call, got {len(task_ids)}')
-        request = GetTaskStates.Request(task_ids=list(task_ids))
-        response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
-        return [TaskState.from_message(m) for m in response.tasks]
+        if not task_ids:
+            request = GetTaskStates.Request()
+            response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
+            return [TaskState.from_message(m) for m in response.tasks]
+        states = []
+        for first in range(0, len(task_ids), IDS_MAX):
+            request = GetTaskStates.Request(task_ids=list(task_ids[first : first + IDS_MAX]))
+            response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
+            states += [TaskState.from_message(m) for m in response.tasks]
+        return states
 
     def why(self, task_id: str, timeout_sec: float | None = None) -> list[Decision]:
         """Every decision the Task Manager took about a task, oldest first: queued, started
