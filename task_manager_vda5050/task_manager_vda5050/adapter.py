@@ -219,8 +219,7 @@ class Adapter:
             task = states.get(task_id)
             event = standing_in(task) if task is not None else None
             if event is not None:
-                self.orders.on_event(event)
-                self.instant.on_event(event)
+                self._handle(event)
 
     def _inbound(self, item: Inbound) -> None:
         if dropped := self.backlog.handled(len(item.payload)):

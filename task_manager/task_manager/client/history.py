@@ -41,13 +41,10 @@ class HistoryQueries(ClientParts):
         Ids the Task Manager does not know are left out. More than IDS_MAX ids (what it answers
         in one request) are asked in several.
         """
-        if not task_ids:
-            request = GetTaskStates.Request()
-            response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
-            return [TaskState.from_message(m) for m in response.tasks]
+        asks = [list(task_ids[i : i + IDS_MAX]) for i in range(0, len(task_ids), IDS_MAX)]
         states = []
-        for first in range(0, len(task_ids), IDS_MAX):
-            request = GetTaskStates.Request(task_ids=list(task_ids[first : first + IDS_MAX]))
+        for ids in asks or [[]]:  # no ids: one request, for every active task
+            request = GetTaskStates.Request(task_ids=ids)
             response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
             states += [TaskState.from_message(m) for m in response.tasks]
         return states
