@@ -72,6 +72,8 @@ class Connection:
         self.lock = threading.Condition()
         self.changes = Listeners[bool](self.lock)
         """Who is told each change of `connected`."""
+        self.reaching = Listeners[frozenset[str]](self.lock)
+        """Who is told the keys of the readers a publisher reaches, at each change of them."""
         self._matched: set[str] = set()
         self._executor = WakelessExecutor(context=self._context)
         self._spinner = SpinThread(self._executor, self.node, 'task-manager-client')
@@ -136,6 +138,7 @@ class Connection:
                     self._matched.discard(key)
                 connected = ACTIVE_TASKS_TOPIC in self._matched
                 listeners = self.changes.copy() if connected != was_connected else []
+                self.reaching.put(frozenset(self._matched))
                 self.lock.notify_all()
             for listener in listeners:
                 listener.put(connected)
@@ -156,6 +159,11 @@ class Connection:
         """Whether a publisher reaches this client's reader of `key` (a topic, see subscribe)."""
         with self.lock:
             return key in self._matched
+
+    def matched(self) -> frozenset[str]:
+        """The keys of the readers a publisher reaches now (see subscribe)."""
+        with self.lock:
+            return frozenset(self._matched)
 
     def wait_matched(self, keys: set[str], timeout_sec: float | None) -> bool:
         """Wait until a publisher reaches each reader of `keys`; whether one did."""

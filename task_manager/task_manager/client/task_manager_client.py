@@ -23,6 +23,7 @@ from typing import Any
 
 from task_manager.client.connection import DEFAULT_TIMEOUT_SEC, Connection
 from task_manager.client.handle import TaskHandle
+from task_manager.client.hearing import HearingWatch
 from task_manager.client.history import HistoryQueries
 from task_manager.client.interventions import Interventions
 from task_manager.client.listeners import Callback
@@ -53,6 +54,7 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
         self._results = self._tasks.results
         self._events = self._tasks.events
         self._services = ServiceCalls(self._connection)
+        self._hearing = HearingWatch(self._connection)
         self._connection.start()
 
     @property
@@ -105,6 +107,19 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
         Like every callback of the client, it runs on the executor thread and must be quick.
         """
         return self._connection.changes.add(Callback(callback, NodeLog.of(self.node)))
+
+    def on_node_unheard(self, callback: Callable[[float], None]) -> Callable[[], None]:
+        """Call `callback(held_up_sec)` when this process, held up 4 s or more (stopped,
+        frozen, starved), does not hear the Task Manager again within 10 s; returns the
+        unsubscribe. The first call starts the check (a 1 s timer on the executor).
+
+        Heard again means: the node answered a question, and every topic that reached the
+        client before reaches it again. DDS can stay one-sided after a hold-up longer than
+        its lease (the node takes this client's requests; nothing of it comes back), and only
+        a new participant is heard: the gateways exit for their supervisor (see
+        docs/faults-and-shutdown.md). It runs on the executor thread.
+        """
+        return self._hearing.add(callback)
 
     # ---- starting tasks ----------------------------------------------------------------------
 

@@ -1,0 +1,188 @@
+"""The client's hearing check: after its process was held up, it asks the node and waits to
+hear it again, or tells its listeners it did not. Its decisions without ROS, then the check on
+a real connection to a real node (the node stopped for the case where nothing comes back)."""
+
+import os
+import queue
+import signal
+import threading
+from collections.abc import Iterator
+
+import pytest
+from task_manager_msgs.msg import ActiveTaskArray
+
+from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
+from task_manager.client.hearing import HearingCheck, HearingWatch, Step
+from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC
+from task_manager.rclpy_tools import qos
+from task_manager.testing.gateway import wait_until
+from task_manager.testing.process import LaunchTaskManager, NodeProcess, service_task
+
+TIMEOUT_SEC = 15.0
+# the check on a real connection, quicker than the client's (the node stopped in all less than
+# its 5 s lease, so that the test's other participants keep it)
+HELD_UP_SEC = 1.0
+ANSWER_SEC = 1.5
+PERIOD_SEC = 0.2
+TOPICS = frozenset({ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC})
+
+
+def _held_up(check: HearingCheck, reaching: frozenset[str] = TOPICS) -> float:
+    """Turns on time while `reaching` reaches the client, then one 5 s late; its time."""
+    assert check.turn(0.0, reaching) is Step.NOTHING
+    assert check.turn(1.0, reaching) is Step.NOTHING
+    assert check.turn(7.0, frozenset()) is Step.ASK
+    return 7.0
+
+
+def test_turns_on_time_ask_nothing() -> None:
+    check = HearingCheck()
+    assert [check.turn(float(second), TOPICS) for second in range(10)] == [Step.NOTHING] * 10
+    assert not check.checking and check.expecting == TOPICS
+
+
+def test_after_a_hold_up_the_node_is_heard_once_it_answered_and_every_topic_is_back() -> None:
+    check = HearingCheck()
+    now = _held_up(check)
+    assert check.held_up_for == 5.0
+    check.answered()
+    assert check.turn(now + 1, frozenset({ACTIVE_TASKS_TOPIC})) is Step.NOTHING
+    assert check.turn(now + 2, TOPICS) is Step.HEARD
+    assert not check.checking
+
+
+def test_a_node_that_does_not_answer_is_asked_again_then_unheard() -> None:
+    check = HearingCheck(answer_sec=10.0)
+    now = _held_up(check)
+    steps = {second: check.turn(now + second, TOPICS) for second in range(1, 11)}
+    asked_at = [second for second, step in steps.items() if step is Step.ASK]
+    assert asked_at == [1, 2, 4, 8]  # SERVICE_RETRY_SEC, then twice as long each time
+    assert SERVICE_RETRY_SEC == 0.5
+    assert steps[10] is Step.UNHEARD and not check.checking
+
+
+def test_an_answer_without_the_topics_back_is_unheard() -> None:
+    """The node's answer came, but its event stream did not reach the client again."""
+    check = HearingCheck(answer_sec=10.0)
+    now = _held_up(check)
+    check.answered()
+    steps = [check.turn(now + second, frozenset({ACTIVE_TASKS_TOPIC})) for second in range(1, 11)]
+    assert steps == [Step.NOTHING] * 9 + [Step.UNHEARD]
+
+
+def test_a_client_that_heard_nothing_before_checks_nothing() -> None:
+    check = HearingCheck()
+    assert check.turn(0.0, frozenset()) is Step.NOTHING
+    assert check.turn(7.0, frozenset()) is Step.NOTHING
+    assert not check.checking
+
+
+def test_topics_that_reached_the_client_between_turns_are_expected_back() -> None:
+    """A client that met its node less than a turn before the hold-up checks it too."""
+    check = HearingCheck()
+    assert check.turn(0.0, frozenset()) is Step.NOTHING
+    check.reaching_changed(0.5, TOPICS)
+    assert check.turn(7.0, frozenset()) is Step.ASK
+    assert check.expecting == TOPICS
+
+
+def test_topics_lost_in_a_hold_up_before_its_late_turn_are_still_expected_back() -> None:
+    """The lease ran out while the process was held up: the readers lose their writers as it
+    goes on, before the check's overdue turn."""
+    check = HearingCheck()
+    assert check.turn(0.0, TOPICS) is Step.NOTHING
+    check.reaching_changed(6.9, frozenset())
+    assert check.turn(7.0, frozenset()) is Step.ASK
+    assert check.expecting == TOPICS
+
+
+def test_a_hold_up_during_a_check_begins_it_again() -> None:
+    """Held up again before the answer could come: the wait for it starts over."""
+    check = HearingCheck(answer_sec=10.0)
+    now = _held_up(check)
+    assert check.turn(now + 21.0, frozenset()) is Step.ASK  # 20 s late
+    assert check.held_up_for == 20.0
+    assert check.turn(now + 22.0, frozenset()) is Step.ASK  # not answered yet
+    check.answered()
+    assert check.turn(now + 23.0, TOPICS) is Step.HEARD
+
+
+def test_an_answer_outside_a_check_counts_for_nothing() -> None:
+    check = HearingCheck(answer_sec=10.0)
+    check.answered()
+    now = _held_up(check)
+    assert check.turn(now + 1.0, TOPICS) is Step.ASK  # asked again: not answered
+
+
+@pytest.fixture
+def connection() -> Iterator[Connection]:
+    connection = Connection('test_hearing', TIMEOUT_SEC)
+    yield connection
+    connection.close()
+
+
+def _launch(launch_task_manager: LaunchTaskManager, topic_prefix: str) -> NodeProcess:
+    """A node (its one task's server is not needed here); its process."""
+    probe = launch_task_manager({'instant': service_task('instant', f'{topic_prefix}/instant')})
+    return probe.process  # type: ignore[no-any-return]
+
+
+def _watched(connection: Connection) -> tuple[HearingCheck, queue.SimpleQueue[float]]:
+    """The connection, following the active lists, checked with short times; what it tells."""
+    check = HearingCheck(HELD_UP_SEC, ANSWER_SEC, PERIOD_SEC)
+    watch = HearingWatch(connection, check)
+    connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
+    connection.start()
+    assert connection.wait_matched({ACTIVE_TASKS_TOPIC}, TIMEOUT_SEC)
+    told: queue.SimpleQueue[float] = queue.SimpleQueue()
+    watch.add(told.put)
+    wait_until(lambda: check.expecting == {ACTIVE_TASKS_TOPIC}, 'a first turn of the check')
+    return check, told
+
+
+def _hold_up(connection: Connection, seconds: float) -> None:
+    """Keep the connection's executor thread in a callback for `seconds` (the hold-up is
+    the test's input): its check's next turn comes that late."""
+    holding = threading.Event()
+
+    def hold() -> None:
+        timer.cancel()
+        holding.set()
+        threading.Event().wait(seconds)
+
+    timer = connection.node.create_timer(0.01, hold)
+    assert holding.wait(TIMEOUT_SEC), 'the executor never ran the hold-up'
+
+
+def test_a_client_held_up_hears_its_node_again(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str, connection: Connection
+) -> None:
+    _launch(launch_task_manager, topic_prefix)
+    check, told = _watched(connection)
+
+    _hold_up(connection, HELD_UP_SEC + 2 * PERIOD_SEC)
+
+    wait_until(
+        lambda: check.held_up_for >= HELD_UP_SEC and not check.checking,
+        'the check after the hold-up',
+        TIMEOUT_SEC,
+    )
+    assert told.empty()
+
+
+def test_a_client_held_up_that_does_not_hear_its_node_again_tells_its_listeners(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str, connection: Connection
+) -> None:
+    """The node stopped (SIGSTOP) from before the hold-up until the check gave up on it."""
+    node = _launch(launch_task_manager, topic_prefix)
+    check, told = _watched(connection)
+
+    os.kill(node.process.pid, signal.SIGSTOP)
+    try:
+        _hold_up(connection, HELD_UP_SEC + 2 * PERIOD_SEC)
+        held_up = told.get(timeout=TIMEOUT_SEC)
+    finally:
+        os.kill(node.process.pid, signal.SIGCONT)
+
+    assert held_up >= HELD_UP_SEC
+    assert not check.checking
