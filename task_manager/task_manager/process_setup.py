@@ -46,6 +46,10 @@ a second when nothing goes wrong)."""
 
 BLAS_THREADS_VARIABLE = 'OPENBLAS_NUM_THREADS'
 STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
+EXIT_NODE_UNHEARD = 3
+"""A gateway's exit code when, held up, it no longer hears its Task Manager (the client's
+`on_node_unheard`): a new process is, so its supervisor should start it again (as for the
+node's exit code 3, its middleware stuck)."""
 """The signals that ask one of our ROS 2 programs to end cleanly (Ctrl-C, a service manager)."""
 
 
@@ -111,6 +115,21 @@ def on_stop_signal(stop: Callable[[], object], program: str) -> None:
         stop()
 
     threading.Thread(target=wait, name=f'{program}-signals', daemon=True).start()
+
+
+def stop_when_unheard(client: Any, stop: Callable[[], object]) -> threading.Event:
+    """Call `stop` once `client` (a TaskManagerClient) no longer hears its Task Manager after
+    a hold-up (it logs why); the event returned is set then: the program ends with
+    EXIT_NODE_UNHEARD."""
+    unheard = threading.Event()
+
+    def unheard_after(_held_up_sec: float) -> None:
+        if not unheard.is_set():
+            unheard.set()
+            stop()
+
+    client.on_node_unheard(unheard_after)
+    return unheard
 
 
 def end_within(release: Callable[[], None], program: str, exit_code: int) -> None:

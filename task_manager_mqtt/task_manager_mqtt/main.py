@@ -9,7 +9,8 @@ for `-` (options given on the command line win), e.g.:
     tls: {ca_file: /etc/ssl/certs/broker-ca.pem}
 
 Ctrl-C or SIGTERM: OFFLINE is published (retained), then a clean disconnection. Exit codes:
-0 after a clean stop, 2 for unusable settings or credentials the broker refuses.
+0 after a clean stop, 2 for unusable settings or credentials the broker refuses, 3 when, held
+up, it no longer hears its Task Manager (start it again: its supervisor's work).
 """
 
 import argparse
@@ -23,7 +24,12 @@ from typing import Any
 
 from task_manager.client import TaskManagerClient
 from task_manager.cpu_priority import GATEWAY_NICENESS, add_nice_argument, lower_cpu_priority
-from task_manager.process_setup import end_within, prepare_ros_process
+from task_manager.process_setup import (
+    EXIT_NODE_UNHEARD,
+    end_within,
+    prepare_ros_process,
+    stop_when_unheard,
+)
 from task_manager_mqtt.bridge import Bridge
 from task_manager_mqtt.settings import (
     DEFAULT_MAX_PAYLOAD_BYTES,
@@ -134,10 +140,11 @@ def main(argv: list[str] | None = None) -> int:
     code = 1  # an error of ours, raised on
     try:
         bridge = Bridge(settings, client, on_failure=stop.set)
+        unheard = stop_when_unheard(client, stop.set)
         bridge.start()
         stop.wait()
         bridge.stop()
-        code = 0
+        code = EXIT_NODE_UNHEARD if unheard.is_set() else 0
         if bridge.failed.is_set():
             LOG.error(bridge.failure)
             code = EXIT_USAGE

@@ -2,13 +2,17 @@
 
 import json
 import os
+import signal
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
+from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.cpu_priority import GATEWAY_NICENESS
+from task_manager.process_setup import EXIT_NODE_UNHEARD
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
 from task_manager.testing.process import thread_nice_values
 from task_manager_mqtt.fleet_client import FleetClient
@@ -142,3 +146,24 @@ def test_tls_with_the_brokers_own_certificate_authority(
         assert bridge.stop() == 0
     finally:
         secure.stop()
+
+
+def test_a_bridge_held_up_that_no_longer_hears_its_node_exits_3(
+    robot: Robot, bridge: BridgeProcess, online: FleetClient
+) -> None:
+    """Stopped (SIGSTOP) with its node for longer than its client's check takes for a hold-up,
+    then let go while the node stays stopped: it hears nothing, says so, publishes OFFLINE and
+    exits 3, for its supervisor to start a new process (one that hears the node)."""
+    node, gateway = robot.process.process.pid, bridge.process.pid
+    os.kill(node, signal.SIGSTOP)
+    os.kill(gateway, signal.SIGSTOP)
+    try:
+        time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is this test's input, not a wait
+        os.kill(gateway, signal.SIGCONT)
+        assert bridge.wait_exit(ANSWER_SEC + TIMEOUT_SEC) == EXIT_NODE_UNHEARD
+    finally:
+        os.kill(node, signal.SIGCONT)
+        if bridge.process.poll() is None:
+            os.kill(gateway, signal.SIGCONT)
+    bridge.wait_for_log('has not heard the Task Manager again within 10 s', TIMEOUT_SEC)
+    wait_state(online, 'OFFLINE')

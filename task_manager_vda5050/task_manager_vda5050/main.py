@@ -7,7 +7,8 @@ It waits for the Task Manager, then connects to the broker (last will CONNECTION
 then ONLINE, both retained) and serves <interface>/v2/<manufacturer>/<serialNumber>/order
 and instantActions. Ctrl-C or SIGTERM: OFFLINE is published (retained), then a clean
 disconnection. Exit codes: 0 after a clean stop, 2 for unusable settings, a mapping that
-cannot be read, credentials the broker refuses or no Task Manager.
+cannot be read, credentials the broker refuses or no Task Manager, 3 when, held up, it no
+longer hears its Task Manager (start it again: its supervisor's work).
 """
 
 import argparse
@@ -24,7 +25,12 @@ from task_manager_mqtt.settings import Broker, SettingsError
 from task_manager.client import TaskManagerClient
 from task_manager.core.errors import TaskManagerError, TaskManagerUnavailable
 from task_manager.cpu_priority import GATEWAY_NICENESS, add_nice_argument, lower_cpu_priority
-from task_manager.process_setup import end_within, prepare_ros_process
+from task_manager.process_setup import (
+    EXIT_NODE_UNHEARD,
+    end_within,
+    prepare_ros_process,
+    stop_when_unheard,
+)
 from task_manager_vda5050.adapter import STATE_PERIOD_SEC, Adapter
 from task_manager_vda5050.link import Link
 from task_manager_vda5050.mapping import Mapping, MappingError, read_mapping
@@ -125,12 +131,15 @@ def _serve(
     adapter = Adapter(client, declared, link, mapping, options.state_period_sec)
     link.on_message = adapter.on_message
     link.on_connected = adapter.on_connected
+    unheard = stop_when_unheard(client, stop.set)
     adapter.start()
     link.start()
     threading.Thread(target=_stop_when_refused, args=(link, stop), daemon=True).start()
     stop.wait()
     link.stop()
     adapter.stop()
+    if unheard.is_set():
+        return EXIT_NODE_UNHEARD
     return EXIT_USAGE if link.refused.is_set() else 0
 
 

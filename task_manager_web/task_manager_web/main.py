@@ -2,17 +2,24 @@
 
 Prints `dashboard: http://HOST:PORT/?token=TOKEN` once it listens, with the token it made
 (an admin's) when it has no --token-file, whose tokens it never prints; Ctrl-C or SIGTERM
-stops it.
+stops it. Exit codes: 0 after a clean stop, 2 for unusable settings, 3 when, held up, it no
+longer hears its Task Manager (start it again: its supervisor's work).
 """
 
 import argparse
 import asyncio
 import logging
 import sys
+import threading
 
 from task_manager.client import TaskManagerClient
 from task_manager.cpu_priority import GATEWAY_NICENESS, add_nice_argument, lower_cpu_priority
-from task_manager.process_setup import end_within, prepare_ros_process
+from task_manager.process_setup import (
+    EXIT_NODE_UNHEARD,
+    end_within,
+    prepare_ros_process,
+    stop_when_unheard,
+)
 from task_manager_web.app import Settings, create_app
 from task_manager_web.door_link import end_event_streams
 from task_manager_web.doors.settings import (
@@ -97,9 +104,16 @@ def main(argv: list[str] | None = None) -> None:
         max_history_bytes=arguments.max_history_bytes,
         allowed_hosts=allowed_hosts(arguments),
     )
+    unheard: list[threading.Event] = []
+
+    def make_client() -> TaskManagerClient:
+        client = TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC)
+        unheard.append(stop_when_unheard(client, lambda: setattr(server, 'should_exit', True)))
+        return client
+
     app = create_app(
         settings,
-        lambda: TaskManagerClient('task_manager_web', timeout_sec=CLIENT_TIMEOUT_SEC),
+        make_client,
         lambda client: end_within(client.close, 'task-manager-web', 0),
     )
     config = server_config(app, arguments.header_timeout_sec, arguments.access_log)
@@ -113,6 +127,8 @@ def main(argv: list[str] | None = None) -> None:
         print(f'Task Manager web gateway on http://{shown_host}:{port}/ (API docs: /docs)')
         print(dashboard, flush=True)
         asyncio.run(server.serve(sockets=[listener]))
+    if any(event.is_set() for event in unheard):
+        sys.exit(EXIT_NODE_UNHEARD)
 
 
 if __name__ == '__main__':

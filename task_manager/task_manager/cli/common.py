@@ -1,6 +1,8 @@
 """What the taskctl verbs share: the client, exit codes, output."""
 
 import json
+import os
+import signal
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -14,7 +16,7 @@ from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, 
 from task_manager.client.records import Decision
 from task_manager.core.admission.options import OnConflict
 from task_manager.core.bounds import PRIORITY
-from task_manager.process_setup import end_within
+from task_manager.process_setup import end_within, stop_when_unheard
 
 EXIT_DONE = 0
 EXIT_ERROR = 1
@@ -122,6 +124,9 @@ def connected(ctx: typer.Context, events: bool = False) -> Iterator[TaskManagerC
     With `events`, also to /task_manager/task_events (when the Task Manager publishes it).
     """
     client = TaskManagerClient('taskctl', timeout_sec=ctx.obj['timeout_sec'])
+    # held up (Ctrl-Z, a paused machine) and deaf to the node after it: the wait in progress
+    # ends as Ctrl-C would end it, and taskctl says why (exit 4)
+    unheard = stop_when_unheard(client, lambda: os.kill(os.getpid(), signal.SIGINT))
     code = EXIT_ERROR
     try:
         client.wait_until_available(events=events)
@@ -134,8 +139,15 @@ def connected(ctx: typer.Context, events: bool = False) -> Iterator[TaskManagerC
         code = EXIT_UNAVAILABLE
         raise
     except KeyboardInterrupt:
-        code = EXIT_INTERRUPTED
-        raise
+        if not unheard.is_set():
+            code = EXIT_INTERRUPTED
+            raise
+        code = EXIT_UNAVAILABLE
+        progress.print(
+            'taskctl was held up and no longer hears the Task Manager (a DDS participant can '
+            'stay deaf after that): run it again'
+        )
+        raise typer.Exit(code) from None
     finally:
         end_within(client.close, 'taskctl', code)
 

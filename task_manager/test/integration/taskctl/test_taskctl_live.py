@@ -1,8 +1,10 @@
-"""taskctl's live views through a pseudo-terminal (pexpect), and their absence in a pipe."""
+"""taskctl's live views through a pseudo-terminal (pexpect), and their absence in a pipe; a
+follow held up past the DDS lease that no longer hears the node."""
 
 import json
 import os
 import re
+import signal
 import subprocess
 import time
 from typing import Any
@@ -11,6 +13,7 @@ import pexpect
 from task_manager_msgs.msg import TaskEvent
 from test_msgs.action import Fibonacci
 
+from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness, WaitTimeoutError
@@ -125,3 +128,35 @@ def test_start_in_a_pipe_prints_the_result_json_only(
     assert printed == _expected_result('piped-1')
     assert list(printed) == RESULT_KEYS  # as before the live view
     assert stdout == json.dumps(printed, indent=2) + '\n'
+
+
+def test_a_follow_held_up_that_no_longer_hears_the_node_says_so_and_exits_4(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    """taskctl stopped (SIGSTOP, as Ctrl-Z) with the node past its check's hold-up, then let
+    go while the node stays stopped: it hears nothing, says so and ends (not a silent wait)."""
+    tm = launch_task_manager({'fib': action_task('math/fib', f'{topic_prefix}/fib')})
+    tm.run('system/wait', {'duration': 0.001}, task_id='kept')
+    node = tm.process.process.pid
+    following = subprocess.Popen(
+        [TASKCTL, 'results', '--follow', '--json'],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    assert following.stdout is not None
+    try:
+        assert '"kept"' in following.stdout.readline()  # it follows: the kept result shown
+        os.kill(node, signal.SIGSTOP)
+        os.kill(following.pid, signal.SIGSTOP)
+        time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is this test's input, not a wait
+        os.kill(following.pid, signal.SIGCONT)
+        code = following.wait(ANSWER_SEC + TIMEOUT_SEC)
+    finally:
+        os.kill(node, signal.SIGCONT)
+        if following.poll() is None:
+            following.kill()
+            following.wait()
+
+    assert code == 4
+    assert 'no longer hears the Task Manager' in following.stdout.read()

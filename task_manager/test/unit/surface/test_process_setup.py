@@ -1,14 +1,16 @@
 """prepare_ros_process: numpy loads without a BLAS thread pool, message type supports without
 rosidl's code generator, which stays available on demand; end_within: a program's end is
 bounded. Each case runs in a fresh interpreter (the setup acts on sys.modules and the
-environment, once per process; end_within may exit it)."""
+environment, once per process; end_within may exit it). stop_when_unheard: a program stops
+once, when its client no longer hears the node."""
 
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
-from task_manager.process_setup import BLAS_THREADS_VARIABLE
+from task_manager.process_setup import BLAS_THREADS_VARIABLE, stop_when_unheard
 
 LOAD_A_TYPE_SUPPORT = """
 import sys
@@ -179,3 +181,25 @@ def test_the_programs_console_scripts_prepare_before_numpy_loads(tmp_path: Path)
     for script in PROGRAMS_THAT_EXIT_AT_HELP:
         unset = _threads_at_help(script, _without_blas_setting(), tmp_path)
         assert _threads_at_help(script, _asked_for_two(), tmp_path) == unset + 1, script
+
+
+class UnheardClient:
+    """Stands in for a TaskManagerClient: keeps who asked to be told the node is unheard."""
+
+    def __init__(self) -> None:
+        self.told: list[Callable[[float], None]] = []
+
+    def on_node_unheard(self, callback: Callable[[float], None]) -> Callable[[], None]:
+        self.told.append(callback)
+        return lambda: None
+
+
+def test_a_program_whose_client_no_longer_hears_the_node_stops_once() -> None:
+    client, stops = UnheardClient(), []
+    unheard = stop_when_unheard(client, lambda: stops.append('stop'))
+    assert not unheard.is_set() and not stops
+
+    for tell in client.told * 2:  # told twice (two hold-ups): one stop
+        tell(5.2)
+
+    assert unheard.is_set() and stops == ['stop']
