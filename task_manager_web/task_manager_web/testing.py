@@ -28,6 +28,8 @@ class GatewayProcess(NodeProcess):
     def __init__(self, token_file: Path, *args: str, nice: int | None = TEST_NICENESS) -> None:
         command = [GATEWAY_EXECUTABLE, '--port', '0', '--token-file', str(token_file)]
         super().__init__(None, command=[*command, *nice_option(nice), *args])
+        self.exit_code = 0
+        """The code it must end with (a test that makes it exit otherwise says so)."""
         match = re.search(DASHBOARD_LINE, self.wait_for_log(DASHBOARD_LINE, START_TIMEOUT_SEC))
         assert match is not None
         self.url = match['url']

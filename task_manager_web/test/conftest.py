@@ -41,7 +41,7 @@ def start_gateway(tmp_path: Path) -> Iterator[Callable[..., GatewayProcess]]:
 
     yield start
     for gateway in gateways:
-        assert gateway.stop() == 0, '\n'.join(gateway.log_lines)
+        assert gateway.stop() == gateway.exit_code, '\n'.join(gateway.log_lines)
 
 
 @pytest.fixture
