@@ -75,6 +75,8 @@ class Child:
     ) -> None:
         """`env`: added to the environment."""
         self.name = name
+        self.command = command
+        self.env = env
         self.output: list[str] = []
         self._events = events
         self.process = subprocess.Popen(

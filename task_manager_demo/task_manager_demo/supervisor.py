@@ -3,7 +3,9 @@
 The children are started, each with the log line that says it is ready; the launcher waits
 (bounded) for all of them, then streams their logs until a signal or a child's exit, and
 stops them in the reverse order of their start (SIGINT, a bounded wait, a kill as a last
-resort). Everything arrives through one event queue, so the main thread never polls.
+resort). A child that exits with code 3 asks to be started again (the node whose middleware
+is stuck, a gateway that no longer hears its node after a hold-up): it is, up to
+MAX_RESTARTS times. Everything arrives through one event queue, so the main thread never polls.
 """
 
 import argparse
@@ -15,6 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from task_manager.discovery import use_quick_discovery
+from task_manager.process_setup import EXIT_NODE_UNHEARD
 from task_manager_demo.children import (
     Child,
     Event,
@@ -27,6 +30,10 @@ from task_manager_demo.children import (
 
 STOP_TIMEOUT_SEC = 10.0
 EXIT_FAILED = 1
+EXIT_START_AGAIN = EXIT_NODE_UNHEARD
+"""A child's code that asks for a new process (the node's own for its middleware stuck too)."""
+MAX_RESTARTS = 5
+"""A child started again more often than this fails the launcher (something else is wrong)."""
 # Colour codes of ROS log lines, when the children log in colour (on a terminal).
 COLOUR_CODE = re.compile(r'\x1b\[[0-9;]*m')
 
@@ -59,6 +66,7 @@ class Supervisor:
         self._prefix_lines = prefix_lines
         self._ready: dict[Child, re.Pattern[str]] = {}
         self._later: list[_Later] = []
+        self._restarts = 0
 
     def start_child(
         self,
@@ -145,8 +153,19 @@ class Supervisor:
                 self._say_line(event)
             else:
                 code = event.child.wait(STOP_TIMEOUT_SEC)
+                if code == EXIT_START_AGAIN and self._restarts < MAX_RESTARTS:
+                    self._restarts += 1
+                    say(f'{event.child.name} exited with code {code}: starting it again')
+                    self._start_again(event.child)
+                    continue
                 say(f'{event.child.name} exited unexpectedly with code {code}')
                 return EXIT_FAILED
+
+    def _start_again(self, child: Child) -> None:
+        """A new process of `child`, in its place (its turn to stop stays the same)."""
+        again = Child(child.name, child.command, self.events, env=child.env)
+        self.children[self.children.index(child)] = again
+        self._ready[again] = self._ready.pop(child)
 
     def stop(self) -> bool:
         """Stop the children, the last started first; True when each stopped by itself."""

@@ -1,13 +1,18 @@
-"""`task-manager-demo`: stops both children on a signal, leaves none behind when killed, and
-fails loudly when a child dies early."""
+"""`task-manager-demo`: stops both children on a signal, leaves none behind when killed,
+fails loudly when a child dies early, and starts again a child that asks for it (exit 3)."""
 
+import re
 import signal
 import sys
+import time
 from pathlib import Path
 
+import httpx
 import psutil
 import pytest
 
+from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
+from task_manager.testing.gateway import wait_until
 from task_manager.testing.process import write_params_file
 from task_manager_demo.testing import DemoProcess
 
@@ -94,3 +99,47 @@ def test_a_child_that_dies_before_it_is_ready_fails_the_demo_with_its_output(
     assert 'x/oops' in demo.output
     assert 'Task Manager ready' not in demo.output
     assert 'killing' not in demo.output, demo.output  # whole: which child did not stop
+
+
+def _program(process: psutil.Process) -> str:
+    """The console script a child runs (its interpreter's first argument)."""
+    return Path(process.cmdline()[1]).name
+
+
+def _wait_connected(dashboard: re.Match[str] | None) -> None:
+    """Until the gateway of this dashboard link reaches its node."""
+    assert dashboard is not None
+    url, token = dashboard.groups()
+    headers = {'Authorization': f'Bearer {token}'}
+    wait_until(
+        lambda: httpx.get(f'{url}/api/health', headers=headers).json()['connected'],
+        'the gateway connected',
+    )
+
+
+def test_a_gateway_deaf_to_its_node_after_a_hold_up_is_started_again() -> None:
+    """The web gateway held up with the node (SIGSTOP), then let go while the node stays
+    stopped, exits 3: the launcher starts a new one, which serves, and still stops cleanly."""
+    demo = DemoProcess('task-manager-demo', LAUNCHER)
+    try:
+        dashboard = demo.wait_for_line(r'dashboard: http', START_TIMEOUT_SEC)
+        demo.wait_for_line(r'^Ctrl-C stops', START_TIMEOUT_SEC)
+        _wait_connected(re.search(r'(http://\S+)/\?token=(\S+)', dashboard))
+        children = {_program(p): p for p in psutil.Process(demo.pid).children()}
+        node, web = children['task-manager'], children['task-manager-web']
+        node.suspend()
+        web.suspend()
+        try:
+            time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is this test's input, not a wait
+            web.resume()
+            demo.wait_for_line(r'web exited with code 3: starting it again', ANSWER_SEC + 20)
+        finally:
+            node.resume()
+        wait_until(lambda: demo.output.count('dashboard: http') == 2, 'a new gateway serving')
+
+        demo.child.process.send_signal(signal.SIGTERM)
+
+        assert demo.wait_exit(STOP_TIMEOUT_SEC) == 0, demo.output
+    finally:
+        if demo.child.exit_code is None:
+            demo.stop()
