@@ -124,8 +124,8 @@ def connected(ctx: typer.Context, events: bool = False) -> Iterator[TaskManagerC
     With `events`, also to /task_manager/task_events (when the Task Manager publishes it).
     """
     client = TaskManagerClient('taskctl', timeout_sec=ctx.obj['timeout_sec'])
-    # held up (Ctrl-Z, a paused machine) and deaf to the node after it: the wait in progress
-    # ends as Ctrl-C would end it, and taskctl says why (exit 4)
+    # deaf to the node after a hold-up (Ctrl-Z, a paused machine; its or the node's): the
+    # wait in progress ends as Ctrl-C would end it, and taskctl says why (exit 4)
     unheard = stop_when_unheard(client, lambda: os.kill(os.getpid(), signal.SIGINT))
     code = EXIT_ERROR
     try:
@@ -144,8 +144,8 @@ def connected(ctx: typer.Context, events: bool = False) -> Iterator[TaskManagerC
             raise
         code = EXIT_UNAVAILABLE
         progress.print(
-            'taskctl was held up and no longer hears the Task Manager (a DDS participant can '
-            'stay deaf after that): run it again'
+            'taskctl no longer hears the Task Manager (DDS can stay one-sided after a '
+            'participant was held up past its lease): run it again'
         )
         raise typer.Exit(code) from None
     finally:

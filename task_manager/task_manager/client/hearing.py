@@ -9,28 +9,42 @@ again (no reply, no event, not even to a reader made afterwards), with shared me
 alone; with a 60 s lease on every participant it always heard the node again. The cause is
 inside Fast DDS; a new participant (a new process) is heard at once.
 
+The node held up past the lease does the same to the clients that were not: measured with the
+node stopped 12 s, an old client heard it no more (in 5 of 6 stops) while a taskctl started
+after it did at once.
+
 So a process that must keep hearing the node (a gateway, a follow of taskctl) asks for the
-check (`on_node_unheard`): a timer on the client's executor notices a turn late by
+check (`on_node_unheard`). A timer on the client's executor notices a turn late by
 HELD_UP_SEC or more; the client then asks the node a question that any node answers at once
 (GetTaskStates of no task, sent again while unanswered) and waits for the answer and for every
-topic that reached the client before the hold-up to reach it again. Neither within ANSWER_SEC:
-the listeners are told how long the process was held up, and it is theirs to start a new
-participant (the gateways exit, for their supervisor to start them again).
+topic that reached the client before the hold-up to reach it again (HearingCheck). And once
+the node's active list has not reached the client for LOST_SEC, a new participant of this
+process looks for the node, again each LOOK_AGAIN_SEC while it is lost: one that sees it
+while the client still does not SEEN_GRACE_SEC later means the client is deaf (LostNodeCheck).
+Either way the listeners are told how many seconds it went on, and it is theirs to start a new
+process (the gateways exit, for their supervisor to start them again).
 """
 
+import queue
+import threading
 import time
+import uuid
 from collections.abc import Callable, Set
 from enum import Enum
 from typing import Any
 
+import rclpy
 from rclpy.client import Client
+from rclpy.context import Context
+from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rclpy.timer import Timer
+from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from task_manager_msgs.srv import GetTaskStates
 
 from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
 from task_manager.client.listeners import Callback, Listeners
-from task_manager.core.names import GET_TASK_STATES_SERVICE
+from task_manager.core.names import ACTIVE_TASKS_TOPIC, GET_TASK_STATES_SERVICE
 from task_manager.rclpy_tools.log import NodeLog
 
 CHECK_PERIOD_SEC = 1.0
@@ -43,11 +57,22 @@ ANSWER_SEC = 10.0
 for the participants' announcements, with room for a node busy with a flood."""
 
 
+LOST_SEC = 10.0
+"""The node's active list not reaching the client this long: a new participant looks for it."""
+LOOK_AGAIN_SEC = 30.0
+"""How often the new participant looks again while the node stays lost."""
+LOOK_SEC = 3.0
+"""How long the new participant looks (a newcomer finds a node within a second or so)."""
+SEEN_GRACE_SEC = 10.0
+"""The time the client is given to find the node too, after the new participant saw it."""
+
+
 class Step(Enum):
-    """What a turn of the check asks of its client."""
+    """What a turn of a check asks of its client."""
 
     NOTHING = 'nothing'
     ASK = 'ask the Task Manager'
+    LOOK = 'look for the Task Manager with a new participant'
     HEARD = 'heard again'
     UNHEARD = 'not heard again'
 
@@ -128,23 +153,114 @@ class HearingCheck:
             self._answered = True
 
 
+class LostNodeCheck:
+    """Whether a client that lost the node is deaf to it: decisions from the times of the
+    check's turns, whether the node's active list reaches the client and what a new
+    participant saw; no ROS here."""
+
+    def __init__(
+        self,
+        lost_sec: float = LOST_SEC,
+        look_again_sec: float = LOOK_AGAIN_SEC,
+        grace_sec: float = SEEN_GRACE_SEC,
+    ) -> None:
+        self.lost_sec = lost_sec
+        self.look_again_sec = look_again_sec
+        self.grace_sec = grace_sec
+        self.looking = False
+        """Whether a new participant is looking for the node now."""
+        self._reached = False
+        self._lost_since: float | None = None
+        self._next_look = 0.0
+        self._seen_at: float | None = None
+
+    def lost_for(self, now: float) -> float:
+        """How long the node's active list has not reached the client (0 while it does)."""
+        return 0.0 if self._lost_since is None else now - self._lost_since
+
+    def turn(self, now: float, reaching: Set[str]) -> Step:
+        """A turn at `now`; `reaching`: the topics that reach the client now."""
+        if ACTIVE_TASKS_TOPIC in reaching:
+            self.reaching_changed(reaching)
+            return Step.NOTHING
+        if not self._reached:
+            return Step.NOTHING  # never met a node: nothing to be deaf to
+        if self._lost_since is None:
+            self._lost_since, self._next_look = now, now + self.lost_sec
+        if self._seen_at is not None and now - self._seen_at >= self.grace_sec:
+            self._seen_at = None
+            return Step.UNHEARD
+        if not self.looking and self._seen_at is None and now >= self._next_look:
+            self.looking, self._next_look = True, now + self.look_again_sec
+            return Step.LOOK
+        return Step.NOTHING
+
+    def reaching_changed(self, reaching: Set[str]) -> None:
+        """The topics that reach the client changed (between turns)."""
+        if ACTIVE_TASKS_TOPIC in reaching:
+            self._reached, self._lost_since, self._seen_at = True, None, None
+
+    def looked(self, now: float, seen: bool) -> None:
+        """The new participant saw the node at `now`, or not."""
+        self.looking = False
+        if seen and self._lost_since is not None:
+            self._seen_at = now
+
+
+def node_seen_anew(timeout_sec: float = LOOK_SEC) -> bool:
+    """Whether a new participant of this process (a context of its own) sees a publisher of
+    the Task Manager's active list within `timeout_sec`; it is gone after."""
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        node = rclpy.create_node(
+            f'task_manager_look_{uuid.uuid4().hex[:8]}',
+            context=context,
+            start_parameter_services=False,
+            parameter_overrides=[Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)],
+        )
+        try:
+            deadline = time.monotonic() + timeout_sec
+            # the graph is the middleware's, kept by its own threads: nothing to spin
+            while node.count_publishers(ACTIVE_TASKS_TOPIC) == 0:
+                if time.monotonic() >= deadline:
+                    return False
+                threading.Event().wait(0.1)
+            return True
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
 class HearingWatch:
     """The check on a client's connection, started by its first listener."""
 
-    def __init__(self, connection: Connection, check: HearingCheck | None = None) -> None:
+    def __init__(
+        self,
+        connection: Connection,
+        check: HearingCheck | None = None,
+        lost: LostNodeCheck | None = None,
+        look: Callable[[], bool] = node_seen_anew,
+    ) -> None:
+        """`look`: whether a new participant sees the node (a test may give its own)."""
         self._connection = connection
         self._check = check or HearingCheck()
+        self._lost = lost or LostNodeCheck()
+        self._look = look
+        self._seen: queue.SimpleQueue[bool] = queue.SimpleQueue()
+        """What each look found, for the executor thread to take (put by the look's thread)."""
         self._log = NodeLog.of(connection.node)
         self.unheard = Listeners[float](connection.lock)
-        """Who is told, with how long the process was held up, that the node was not heard
-        again after it."""
+        """Who is told that the node was not heard again (see `add`)."""
         self._timer: Timer | None = None
         self._client: Client[Any, Any] | None = None
         self._asked: list[Future[Any]] = []
 
     def add(self, callback: Callable[[float], None]) -> Callable[[], None]:
-        """Tell `callback(held_up_sec)` each time the node is not heard again after a hold-up;
-        starts the check (once). Returns the unsubscribe."""
+        """Tell `callback(seconds)` each time the node is not heard again after a hold-up (of
+        that long), or is seen anew but not by the client (lost that long); starts the checks
+        (once). Returns the unsubscribe."""
         remove = self.unheard.add(Callback(callback, self._log))
         with self._connection.lock:
             start = self._timer is None
@@ -152,7 +268,9 @@ class HearingWatch:
                 node = self._connection.node
                 self._client = node.create_client(GetTaskStates, GET_TASK_STATES_SERVICE)
                 # the first turn, here: a hold-up before the timer's first is seen too
-                self._check.turn(time.monotonic(), self._connection.matched())
+                reaching = self._connection.matched()
+                self._check.turn(time.monotonic(), reaching)
+                self._lost.reaching_changed(reaching)
                 self._connection.reaching.add(self)
                 self._timer = node.create_timer(self._check.period_sec, self._turn)
         return remove
@@ -160,9 +278,12 @@ class HearingWatch:
     def put(self, reaching: frozenset[str]) -> None:
         """What reaches the client changed (the connection's `reaching`, on the executor)."""
         self._check.reaching_changed(time.monotonic(), reaching)
+        self._lost.reaching_changed(reaching)
 
     def _turn(self) -> None:
-        step = self._check.turn(time.monotonic(), self._connection.matched())
+        now, reaching = time.monotonic(), self._connection.matched()
+        self._turn_lost(now, reaching)
+        step = self._check.turn(now, reaching)
         if step is Step.ASK:
             self._ask()
         elif step is Step.HEARD:
@@ -179,6 +300,29 @@ class HearingWatch:
                 'longer than the lease): a new process is needed'
             )
             self.unheard.put(held_up)
+
+    def _turn_lost(self, now: float, reaching: frozenset[str]) -> None:
+        while not self._seen.empty():
+            self._lost.looked(now, self._seen.get())
+        step = self._lost.turn(now, reaching)
+        if step is Step.LOOK:
+            threading.Thread(target=self._look_anew, name='task-manager-look', daemon=True).start()
+        elif step is Step.UNHEARD:
+            lost_for = self._lost.lost_for(now)
+            self._log.error(
+                f'the Task Manager has not reached this process for {lost_for:.0f} s, though '
+                'a new participant of it sees the node (DDS can stay one-sided after a '
+                'participant was held up past the lease): a new process is needed'
+            )
+            self.unheard.put(lost_for)
+
+    def _look_anew(self) -> None:
+        try:
+            seen = self._look()
+        except Exception as error:  # a look that fails counts as one that saw nothing
+            self._log.warning(f'could not look for the Task Manager anew: {error}')
+            seen = False
+        self._seen.put(seen)
 
     def _ask(self) -> None:
         assert self._client is not None

@@ -109,15 +109,19 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
         return self._connection.changes.add(Callback(callback, NodeLog.of(self.node)))
 
     def on_node_unheard(self, callback: Callable[[float], None]) -> Callable[[], None]:
-        """Call `callback(held_up_sec)` when this process, held up 4 s or more (stopped,
-        frozen, starved), does not hear the Task Manager again within 10 s; returns the
-        unsubscribe. The first call starts the check (a 1 s timer on the executor).
+        """Call `callback(seconds)` when this client is deaf to the Task Manager; returns the
+        unsubscribe. The first call starts the checks (a 1 s timer on the executor):
 
-        Heard again means: the node answered a question, and every topic that reached the
-        client before reaches it again. DDS can stay one-sided after a hold-up longer than
-        its lease (the node takes this client's requests; nothing of it comes back), and only
-        a new participant is heard: the gateways exit for their supervisor (see
-        docs/faults-and-shutdown.md). It runs on the executor thread.
+        - this process, held up 4 s or more (stopped, frozen, starved), does not hear the node
+          again within 10 s (an answer to a question, and every topic that reached it before);
+          `seconds`: how long it was held up;
+        - the node's active list has not reached the client for 10 s, and a new participant of
+          this process (made for the look, each 30 s) sees it while the client still does not
+          10 s later; `seconds`: how long it was lost.
+
+        After a participant (this one or the node's) was held up past the DDS lease, Fast DDS
+        can stay one-sided and only a new participant hears the node: the gateways exit for
+        their supervisor (see docs/faults-and-shutdown.md). It runs on the executor thread.
         """
         return self._hearing.add(callback)
 

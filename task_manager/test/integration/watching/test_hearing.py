@@ -1,18 +1,27 @@
-"""The client's hearing check: after its process was held up, it asks the node and waits to
-hear it again, or tells its listeners it did not. Its decisions without ROS, then the check on
-a real connection to a real node (the node stopped for the case where nothing comes back)."""
+"""The client's hearing checks: after its process was held up, it asks the node and waits to
+hear it again, or tells its listeners it did not; a node lost for a while is looked for by a
+new participant, and one that sees it while the client does not means the client is deaf.
+Their decisions without ROS, then the checks on a real connection to a real node (stopped
+for the cases where nothing comes back)."""
 
 import os
 import queue
 import signal
 import threading
+import time
 from collections.abc import Iterator
 
 import pytest
 from task_manager_msgs.msg import ActiveTaskArray
 
 from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
-from task_manager.client.hearing import HearingCheck, HearingWatch, Step
+from task_manager.client.hearing import (
+    HearingCheck,
+    HearingWatch,
+    LostNodeCheck,
+    Step,
+    node_seen_anew,
+)
 from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.gateway import wait_until
@@ -114,6 +123,55 @@ def test_an_answer_outside_a_check_counts_for_nothing() -> None:
     assert check.turn(now + 1.0, TOPICS) is Step.ASK  # asked again: not answered
 
 
+LOST = frozenset({TASK_EVENT_BATCHES_TOPIC})  # the active list no longer reaches the client
+
+
+def _lost_at_10(check: LostNodeCheck) -> None:
+    """The node's active list reached the client at 0, and no longer from 10 s."""
+    assert check.turn(0.0, TOPICS) is Step.NOTHING
+    assert check.turn(10.0, LOST) is Step.NOTHING
+
+
+def test_a_client_that_never_met_a_node_looks_for_none() -> None:
+    check = LostNodeCheck()
+    assert {check.turn(float(second), frozenset()) for second in range(100)} == {Step.NOTHING}
+
+
+def test_a_lost_node_is_looked_for_after_lost_sec_then_each_look_again_sec() -> None:
+    check = LostNodeCheck(lost_sec=10.0, look_again_sec=30.0)
+    _lost_at_10(check)
+    steps = {second: check.turn(float(second), LOST) for second in range(11, 80)}
+    assert [second for second, step in steps.items() if step is Step.LOOK] == [20]
+    check.looked(21.0, seen=False)
+    steps = {second: check.turn(float(second), LOST) for second in range(80, 120)}
+    assert [second for second, step in steps.items() if step is Step.LOOK] == [80]
+    check.looked(81.0, seen=False)
+    steps = {second: check.turn(float(second), LOST) for second in range(81, 120)}
+    assert [second for second, step in steps.items() if step is Step.LOOK] == [110]
+
+
+def test_a_node_seen_anew_but_not_by_the_client_after_the_grace_is_unheard() -> None:
+    check = LostNodeCheck(lost_sec=10.0, grace_sec=5.0)
+    _lost_at_10(check)
+    assert check.turn(20.0, LOST) is Step.LOOK
+    check.looked(23.0, seen=True)
+    assert [check.turn(float(second), LOST) for second in range(24, 29)] == [Step.NOTHING] * 4 + [
+        Step.UNHEARD
+    ]
+    assert check.lost_for(28.0) == 18.0
+
+
+def test_a_node_seen_anew_that_reaches_the_client_within_the_grace_is_heard() -> None:
+    """A node started again, found by the new participant a moment before the client."""
+    check = LostNodeCheck(lost_sec=10.0, grace_sec=5.0)
+    _lost_at_10(check)
+    assert check.turn(20.0, LOST) is Step.LOOK
+    check.looked(23.0, seen=True)
+    assert check.turn(24.0, TOPICS) is Step.NOTHING
+    assert {check.turn(float(second), TOPICS) for second in range(25, 60)} == {Step.NOTHING}
+    assert check.lost_for(60.0) == 0.0
+
+
 @pytest.fixture
 def connection() -> Iterator[Connection]:
     connection = Connection('test_hearing', TIMEOUT_SEC)
@@ -186,3 +244,42 @@ def test_a_client_held_up_that_does_not_hear_its_node_again_tells_its_listeners(
 
     assert held_up >= HELD_UP_SEC
     assert not check.checking
+
+
+def test_a_new_participant_sees_a_running_node_and_not_a_stopped_one(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    node = _launch(launch_task_manager, topic_prefix)
+    assert node_seen_anew(TIMEOUT_SEC)
+
+    assert node.stop() == 0
+    assert not node_seen_anew(1.0)
+
+
+def test_a_client_that_lost_its_node_which_a_new_participant_sees_is_told(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str, connection: Connection
+) -> None:
+    """The node stopped (SIGINT): the client loses it; the look (here a stand-in that sees
+    it, as a new participant sees a node the client is deaf to) makes the client's listeners
+    told once the grace is over."""
+    node = _launch(launch_task_manager, topic_prefix)
+    looks: list[float] = []
+
+    def look() -> bool:
+        looks.append(time.monotonic())
+        return True
+
+    lost = LostNodeCheck(lost_sec=0.5, look_again_sec=TIMEOUT_SEC, grace_sec=0.5)
+    watch = HearingWatch(connection, HearingCheck(period_sec=PERIOD_SEC), lost, look)
+    connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
+    connection.start()
+    assert connection.wait_matched({ACTIVE_TASKS_TOPIC}, TIMEOUT_SEC)
+    told: queue.SimpleQueue[float] = queue.SimpleQueue()
+    watch.add(told.put)
+    stopped_at = time.monotonic()
+
+    assert node.stop() == 0
+
+    lost_for = told.get(timeout=TIMEOUT_SEC)
+    assert len(looks) == 1 and looks[0] - stopped_at >= 0.5
+    assert lost_for >= 1.0  # lost_sec, then the grace
