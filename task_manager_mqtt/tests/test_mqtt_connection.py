@@ -2,19 +2,16 @@
 
 import json
 import os
-import signal
 import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.cpu_priority import GATEWAY_NICENESS
 from task_manager.process_setup import EXIT_NODE_UNHEARD
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot, check
-from task_manager.testing.process import thread_nice_values
+from task_manager.testing.process import held_up_with_its_node, thread_nice_values
 from task_manager_mqtt.fleet_client import FleetClient
 from task_manager_mqtt.fleet_types import RobotView
 from task_manager_mqtt.settings import DEFAULT_PREFIX as PREFIX
@@ -154,16 +151,6 @@ def test_a_bridge_held_up_that_no_longer_hears_its_node_exits_3(
     """Stopped (SIGSTOP) with its node for longer than its client's check takes for a hold-up,
     then let go while the node stays stopped: it hears nothing, says so, publishes OFFLINE and
     exits 3, for its supervisor to start a new process (one that hears the node)."""
-    node, gateway = robot.process.process.pid, bridge.process.pid
-    os.kill(node, signal.SIGSTOP)
-    os.kill(gateway, signal.SIGSTOP)
-    try:
-        time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is this test's input, not a wait
-        os.kill(gateway, signal.SIGCONT)
-        assert bridge.wait_exit(ANSWER_SEC + TIMEOUT_SEC) == EXIT_NODE_UNHEARD
-    finally:
-        os.kill(node, signal.SIGCONT)
-        if bridge.process.poll() is None:
-            os.kill(gateway, signal.SIGCONT)
+    assert held_up_with_its_node(bridge, robot.process, TIMEOUT_SEC) == EXIT_NODE_UNHEARD
     bridge.wait_for_log('has not heard the Task Manager again within 10 s', TIMEOUT_SEC)
     wait_state(online, 'OFFLINE')

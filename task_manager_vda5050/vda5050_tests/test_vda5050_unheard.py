@@ -5,14 +5,12 @@ with the adapter."""
 
 import os
 import signal
-import time
 from collections.abc import Iterator
 
 import pytest
 
-from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.process_setup import EXIT_NODE_UNHEARD
-from task_manager.testing.process import NodeProcess
+from task_manager.testing.process import NodeProcess, held_up_with_its_node
 from task_manager_demo.run_demo import default_params_file
 from task_manager_demo.testing import START_TIMEOUT_SEC
 from task_manager_vda5050.broker import MASTER_USER
@@ -40,17 +38,10 @@ def test_an_adapter_held_up_that_no_longer_hears_its_node_says_offline_and_exits
 ) -> None:
     adapter = AdapterProcess(broker)
     master = Master(broker, MASTER_USER)
-    node = task_manager.process.pid
     try:
         master.wait_for(lambda _: _connection_states(master)[-1:] == ['ONLINE'], 'ONLINE')
-        os.kill(node, signal.SIGSTOP)
-        os.kill(adapter.process.pid, signal.SIGSTOP)
-        try:
-            time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is this test's input, not a wait
-            os.kill(adapter.process.pid, signal.SIGCONT)
-            assert adapter.wait_exit(ANSWER_SEC + TIMEOUT_SEC) == EXIT_NODE_UNHEARD
-        finally:
-            os.kill(node, signal.SIGCONT)
+        code = held_up_with_its_node(adapter, task_manager, TIMEOUT_SEC)
+        assert code == EXIT_NODE_UNHEARD
         adapter.wait_for_log('has not heard the Task Manager again within 10 s', TIMEOUT_SEC)
         master.wait_for(lambda _: _connection_states(master)[-1:] == ['OFFLINE'], 'OFFLINE')
     finally:

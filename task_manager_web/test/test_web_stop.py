@@ -2,19 +2,16 @@
 exits 3 when, held up, it no longer hears its node."""
 
 import asyncio
-import os
 import signal
-import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import httpx
 import pytest
 
-from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.process_setup import EXIT_NODE_UNHEARD
 from task_manager.testing.gateway import TIMEOUT_SEC, Robot
-from task_manager.testing.process import STOP_TIMEOUT_SEC
+from task_manager.testing.process import STOP_TIMEOUT_SEC, held_up_with_its_node
 from task_manager_web.http_server import Server, listen, server_config, stopped_by_signals
 from task_manager_web.testing import GatewayProcess
 
@@ -79,16 +76,6 @@ def test_a_gateway_held_up_that_no_longer_hears_its_node_exits_3(
 ) -> None:
     """Stopped (SIGSTOP) with its node past its client's check's hold-up, then let go while
     the node stays stopped: it hears nothing, says so and exits 3, for its supervisor."""
-    node, web = robot.process.process.pid, gateway.process.pid
     gateway.exit_code = EXIT_NODE_UNHEARD
-    os.kill(node, signal.SIGSTOP)
-    os.kill(web, signal.SIGSTOP)
-    try:
-        time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is this test's input, not a wait
-        os.kill(web, signal.SIGCONT)
-        assert gateway.wait_exit(ANSWER_SEC + TIMEOUT_SEC) == EXIT_NODE_UNHEARD
-    finally:
-        os.kill(node, signal.SIGCONT)
-        if gateway.process.poll() is None:
-            os.kill(web, signal.SIGCONT)
+    assert held_up_with_its_node(gateway, robot.process, TIMEOUT_SEC) == EXIT_NODE_UNHEARD
     gateway.wait_for_log('has not heard the Task Manager again within 10 s', TIMEOUT_SEC)

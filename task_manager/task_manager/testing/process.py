@@ -6,12 +6,14 @@ import shutil
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.cpu_priority import thread_ids
 from task_manager.testing.harness import WaitTimeoutError
 from task_manager.testing.output_reader import OutputReader
@@ -160,6 +162,22 @@ class NodeProcess:
             self.process.wait()
         self._output.join(ABORT_TIMEOUT_SEC)
         print(f'{self._program} {why}; aborted, its output:\n' + '\n'.join(self.log_lines))
+
+
+def held_up_with_its_node(program: NodeProcess, node: NodeProcess, timeout_sec: float) -> int:
+    """Stop `program` and its `node` (SIGSTOP) longer than its client takes for a hold-up, let
+    the program go on while the node stays stopped (nothing can answer it), and return the code
+    it exits with within ANSWER_SEC + `timeout_sec`; the node goes on after, in any case."""
+    os.kill(node.process.pid, signal.SIGSTOP)
+    os.kill(program.process.pid, signal.SIGSTOP)
+    try:
+        time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is the input, not a wait
+        os.kill(program.process.pid, signal.SIGCONT)
+        return program.wait_exit(ANSWER_SEC + timeout_sec)
+    finally:
+        os.kill(node.process.pid, signal.SIGCONT)
+        if program.process.poll() is None:
+            os.kill(program.process.pid, signal.SIGCONT)
 
 
 def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:
