@@ -94,15 +94,6 @@ def robot(start_robot: Callable[[], Robot]) -> Robot:
     return start_robot()
 
 
-@pytest.fixture
-def udp_only(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The processes a test starts from here on use UDP alone (first among its fixtures: the
-    ones after start them). For a test that stops a process (SIGSTOP) for seconds: Fast DDS
-    finds the shared-memory ports of a stopped process frozen, and a newcomer elsewhere in the
-    run (another test's taskctl) tries to take one over and prints an error line."""
-    monkeypatch.setenv('FASTDDS_BUILTIN_TRANSPORTS', 'UDPv4')
-
-
 # The test files, slowest first, with their seconds in a run (`make test-durations` writes them):
 # pytest-xdist shares out whole files in collection order (`--dist loadfile`, its reordering by
 # number of tests turned off in pytest.ini), so the longest start first and the run does not end

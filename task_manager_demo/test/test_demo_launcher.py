@@ -117,7 +117,7 @@ def _wait_connected(dashboard: re.Match[str] | None) -> None:
     )
 
 
-def test_a_gateway_deaf_to_its_node_after_a_hold_up_is_started_again(udp_only: None) -> None:
+def test_a_gateway_deaf_to_its_node_after_a_hold_up_is_started_again() -> None:
     """The web gateway held up with the node (SIGSTOP), then let go while the node stays
     stopped, exits 3: the launcher starts a new one, which serves, and still stops cleanly."""
     demo = DemoProcess('task-manager-demo', LAUNCHER)

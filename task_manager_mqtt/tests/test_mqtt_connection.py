@@ -146,7 +146,7 @@ def test_tls_with_the_brokers_own_certificate_authority(
 
 
 def test_a_bridge_held_up_that_no_longer_hears_its_node_exits_3(
-    udp_only: None, robot: Robot, bridge: BridgeProcess, online: FleetClient
+    robot: Robot, bridge: BridgeProcess, online: FleetClient
 ) -> None:
     """Stopped (SIGSTOP) with its node for longer than its client's check takes for a hold-up,
     then let go while the node stays stopped: it hears nothing, says so, publishes OFFLINE and

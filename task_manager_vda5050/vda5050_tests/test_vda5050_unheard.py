@@ -34,7 +34,7 @@ def _connection_states(master: Master) -> list[str]:
 
 
 def test_an_adapter_held_up_that_no_longer_hears_its_node_says_offline_and_exits_3(
-    udp_only: None, task_manager: NodeProcess, broker: BrokerProcess
+    task_manager: NodeProcess, broker: BrokerProcess
 ) -> None:
     adapter = AdapterProcess(broker)
     master = Master(broker, MASTER_USER)

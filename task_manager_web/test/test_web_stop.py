@@ -72,7 +72,7 @@ def test_the_gateway_stops_cleanly_on_a_signal_right_after_its_first_line(
 
 
 def test_a_gateway_held_up_that_no_longer_hears_its_node_exits_3(
-    udp_only: None, robot: Robot, gateway: GatewayProcess, http: httpx.Client
+    robot: Robot, gateway: GatewayProcess, http: httpx.Client
 ) -> None:
     """Stopped (SIGSTOP) with its node past its client's check's hold-up, then let go while
     the node stays stopped: it hears nothing, says so and exits 3, for its supervisor."""

@@ -131,7 +131,7 @@ def test_start_in_a_pipe_prints_the_result_json_only(
 
 
 def test_a_follow_held_up_that_no_longer_hears_the_node_says_so_and_exits_4(
-    udp_only: None, launch_task_manager: LaunchTaskManager, topic_prefix: str
+    launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     """taskctl stopped (SIGSTOP, as Ctrl-Z) with the node past its check's hold-up, then let
     go while the node stays stopped: it hears nothing, says so and ends (not a silent wait)."""

@@ -229,10 +229,7 @@ def test_a_client_held_up_hears_its_node_again(
 
 
 def test_a_client_held_up_that_does_not_hear_its_node_again_tells_its_listeners(
-    udp_only: None,
-    launch_task_manager: LaunchTaskManager,
-    topic_prefix: str,
-    connection: Connection,
+    launch_task_manager: LaunchTaskManager, topic_prefix: str, connection: Connection
 ) -> None:
     """The node stopped (SIGSTOP) from before the hold-up until the check gave up on it."""
     node = _launch(launch_task_manager, topic_prefix)
