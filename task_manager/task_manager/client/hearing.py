@@ -5,9 +5,9 @@ forgotten by the node's participant, or forgets it, and the two discover each ot
 it runs on. Measured with the VDA 5050 adapter stopped 9-11 s while the node published
 thousands of event batches: in 4 of 5 stops that rediscovery stayed one-sided for good. The
 node took the adapter's requests and ran them, and nothing of the node reached the adapter
-again (no reply, no event, not even to a reader made afterwards), with shared memory or UDP
-alone; with a 60 s lease on every participant it always heard the node again. The cause is
-inside Fast DDS; a new participant (a new process) is heard at once.
+again (no reply, no event, not even to a reader made afterwards); with a 60 s lease on every
+participant it always heard the node again. The cause is inside Fast DDS; a new participant
+(a new process) is heard at once.
 
 The node held up past the lease does the same to the clients that were not: measured with the
 node stopped 12 s, an old client heard it no more (in 5 of 6 stops) while a taskctl started

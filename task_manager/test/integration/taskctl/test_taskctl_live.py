@@ -41,6 +41,12 @@ def _launch(ros: RosHarness, launch: LaunchTaskManager, prefix: str) -> Scripted
     return server
 
 
+def _taskctl_lines(output: str) -> list[str]:
+    """The lines of `output` but Fast DDS's own about shared-memory ports: a newcomer prints
+    one when another process of the run is stopped (SIGSTOP) for seconds, as some tests do."""
+    return [line for line in output.splitlines() if 'RTPS_TRANSPORT_SHM' not in line]
+
+
 def _expected_result(task_id: str) -> dict[str, Any]:
     return {
         'task_id': task_id,
@@ -123,7 +129,7 @@ def test_start_in_a_pipe_prints_the_result_json_only(
             piped.communicate()
 
     assert piped.returncode == 0
-    assert stderr == ''
+    assert _taskctl_lines(stderr) == []
     printed = json.loads(stdout)
     assert printed == _expected_result('piped-1')
     assert list(printed) == RESULT_KEYS  # as before the live view
@@ -146,7 +152,8 @@ def test_a_follow_held_up_that_no_longer_hears_the_node_says_so_and_exits_4(
     )
     assert following.stdout is not None
     try:
-        assert '"kept"' in following.stdout.readline()  # it follows: the kept result shown
+        # it follows once the kept result is shown (Fast DDS may print a line before)
+        assert any('"kept"' in line for line in following.stdout), 'no kept result shown'
         os.kill(node, signal.SIGSTOP)
         os.kill(following.pid, signal.SIGSTOP)
         time.sleep(HELD_UP_SEC + 1.5)  # the hold-up is this test's input, not a wait
