@@ -185,13 +185,25 @@ def taskctl(*args: str, env: dict[str, str] | None = None) -> subprocess.Complet
 
     It may take TASKCTL_REACH_SEC to reach the Task Manager (a `--timeout` in `args` wins):
     on a loaded 2-core machine a new process can take longer than taskctl's default 5 s to
-    discover the node, which is not what the tests test.
+    discover the node, which is not what the tests test. Its stderr comes without Fast DDS's
+    own lines about shared-memory ports (`without_shared_memory_lines`).
     """
-    return subprocess.run(
+    ran = subprocess.run(
         [TASKCTL, '--timeout', str(TASKCTL_REACH_SEC), *args],
         capture_output=True,
         text=True,
         timeout=TASKCTL_TIMEOUT_SEC,
         check=False,
         env=None if env is None else dict(os.environ, **env),
+    )
+    ran.stderr = without_shared_memory_lines(ran.stderr)
+    return ran
+
+
+def without_shared_memory_lines(output: str) -> str:
+    """`output` without Fast DDS's own lines about shared-memory ports: a process that starts
+    while another of the run is stopped (SIGSTOP) for seconds, as some tests do, may print
+    one (`RTPS_TRANSPORT_SHM Error ... Failed init_port ...`), which is not the program's."""
+    return ''.join(
+        line for line in output.splitlines(keepends=True) if 'RTPS_TRANSPORT_SHM' not in line
     )

@@ -17,7 +17,12 @@ from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness, WaitTimeoutError
-from task_manager.testing.process import TASKCTL, LaunchTaskManager, action_task
+from task_manager.testing.process import (
+    TASKCTL,
+    LaunchTaskManager,
+    action_task,
+    without_shared_memory_lines,
+)
 from task_manager.testing.servers import ScriptedActionServer, publish_feedback_until
 
 TIMEOUT_SEC = 30.0
@@ -39,12 +44,6 @@ def _launch(ros: RosHarness, launch: LaunchTaskManager, prefix: str) -> Scripted
     server = ScriptedActionServer(ros.node, Fibonacci, f'{prefix}/fib')
     launch({'fib': action_task('math/fib', f'{prefix}/fib', reentrant=True)})
     return server
-
-
-def _taskctl_lines(output: str) -> list[str]:
-    """The lines of `output` but Fast DDS's own about shared-memory ports: a newcomer prints
-    one when another process of the run is stopped (SIGSTOP) for seconds, as some tests do."""
-    return [line for line in output.splitlines() if 'RTPS_TRANSPORT_SHM' not in line]
 
 
 def _expected_result(task_id: str) -> dict[str, Any]:
@@ -129,7 +128,7 @@ def test_start_in_a_pipe_prints_the_result_json_only(
             piped.communicate()
 
     assert piped.returncode == 0
-    assert _taskctl_lines(stderr) == []
+    assert without_shared_memory_lines(stderr) == ''
     printed = json.loads(stdout)
     assert printed == _expected_result('piped-1')
     assert list(printed) == RESULT_KEYS  # as before the live view
