@@ -46,11 +46,14 @@ a second when nothing goes wrong)."""
 
 BLAS_THREADS_VARIABLE = 'OPENBLAS_NUM_THREADS'
 STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM})
-EXIT_NODE_UNHEARD = 3
-"""A gateway's exit code when, held up, it no longer hears its Task Manager (the client's
-`on_node_unheard`): a new process is, so its supervisor should start it again (as for the
-node's exit code 3, its middleware stuck)."""
 """The signals that ask one of our ROS 2 programs to end cleanly (Ctrl-C, a service manager)."""
+EXIT_START_AGAIN = 3
+"""The exit code of a program of ours that a new process of it would mend, for its supervisor
+(and the project's launchers) to start it again: the node whose middleware is stuck, a gateway
+that no longer hears its Task Manager."""
+EXIT_NODE_UNHEARD = EXIT_START_AGAIN
+"""A gateway's exit code when it no longer hears its Task Manager (the client's
+`on_node_unheard`)."""
 
 
 def prepare_ros_process() -> None:

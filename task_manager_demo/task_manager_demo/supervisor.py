@@ -17,7 +17,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from task_manager.discovery import use_quick_discovery
-from task_manager.process_setup import EXIT_NODE_UNHEARD
+from task_manager.process_setup import EXIT_START_AGAIN
 from task_manager_demo.children import (
     Child,
     Event,
@@ -30,8 +30,6 @@ from task_manager_demo.children import (
 
 STOP_TIMEOUT_SEC = 10.0
 EXIT_FAILED = 1
-EXIT_START_AGAIN = EXIT_NODE_UNHEARD
-"""A child's code that asks for a new process (the node's own for its middleware stuck too)."""
 MAX_RESTARTS = 5
 """A child started again more often than this fails the launcher (something else is wrong)."""
 # Colour codes of ROS log lines, when the children log in colour (on a terminal).

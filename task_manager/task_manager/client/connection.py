@@ -11,6 +11,7 @@ from typing import Any
 import rclpy
 from rclpy.context import Context
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile
 from rclpy.subscription import MessageInfo
@@ -49,6 +50,18 @@ def place_of(info: MessageInfo) -> Place:
     )
 
 
+def client_node(node_name: str, context: Context) -> Node:
+    """A node of a client, `<node_name>_<8 hex digits>`, in `context`: without services of its
+    own (a client's node has no parameters to serve: its 7 parameter services and its type
+    description service were 8 of the 20 entities of every wait set)."""
+    return rclpy.create_node(
+        f'{node_name}_{uuid.uuid4().hex[:8]}',
+        context=context,
+        start_parameter_services=False,
+        parameter_overrides=[Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)],
+    )
+
+
 class Connection:
     """The client's context, node and executor thread, and what reaches it.
 
@@ -61,14 +74,7 @@ class Connection:
         """How long a call waits when not told (the client's `timeout_sec`)."""
         self._context = Context()
         rclpy.init(context=self._context)
-        self.node = rclpy.create_node(
-            f'{node_name}_{uuid.uuid4().hex[:8]}',
-            context=self._context,
-            # a client's node has no parameters of its own to serve: its 7 parameter services
-            # and its type description service were 8 of the 20 entities of every wait set
-            start_parameter_services=False,
-            parameter_overrides=[Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)],
-        )
+        self.node = client_node(node_name, self._context)
         self.lock = threading.Condition()
         self.changes = Listeners[bool](self.lock)
         """Who is told each change of `connected`."""

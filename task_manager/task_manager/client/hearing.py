@@ -28,7 +28,6 @@ process (the gateways exit, for their supervisor to start them again).
 import queue
 import threading
 import time
-import uuid
 from collections.abc import Callable, Set
 from enum import Enum
 from typing import Any
@@ -36,13 +35,11 @@ from typing import Any
 import rclpy
 from rclpy.client import Client
 from rclpy.context import Context
-from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rclpy.timer import Timer
-from rclpy.type_description_service import START_TYPE_DESCRIPTION_SERVICE_PARAM
 from task_manager_msgs.srv import GetTaskStates
 
-from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
+from task_manager.client.connection import SERVICE_RETRY_SEC, Connection, client_node
 from task_manager.client.listeners import Callback, Listeners
 from task_manager.core.names import ACTIVE_TASKS_TOPIC, GET_TASK_STATES_SERVICE
 from task_manager.rclpy_tools.log import NodeLog
@@ -213,12 +210,7 @@ def node_seen_anew(timeout_sec: float = LOOK_SEC) -> bool:
     context = Context()
     rclpy.init(context=context)
     try:
-        node = rclpy.create_node(
-            f'task_manager_look_{uuid.uuid4().hex[:8]}',
-            context=context,
-            start_parameter_services=False,
-            parameter_overrides=[Parameter(START_TYPE_DESCRIPTION_SERVICE_PARAM, value=False)],
-        )
+        node = client_node('task_manager_look', context)
         try:
             deadline = time.monotonic() + timeout_sec
             # the graph is the middleware's, kept by its own threads: nothing to spin

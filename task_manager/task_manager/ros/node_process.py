@@ -17,7 +17,7 @@ from task_manager.core.errors import ConfigurationError
 from task_manager.core.names import EXECUTE_TASK_ACTION, NODE_NAME
 from task_manager.core.params_file import check_params_file, params_files
 from task_manager.middleware_watchdog import MiddlewareWatchdog
-from task_manager.process_setup import STOP_SIGNALS, end_within
+from task_manager.process_setup import EXIT_START_AGAIN, STOP_SIGNALS, end_within
 from task_manager.rclpy_tools.futures import wake
 from task_manager.ros import parking_executor
 from task_manager.ros.instances import describe
@@ -27,7 +27,7 @@ from task_manager.ros.parking_executor import ParkingExecutor
 PROGRAM = 'task-manager'
 EXIT_CONFIGURATION_ERROR = 2
 EXIT_ANOTHER_TASK_MANAGER = 2
-EXIT_MIDDLEWARE_STUCK = 3
+EXIT_MIDDLEWARE_STUCK = EXIT_START_AGAIN
 DRAIN_MAX_CALLBACKS = 1000
 
 
