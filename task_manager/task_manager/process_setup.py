@@ -42,6 +42,9 @@ GENERATOR_PACKAGE = 'rosidl_generator_py'
 END_TIMEOUT_SEC = 5.0
 """How long a program's ROS entities may take to be destroyed once its work is done (well under
 a second when nothing goes wrong)."""
+LAST_RESORT_SEC = 2.0
+"""How long after END_TIMEOUT_SEC faulthandler's own thread ends a process whose threads cannot
+run Python any more (see end_within)."""
 
 
 BLAS_THREADS_VARIABLE = 'OPENBLAS_NUM_THREADS'
@@ -143,6 +146,13 @@ def end_within(release: Callable[[], None], program: str, exit_code: int) -> Non
     Fast DDS 3.2 can deadlock while it destroys a reader or a participant as another process
     leaves the domain (its timer thread and a receive thread each waiting for the other, the
     kind reported as eProsima/Fast-DDS#6502); a program whose work is done must not hang on it.
+
+    It can also spin for good deleting the participant, holding the GIL (rclpy destroys the
+    last node of a context, and with it the participant, without letting go of it): seen with
+    `DomainParticipant::set_listener` waiting for a discovery callback that waits for a lock
+    set_listener holds, a taskctl at 58 % of a core for minutes. No Python thread runs then, so
+    the line above cannot be printed: faulthandler's watchdog, a thread of C that needs no GIL,
+    ends the process LAST_RESORT_SEC later with exit code 1, after every thread's stack.
     """
     raised: list[BaseException] = []
 
@@ -153,9 +163,11 @@ def end_within(release: Callable[[], None], program: str, exit_code: int) -> Non
             raised.append(error)
 
     releasing = threading.Thread(target=run, name=f'{program}-end', daemon=True)
+    faulthandler.dump_traceback_later(END_TIMEOUT_SEC + LAST_RESORT_SEC, exit=True)
     releasing.start()
     releasing.join(END_TIMEOUT_SEC)
     if not releasing.is_alive():
+        faulthandler.cancel_dump_traceback_later()
         if raised:
             raise raised[0]
         return

@@ -7,6 +7,7 @@ once, when its client no longer hears the node."""
 import os
 import subprocess
 import sys
+import time
 from collections.abc import Callable
 from pathlib import Path
 
@@ -60,12 +61,18 @@ def test_the_code_generator_is_still_there_when_asked_for() -> None:
 
 
 END_WITH = """
-import sys, time
+import re, sys, time
 from task_manager import process_setup
 process_setup.END_TIMEOUT_SEC = 0.5
+process_setup.LAST_RESORT_SEC = 0.5
 
 def wedged_in_the_middleware():
     time.sleep(60)  # in C, as a deadlocked Fast DDS call is
+
+def spinning_with_the_gil():
+    # in C without letting go of the GIL, as rclpy's destroy_node in a Fast DDS spin is:
+    # backtracking through about 10**12 ways to split the a's, none followed by a b
+    re.fullmatch('(a|aa)+b', 'a' * 60)
 
 {release}
 process_setup.end_within(release, 'a-program', 7)
@@ -103,6 +110,15 @@ def test_a_release_stuck_in_the_middleware_ends_the_process_with_the_code_and_on
     assert ended.stderr == (
         'a-program: the ROS middleware did not shut down within 0.5 s; exiting anyway\n'
     )
+
+
+def test_a_release_stuck_holding_the_gil_still_ends_the_process() -> None:
+    started = time.monotonic()
+    ended = _end_within('release = spinning_with_the_gil')
+    assert ended.returncode == 1 and 'returned' not in ended.stdout
+    assert ended.stderr.startswith('Timeout (0:00:01)!'), ended.stderr
+    assert 'in spinning_with_the_gil' in ended.stderr
+    assert time.monotonic() - started < 30
 
 
 def test_with_faulthandler_on_the_stuck_thread_stack_is_printed_too() -> None:
