@@ -337,8 +337,15 @@ class TaskManagerNode(Node):
     def _get_schedules(
         self, request: GetSchedules.Request, response: GetSchedules.Response
     ) -> GetSchedules.Response:
-        """Every schedule (or those asked for, in the order asked), with its runs."""
-        wanted = list(request.schedule_ids) or self.scheduler.book.ids()
+        """Every schedule (or those asked for, in the order asked: the first IDS_MAX), with its
+        runs."""
+        if len(request.schedule_ids) > IDS_MAX:  # each one asked is a schedule in the answer
+            self.get_logger().warning(
+                f'get_schedules asked for {len(request.schedule_ids)} schedules: the first '
+                f'{IDS_MAX} answered, the rest left out',
+                throttle_duration_sec=LOG_THROTTLE_SEC,
+            )
+        wanted = list(request.schedule_ids[:IDS_MAX]) or self.scheduler.book.ids()
         found = (self.scheduler.book.get(schedule_id) for schedule_id in wanted)
         response.schedules = [schedule_msg(*item) for item in found if item is not None]
         return response

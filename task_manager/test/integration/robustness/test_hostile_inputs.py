@@ -234,3 +234,39 @@ def test_states_of_more_tasks_than_a_request_may_name_answer_the_first_ones(
     with TaskManagerClient('hostile_ids', timeout_sec=TIMEOUT_SEC) as tasks:
         asked = tasks.task_states([*['unknown'] * IDS_MAX, 'known'])
     assert [state.task_id for state in asked] == ['known']  # in two requests
+
+
+def test_schedules_asked_by_more_ids_than_a_request_may_name_answer_the_first_ones(
+    ros: RosHarness, accounting: Accounting
+) -> None:
+    """GetSchedules with 1,001 ids (each one asked is a schedule in the answer, however often
+    it is named): the first 1,000 are answered, the rest left out, and the log says so; the
+    client asks such a list in requests of 1,000."""
+    schedule = {
+        'schedule_id': 'kept',
+        'task_name': 'drive',
+        'task_data': json.dumps({'order': 1}),
+        'delay_sec': 3600.0,
+    }
+    assert accounting.tm.run('system/schedule', schedule, task_id='keep').task_status == 'DONE'
+    client: Client[GetSchedules.Request, GetSchedules.Response] = ros.node.create_client(
+        GetSchedules, '/task_manager/get_schedules'
+    )
+    try:
+        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
+
+        def schedules(ids: list[str]) -> list[str]:
+            request = GetSchedules.Request(schedule_ids=ids)
+            answer = wait_for_future(client.call_async(request), TIMEOUT_SEC, 'schedules')
+            return [info.schedule_id for info in answer.schedules]
+
+        assert schedules([*['unknown'] * IDS_MAX, 'kept']) == []
+        assert schedules(['kept'] * (IDS_MAX + 1)) == ['kept'] * IDS_MAX
+    finally:
+        ros.node.destroy_client(client)
+    process = accounting.tm.process  # type: ignore[attr-defined]
+    process.wait_for_log(f'get_schedules asked for {IDS_MAX + 1} schedules', TIMEOUT_SEC)
+    with TaskManagerClient('hostile_schedule_ids', timeout_sec=TIMEOUT_SEC) as scheduling:
+        asked = scheduling.schedules([*['unknown'] * IDS_MAX, 'kept'])
+    assert [info.schedule_id for info in asked] == ['kept']  # in two requests
+    accounting.tm.run('system/unschedule', {'schedule_ids': ['kept']}, task_id='unkeep')
