@@ -83,6 +83,7 @@ class Connection:
         self._matched: set[str] = set()
         self._executor = WakelessExecutor(context=self._context)
         self._spinner = SpinThread(self._executor, self.node, 'task-manager-client')
+        self._closed = False
 
     def start(self) -> None:
         """Spin the node in the background thread (once the helpers have made their ends)."""
@@ -92,7 +93,10 @@ class Connection:
     def close(self) -> None:
         """Stop the executor thread, then destroy the node and the context. A thread still in a
         callback after `timeout_sec` keeps them: destroying a node under the thread that spins
-        it can crash the process; they go with the process."""
+        it can crash the process; they go with the process. Closing again does nothing."""
+        if self._closed:
+            return
+        self._closed = True
         if not self._spinner.stop(self.timeout_sec):
             NodeLog.of(self.node).warning(
                 f"the client's executor thread did not end within {self.timeout_sec:g} s; "

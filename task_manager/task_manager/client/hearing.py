@@ -18,9 +18,11 @@ check (`on_node_unheard`). A timer on the client's executor notices a turn late 
 HELD_UP_SEC or more; the client then asks the node a question that any node answers at once
 (GetTaskStates of no task, sent again while unanswered) and waits for the answer and for every
 topic that reached the client before the hold-up to reach it again (HearingCheck). And once
-the node's active list has not reached the client for LOST_SEC, a new participant of this
-process looks for the node, again each LOOK_AGAIN_SEC while it is lost: one that sees it
-while the client still does not SEEN_GRACE_SEC later means the client is deaf (LostNodeCheck).
+the node's active list has not reached the client for LOST_SEC (lost, or not met since the
+check began: a newcomer's participant now and then never matches the node's endpoints while
+others started at the same moment do), a new participant of this process looks for the node,
+again each LOOK_AGAIN_SEC while it is lost: one that sees it while the client still does not
+SEEN_GRACE_SEC later means the client is deaf (LostNodeCheck).
 Either way the listeners are told how many seconds it went on, and it is theirs to start a new
 process (the gateways exit, for their supervisor to start them again).
 """
@@ -151,7 +153,8 @@ class HearingCheck:
 
 
 class LostNodeCheck:
-    """Whether a client that lost the node is deaf to it: decisions from the times of the
+    """Whether a client that lost the node, or never met it, is deaf to it: decisions from
+    the times of the
     check's turns, whether the node's active list reaches the client and what a new
     participant saw; no ROS here."""
 
@@ -166,7 +169,6 @@ class LostNodeCheck:
         self.grace_sec = grace_sec
         self.looking = False
         """Whether a new participant is looking for the node now."""
-        self._reached = False
         self._lost_since: float | None = None
         self._next_look = 0.0
         self._seen_at: float | None = None
@@ -180,9 +182,7 @@ class LostNodeCheck:
         if ACTIVE_TASKS_TOPIC in reaching:
             self.reaching_changed(reaching)
             return Step.NOTHING
-        if not self._reached:
-            return Step.NOTHING  # never met a node: nothing to be deaf to
-        if self._lost_since is None:
+        if self._lost_since is None:  # lost now, or not met since the check began
             self._lost_since, self._next_look = now, now + self.lost_sec
         if self._seen_at is not None and now - self._seen_at >= self.grace_sec:
             self._seen_at = None
@@ -195,7 +195,7 @@ class LostNodeCheck:
     def reaching_changed(self, reaching: Set[str]) -> None:
         """The topics that reach the client changed (between turns)."""
         if ACTIVE_TASKS_TOPIC in reaching:
-            self._reached, self._lost_since, self._seen_at = True, None, None
+            self._lost_since, self._seen_at = None, None
 
     def looked(self, now: float, seen: bool) -> None:
         """The new participant saw the node at `now`, or not."""

@@ -4,15 +4,44 @@ is lost, and what every part of the client stands on (`ClientParts`)."""
 
 import threading
 import time
+from collections.abc import Collection
 from typing import Any
 
+from rcl_interfaces.srv import GetParameters, ListParameters
 from rclpy.client import Client
 from rclpy.task import Future
+from task_manager_msgs.srv import (
+    ConfirmTask,
+    GetSchedules,
+    GetTaskResults,
+    GetTaskStates,
+    QueryTaskHistory,
+)
 
 from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
 from task_manager.client.records import TaskResult
 from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.core.names import (
+    CONFIRM_TASK_SERVICE,
+    GET_PARAMETERS_SERVICE,
+    GET_SCHEDULES_SERVICE,
+    GET_TASK_RESULTS_SERVICE,
+    GET_TASK_STATES_SERVICE,
+    LIST_PARAMETERS_SERVICE,
+    QUERY_TASK_HISTORY_SERVICE,
+)
 from task_manager.rclpy_tools.server_wait import wait_until_ready
+
+SERVICE_TYPES: dict[str, Any] = {
+    GET_TASK_STATES_SERVICE: GetTaskStates,
+    GET_TASK_RESULTS_SERVICE: GetTaskResults,
+    QUERY_TASK_HISTORY_SERVICE: QueryTaskHistory,
+    GET_SCHEDULES_SERVICE: GetSchedules,
+    CONFIRM_TASK_SERVICE: ConfirmTask,
+    LIST_PARAMETERS_SERVICE: ListParameters,
+    GET_PARAMETERS_SERVICE: GetParameters,
+}
+"""key: a service of the Task Manager that the client calls, value: its type."""
 
 
 class ClientParts:
@@ -49,12 +78,7 @@ class ServiceCalls:
         confirm_task); a lost reply is asked for again."""
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         deadline = time.monotonic() + timeout_sec
-        with self._connection.lock:
-            client = self._clients.get(name)
-            if client is None:
-                client = self._clients[name] = self._connection.node.create_client(
-                    service_type, name
-                )
+        client = self._client(service_type, name)
         if not wait_until_ready(client.service_is_ready, timeout_sec):
             raise TaskManagerUnavailable(f'{name} is not available')
         answered = threading.Event()
@@ -71,3 +95,23 @@ class ServiceCalls:
         if response is None:
             raise TaskManagerUnavailable(f'{name} did not answer within {timeout_sec} s')
         return response
+
+    def wait_until_ready(self, names: Collection[str], timeout_sec: float) -> None:
+        """Wait until each service of `names` (keys of SERVICE_TYPES) has met this client
+        (its client is made now); TaskManagerUnavailable naming the first that has not within
+        `timeout_sec` in all."""
+        deadline = time.monotonic() + timeout_sec
+        for name in names:
+            client = self._client(SERVICE_TYPES[name], name)
+            if not wait_until_ready(client.service_is_ready, max(0.0, deadline - time.monotonic())):
+                raise TaskManagerUnavailable(f'{name} is not available')
+
+    def _client(self, service_type: Any, name: str) -> Client[Any, Any]:
+        """This client's client of the service `name`, made on first use."""
+        with self._connection.lock:
+            client = self._clients.get(name)
+            if client is None:
+                client = self._clients[name] = self._connection.node.create_client(
+                    service_type, name
+                )
+            return client

@@ -18,7 +18,8 @@ run to its end): watching what the node publishes (watching.py), what it keeps a
 (history.py), interventions (interventions.py) and schedules (scheduling.py).
 """
 
-from collections.abc import Callable, Sequence
+import time
+from collections.abc import Callable, Collection, Sequence
 from typing import Any
 
 from task_manager.client.connection import DEFAULT_TIMEOUT_SEC, Connection
@@ -78,14 +79,22 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
         self._connection.close()
 
     def wait_until_available(
-        self, timeout_sec: float | None = None, *, events: bool = False
+        self,
+        timeout_sec: float | None = None,
+        *,
+        events: bool = False,
+        services: Collection[str] = (),
     ) -> None:
         """Wait for the Task Manager's action server and topics; TaskManagerUnavailable if not.
 
         With `events`, also subscribe to /task_manager/task_events now and wait until it is
-        connected, if the Task Manager publishes it (see `events_connected`).
+        connected, if the Task Manager publishes it (see `events_connected`). With `services`
+        (names of its services, e.g. `GET_TASK_STATES_SERVICE`), also until each has met this
+        client, within `timeout_sec` of the rest.
         """
+        deadline = time.monotonic() + (self.timeout_sec if timeout_sec is None else timeout_sec)
         self._tasks.wait_until_available(timeout_sec, events=events)
+        self._services.wait_until_ready(services, max(0.0, deadline - time.monotonic()))
 
     @property
     def connected(self) -> bool:

@@ -3,6 +3,7 @@
 import typer
 
 from task_manager.cli.common import EXIT_ERROR, connected, progress, source_option
+from task_manager.core.names import CONFIRM_TASK_SERVICE
 
 
 def confirm(
@@ -16,7 +17,7 @@ def confirm(
 
     Prints `ID  confirmed` (or `rejected`); exit 1 with why on stderr when it takes no answer.
     """
-    with connected(ctx) as client:
+    with connected(ctx, services=[CONFIRM_TASK_SERVICE]) as client:
         answer = client.confirm(task_id, reject=reject, comment=comment, source=source)
         # told before the client closes, as every verb that changes something: the answer
         # stands whatever the middleware's teardown does

@@ -12,6 +12,7 @@ from task_manager.cli.common import (
 )
 from task_manager.cli.records import decision_data, json_line
 from task_manager.client import Decision
+from task_manager.core.names import GET_TASK_STATES_SERVICE
 
 DECISION_WIDTH = len('reprioritized')
 """The longest decision's name: the reasons start in one column."""
@@ -58,7 +59,7 @@ def why(
 
     Each reason names the other party: "queued behind drive-1 (priority 5), which holds base".
     """
-    with connected(ctx) as client:
+    with connected(ctx, services=[GET_TASK_STATES_SERVICE]) as client:
         decisions = client.why(task_id)
     for decision in decisions:
         print(json_line(decision_data(decision)) if as_json else decision_line(decision))

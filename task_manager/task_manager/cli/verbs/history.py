@@ -11,7 +11,7 @@ from task_manager.cli.durations import parse_span
 from task_manager.cli.records import history_data, json_line
 from task_manager.cli.verbs.watch import result_line
 from task_manager.client import FINAL_STATUSES
-from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX
+from task_manager.core.names import HISTORY_QUERY_LIMIT_MAX, QUERY_TASK_HISTORY_SERVICE
 
 
 def _span(text: str, option: str) -> timedelta:
@@ -57,7 +57,7 @@ def history(
 ) -> None:
     """Print ended tasks from the Task Manager's history (kept across restarts), newest first."""
     span, status = None if since is None else _span(since, '--since'), _status(status)
-    with connected(ctx) as client:
+    with connected(ctx, services=[QUERY_TASK_HISTORY_SERVICE]) as client:
         ended = client.history(
             task,
             status=status,
@@ -86,7 +86,7 @@ def stats(
 ) -> None:
     """Per task: how many ended, how many DONE, median and p95 time they ran (of those started)."""
     span = _span(since, '--since')
-    with connected(ctx) as client:
+    with connected(ctx, services=[QUERY_TASK_HISTORY_SERVICE]) as client:
         per_task = client.stats(task, source=source, since=span)
     if as_json:
         for row in per_task:

@@ -26,6 +26,7 @@ from task_manager.cli.durations import parse_span
 from task_manager.cli.records import iso, json_line
 from task_manager.cli.verbs.mission import load_subtasks
 from task_manager.client.schedules import schedule_request
+from task_manager.core.names import GET_SCHEDULES_SERVICE
 
 schedule_app = typer.Typer(
     name='schedule',
@@ -271,7 +272,7 @@ def list_schedules(
     as_json: bool = typer.Option(False, '--json', help='One JSON object per schedule and line'),
 ) -> None:
     """List the schedules with their next and last runs."""
-    with connected(ctx) as client:
+    with connected(ctx, services=[GET_SCHEDULES_SERVICE]) as client:
         schedules = client.schedules(schedule_ids or None)
     if as_json:
         for info in schedules:

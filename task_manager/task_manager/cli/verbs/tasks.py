@@ -5,6 +5,7 @@ from rich.table import Table
 
 from task_manager.cli.common import connected, output
 from task_manager.cli.records import DECLARED_FLAGS, declared_data, json_line
+from task_manager.core.names import GET_PARAMETERS_SERVICE, LIST_PARAMETERS_SERVICE
 
 
 def tasks(
@@ -12,7 +13,7 @@ def tasks(
     as_json: bool = typer.Option(False, '--json', help='One JSON object per task and line'),
 ) -> None:
     """List the tasks the Task Manager declares (from its parameters), system tasks included."""
-    with connected(ctx) as client:
+    with connected(ctx, services=[LIST_PARAMETERS_SERVICE, GET_PARAMETERS_SERVICE]) as client:
         declared = [declared_data(entry) for entry in client.declared_tasks()]
     if as_json:
         for task in declared:

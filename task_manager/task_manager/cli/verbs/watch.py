@@ -24,6 +24,7 @@ from task_manager import (
 from task_manager.cli.common import connected, duration_text, output, time_text
 from task_manager.cli.records import active_data, json_line, prompt_of, result_data
 from task_manager.cli.verbs.start import status_text
+from task_manager.core.names import GET_TASK_RESULTS_SERVICE, GET_TASK_STATES_SERVICE
 
 ActiveRow: TypeAlias = ActiveTaskInfo | TaskState
 ACTIVE_JSON_HELP = (
@@ -101,7 +102,7 @@ def active(
 ) -> None:
     """Show the tasks in progress."""
     try:
-        with connected(ctx) as client:
+        with connected(ctx, services=[GET_TASK_STATES_SERVICE]) as client:
             # followed before the states are read: a change between the two is not lost
             updates = client.active_task_updates() if watch else iter(())
             tasks = StampedActiveTasks(client)
@@ -252,7 +253,7 @@ def results(
 ) -> None:
     """Print the latest task results the Task Manager kept, oldest first: when each ended."""
     try:
-        with connected(ctx, events=follow) as client:
+        with connected(ctx, events=follow, services=[GET_TASK_RESULTS_SERVICE]) as client:
             # followed before the kept results are read: a task that ends between the two is
             # not lost (and shown once: it may be in both)
             following = new_results(client) if follow else iter(())

@@ -132,9 +132,15 @@ def _lost_at_10(check: LostNodeCheck) -> None:
     assert check.turn(10.0, LOST) is Step.NOTHING
 
 
-def test_a_client_that_never_met_a_node_looks_for_none() -> None:
-    check = LostNodeCheck()
-    assert {check.turn(float(second), frozenset()) for second in range(100)} == {Step.NOTHING}
+def test_a_client_that_never_met_a_node_looks_for_it_too() -> None:
+    """A newcomer whose participant never matches the node's endpoints, as others do."""
+    check = LostNodeCheck(lost_sec=10.0, grace_sec=5.0)
+    steps = {second: check.turn(float(second), frozenset()) for second in range(20)}
+    assert [second for second, step in steps.items() if step is Step.LOOK] == [10]
+    check.looked(12.0, seen=True)
+    assert check.turn(16.0, frozenset()) is Step.NOTHING
+    assert check.turn(17.0, frozenset()) is Step.UNHEARD
+    assert check.lost_for(17.0) == 17.0
 
 
 def test_a_lost_node_is_looked_for_after_lost_sec_then_each_look_again_sec() -> None:
@@ -282,4 +288,29 @@ def test_a_client_that_lost_its_node_which_a_new_participant_sees_is_told(
 
     lost_for = told.get(timeout=TIMEOUT_SEC)
     assert len(looks) == 1 and looks[0] - stopped_at >= 0.5
+    assert lost_for >= 1.0  # lost_sec, then the grace
+
+
+def test_a_client_that_never_met_a_node_which_a_new_participant_sees_is_told(
+    connection: Connection,
+) -> None:
+    """No node in reach of the client (as a newcomer whose participant never matches the
+    node's endpoints while others do): the look, a stand-in that sees one, makes the client's
+    listeners told once the grace is over."""
+    looks: list[float] = []
+
+    def look() -> bool:
+        looks.append(time.monotonic())
+        return True
+
+    lost = LostNodeCheck(lost_sec=0.5, look_again_sec=TIMEOUT_SEC, grace_sec=0.5)
+    watch = HearingWatch(connection, HearingCheck(period_sec=PERIOD_SEC), lost, look)
+    connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
+    connection.start()
+    told: queue.SimpleQueue[float] = queue.SimpleQueue()
+    started_at = time.monotonic()
+    watch.add(told.put)
+
+    lost_for = told.get(timeout=TIMEOUT_SEC)
+    assert len(looks) == 1 and looks[0] - started_at >= 0.5
     assert lost_for >= 1.0  # lost_sec, then the grace

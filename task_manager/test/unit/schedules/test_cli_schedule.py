@@ -3,7 +3,7 @@ recording client, exact output and exit codes; and PAUSED tasks in `taskctl acti
 
 import importlib
 import json
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
@@ -60,7 +60,9 @@ def run(cli: SimpleNamespace, monkeypatch: pytest.MonkeyPatch) -> Any:
         client = RecordingClient(answer)
 
         @contextmanager
-        def connected(ctx: typer.Context, events: bool = False) -> Iterator[RecordingClient]:
+        def connected(
+            ctx: typer.Context, events: bool = False, services: Collection[str] = ()
+        ) -> Iterator[RecordingClient]:
             yield client
 
         monkeypatch.setattr(cli.pause, 'connected', connected)

@@ -3,7 +3,7 @@ and `taskctl schedule add` send, and how ScheduleInfo and `taskctl schedule list
 
 import importlib
 import json
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from typing import Any
 
@@ -111,7 +111,9 @@ def run(monkeypatch: pytest.MonkeyPatch) -> Any:
                 return record
 
         @contextmanager
-        def connected(ctx: typer.Context, events: bool = False) -> Iterator[Client]:
+        def connected(
+            ctx: typer.Context, events: bool = False, services: Collection[str] = ()
+        ) -> Iterator[Client]:
             yield Client()
 
         monkeypatch.setattr(schedule_verb, 'connected', connected)

@@ -3,7 +3,7 @@ shapes docs/taskctl.md documents (exact output), every verb in `taskctl --help`.
 
 import importlib
 import json
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from datetime import UTC, datetime, timedelta
@@ -109,7 +109,9 @@ def run(cli: SimpleNamespace, monkeypatch: pytest.MonkeyPatch) -> Any:
 
     def invoke(client: FakeClient, *args: str) -> Any:
         @contextmanager
-        def connected(ctx: typer.Context, events: bool = False) -> Iterator[FakeClient]:
+        def connected(
+            ctx: typer.Context, events: bool = False, services: Collection[str] = ()
+        ) -> Iterator[FakeClient]:
             yield client
 
         for module in cli.verbs:
@@ -198,7 +200,9 @@ def test_a_change_is_told_before_the_client_closes(
     """A confirmation the Task Manager took is printed even if closing the client fails."""
 
     @contextmanager
-    def connected(ctx: typer.Context, events: bool = False) -> Iterator[FakeClient]:
+    def connected(
+        ctx: typer.Context, events: bool = False, services: Collection[str] = ()
+    ) -> Iterator[FakeClient]:
         yield FakeClient(**answers)
         raise TeardownCrashError
 
