@@ -20,6 +20,7 @@ from typing import Any
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
 from task_manager.core.bounds import REASON_MAX_CHARACTERS, VDA5050_WAITING_MAX_BYTES, cut_text
+from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.status import TaskStatus
 from task_manager_vda5050.inbound import read_inbound
 from task_manager_vda5050.link import Link
@@ -95,6 +96,9 @@ class Stop:
 
 Item = Inbound | TaskEvent | Connected | EventsLost | Stop
 CAUGHT_UP = 'read again: task events of it went missing'
+CATCH_UP_AGAIN_SEC = 2.0
+"""How long after a read of the tasks followed failed (the Task Manager unavailable or slow
+to answer) the adapter reads them again, until one succeeds."""
 """The reason of an event that stands in for lost ones (see standing_in)."""
 
 
@@ -140,6 +144,8 @@ class Adapter:
         self._shortening = False
         """Whether the last state sent was shortened (said once in the log, until one fits)."""
         self._thread = threading.Thread(target=self._work, name='vda5050', daemon=True)
+        self._catch_up_at: float | None = None
+        """When to read the tasks followed again (a read failed), or None."""
 
     @staticmethod
     def _tasks_that_block_driving(declared: list[dict[str, Any]], mapping: Mapping) -> set[str]:
@@ -177,12 +183,15 @@ class Adapter:
     def _work(self) -> None:
         next_state = time.monotonic()
         while True:
+            wake_at = min(next_state, self._catch_up_at or next_state)
             try:
-                item = self.items.get(timeout=max(next_state - time.monotonic(), 0.0))
+                item = self.items.get(timeout=max(wake_at - time.monotonic(), 0.0))
             except queue.Empty:
                 item = None
             if isinstance(item, Stop):
                 return
+            if item is None and self._catch_up_at and time.monotonic() >= self._catch_up_at:
+                item = EventsLost()  # the read that failed, again
             try:
                 self._handle(item)
             except Exception as error:  # the callback boundary: log it, the vehicle goes on
@@ -214,7 +223,14 @@ class Adapter:
         the instant actions): one that ended is handled as ENDED, once."""
         followed = [*self.orders.followed(), *self.instant.followed()]
         LOG.warning('task events went missing: reading the %d tasks followed again', len(followed))
-        states = {s.task_id: s for s in self.client.task_states(followed)}
+        try:
+            found = self.client.task_states(followed)
+        except TaskManagerUnavailable as error:
+            LOG.warning('%s: reading them again in %g s', error, CATCH_UP_AGAIN_SEC)
+            self._catch_up_at = time.monotonic() + CATCH_UP_AGAIN_SEC
+            return
+        self._catch_up_at = None
+        states = {s.task_id: s for s in found}
         for task_id in followed:
             task = states.get(task_id)
             event = standing_in(task) if task is not None else None

@@ -9,8 +9,10 @@ from typing import Any
 
 import pytest
 
+from task_manager import TaskManagerUnavailable
 from task_manager.client import TaskEvent, TaskEventKind, TaskState
 from task_manager.core.status import TaskStatus
+from task_manager_vda5050 import adapter as adapter_module
 from task_manager_vda5050.adapter import CAUGHT_UP, Adapter, standing_in
 from task_manager_vda5050.mapping import DEMO_MAPPING, read_mapping
 from task_manager_vda5050.orders.plan import Planner
@@ -119,6 +121,9 @@ class FollowsNothing(StartsAnything):
         self.on_event: list[Any] = []
         self.on_lost: list[Any] = []
         self.states: dict[str, TaskState] = {}
+        self.unavailable = 0
+        """How many reads of the states fail before they are answered."""
+        self.asked = 0
 
     def on_task_event(self, callback: Any) -> None:
         self.on_event.append(callback)
@@ -127,6 +132,10 @@ class FollowsNothing(StartsAnything):
         self.on_lost.append(callback)
 
     def task_states(self, task_ids: list[str]) -> list[TaskState]:
+        self.asked += 1
+        if self.unavailable:
+            self.unavailable -= 1
+            raise TaskManagerUnavailable('/task_manager/get_task_states is not available')
         return [self.states[i] for i in task_ids if i in self.states]
 
 
@@ -164,6 +173,31 @@ def test_the_adapter_reads_its_tasks_again_when_its_client_lost_events() -> None
 
         done = until_state(link, lambda s: s['lastNodeId'] == 'b')
         assert (done['driving'], done['nodeStates'], done['edgeStates']) == (False, [], [])
+    finally:
+        adapter.stop()
+
+
+def test_a_read_that_failed_is_made_again_until_one_is_answered(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The Task Manager unavailable when the adapter reads its tasks again: it reads them
+    again a moment later (CATCH_UP_AGAIN_SEC), and takes their ends then."""
+    monkeypatch.setattr(adapter_module, 'CATCH_UP_AGAIN_SEC', 0.1)
+    client, link = FollowsNothing(), StateLink()
+    adapter = Adapter(client, [], link, MAPPING)  # type: ignore[arg-type]
+    adapter.start()
+    try:
+        payload = with_header(order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0)))
+        adapter.on_message('order', payload.encode())
+        until_state(link, lambda s: s['orderId'] == 'o')
+        client.states = {i: state_of(i, TaskStatus.DONE) for i in ('o/a/0', 'o/b/2', 'o')}
+        client.unavailable = 2
+
+        for lost in client.on_lost:
+            lost(7)
+
+        done = until_state(link, lambda s: s['lastNodeId'] == 'b')
+        assert (done['driving'], done['nodeStates'], client.asked) == (False, [], 3)
     finally:
         adapter.stop()
 
