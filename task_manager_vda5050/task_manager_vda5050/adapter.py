@@ -20,7 +20,7 @@ from typing import Any
 
 from task_manager.client import TaskEvent, TaskEventKind, TaskManagerClient, TaskState
 from task_manager.core.bounds import REASON_MAX_CHARACTERS, VDA5050_WAITING_MAX_BYTES, cut_text
-from task_manager.core.errors import TaskManagerUnavailable
+from task_manager.core.errors import TaskManagerError, TaskManagerUnavailable
 from task_manager.core.status import TaskStatus
 from task_manager_vda5050.inbound import read_inbound
 from task_manager_vda5050.link import Link
@@ -32,7 +32,7 @@ from task_manager_vda5050.orders.plan import (
     Planner,
     Rejection,
 )
-from task_manager_vda5050.orders.running import Orders
+from task_manager_vda5050.orders.running import SOURCE, Orders
 from task_manager_vda5050.state.factsheet import factsheet
 from task_manager_vda5050.state.fitting import shortened
 from task_manager_vda5050.state.vehicle_state import VehicleState
@@ -40,6 +40,8 @@ from task_manager_vda5050.state.vehicle_state import VehicleState
 LOG = logging.getLogger('task_manager_vda5050')
 STATE_PERIOD_SEC = 30.0
 MESSAGES_DROPPED = 'messagesDropped'
+ORDER_LOST = 'orderLost'
+"""state.errors when the adapter started while tasks of an earlier adapter of the vehicle ran."""
 """The errorType of the error saying how many inbound messages were dropped unread."""
 
 
@@ -165,7 +167,31 @@ class Adapter:
     def start(self) -> None:
         self.client.on_task_event(self.items.put)
         self.client.on_events_lost(lambda _batches: self.items.put(EventsLost()))
+        self._cancel_tasks_left_over()
         self._thread.start()
+
+    def _cancel_tasks_left_over(self) -> None:
+        """Cancel the vehicle's tasks that an earlier adapter started (it ended, or was started
+        again by its supervisor, while its order ran): their order is known to no one now, and
+        a vehicle must not move under an order its state does not show. state.errors says so,
+        and the master sends the order again."""
+        try:
+            left_over = [s.task_id for s in self.client.task_states() if s.source == SOURCE]
+        except TaskManagerUnavailable as error:
+            LOG.warning('the tasks of an earlier adapter could not be read: %s', error)
+            return
+        if not left_over:
+            return
+        words = (
+            f'{len(left_over)} tasks of an order this adapter does not know ran in the Task '
+            f"Manager as it started (an earlier adapter's): cancelled; send the order again"
+        )
+        LOG.warning('%s: %s', words, ', '.join(cut_text(t) for t in left_over[:10]))
+        self.state.add_error(Rejection(ORDER_LOST, cut_text(words, REASON_MAX_CHARACTERS)))
+        try:
+            self.client.cancel_tasks(left_over, source=SOURCE)
+        except TaskManagerError as error:
+            LOG.error('the tasks of an earlier adapter could not be cancelled: %s', error)
 
     def stop(self, timeout_sec: float = 10.0) -> None:
         self.items.put(Stop())

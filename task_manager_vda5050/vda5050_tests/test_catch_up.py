@@ -5,6 +5,7 @@ events were lost. (Through real DDS, a process stopped while the node floods it:
 closing note of 2026-11-30, the client at times heard nothing more at all.)"""
 
 import queue
+from dataclasses import replace
 from typing import Any
 
 import pytest
@@ -122,6 +123,8 @@ class FollowsNothing(StartsAnything):
         self.on_lost: list[Any] = []
         self.states: dict[str, TaskState] = {}
         self.unavailable = 0
+        self.active_at_start: list[TaskState] = []
+        self.cancelled: list[tuple[list[str], str]] = []
         """How many reads of the states fail before they are answered."""
         self.asked = 0
 
@@ -131,12 +134,17 @@ class FollowsNothing(StartsAnything):
     def on_events_lost(self, callback: Any) -> None:
         self.on_lost.append(callback)
 
-    def task_states(self, task_ids: list[str]) -> list[TaskState]:
+    def task_states(self, task_ids: list[str] | None = None) -> list[TaskState]:
+        if not task_ids:  # every active task: what ran before the adapter started
+            return list(self.active_at_start)
         self.asked += 1
         if self.unavailable:
             self.unavailable -= 1
             raise TaskManagerUnavailable('/task_manager/get_task_states is not available')
         return [self.states[i] for i in task_ids if i in self.states]
+
+    def cancel_tasks(self, task_ids: list[str], *, source: str) -> None:
+        self.cancelled.append((task_ids, source))
 
 
 class StateLink:
@@ -198,6 +206,29 @@ def test_a_read_that_failed_is_made_again_until_one_is_answered(
 
         done = until_state(link, lambda s: s['lastNodeId'] == 'b')
         assert (done['driving'], done['nodeStates'], client.asked) == (False, [], 3)
+    finally:
+        adapter.stop()
+
+
+def test_tasks_of_an_earlier_adapter_are_cancelled_at_start_and_state_says_so() -> None:
+    """The adapter started again while its earlier process's order ran in the Task Manager:
+    those tasks (source VDA5050) are cancelled, the others left alone, and state.errors has
+    a warning for the master."""
+    client, link = FollowsNothing(), StateLink()
+    client.active_at_start = [
+        state_of('o', TaskStatus.IN_PROGRESS),
+        state_of('o/a/0', TaskStatus.IN_PROGRESS),
+        TaskState('other', 'camera/take_photo', TaskStatus.IN_PROGRESS, 'CLI', result={}),
+    ]
+    client.active_at_start[1] = replace(client.active_at_start[1], source='mission')
+    adapter = Adapter(client, [], link, MAPPING)  # type: ignore[arg-type]
+    adapter.start()
+    try:
+        first = until_state(link, lambda s: True)
+        assert client.cancelled == [(['o'], 'VDA5050')]
+        assert [(e['errorType'], e['errorLevel']) for e in first['errors']] == [
+            ('orderLost', 'WARNING')
+        ]
     finally:
         adapter.stop()
 

@@ -11,6 +11,7 @@ from task_manager_vda5050.testing import (
     BrokerProcess,
     Master,
     ended,
+    errors_of,
     latest_state,
     node,
     order,
@@ -71,3 +72,29 @@ def test_an_order_goes_on_while_the_broker_is_away_and_state_returns_with_it(
     assert back
     state = master.messages('state')[-1]
     assert (state['orderId'], state['nodeStates'], state['driving']) == ('order-away', [], False)
+
+
+def test_an_adapter_started_while_an_earlier_ones_order_runs_cancels_it_and_says_so(
+    master: Master, adapter: AdapterProcess, broker: BrokerProcess, demo_robot: TaskManagerClient
+) -> None:
+    """The adapter killed while its order drives (a crash; or exit 3 and its supervisor): the
+    one started after it knows nothing of that order, so it cancels its tasks (the vehicle
+    stops) and its state says so, for the master to send the order again."""
+    long_leg = order('order-lost', node('a', 0, 0.0, 0.0), node('b', 2, 40.0, 0.0))
+    master.command('order', order=long_leg)
+    latest_state(master, lambda s: s['driving'], 'driving')
+    adapter.kill()
+    master.wait_for(
+        lambda _: connection_states(master)[-1:] == ['CONNECTIONBROKEN'], 'CONNECTIONBROKEN'
+    )
+
+    again = AdapterProcess(broker)
+    try:
+        (mission,) = ended(demo_robot, 'order-lost')
+        (lost,) = errors_of(master, 'orderLost')
+        state = master.messages('state')[-1]
+    finally:
+        assert again.stop() == 0, '\n'.join(again.log_lines)
+    assert mission.status is TaskStatus.CANCELED
+    assert lost['errorLevel'] == 'WARNING' and 'send the order again' in lost['errorDescription']
+    assert (state['orderId'], state['driving']) == ('', False)
