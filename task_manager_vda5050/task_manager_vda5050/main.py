@@ -7,8 +7,8 @@ It waits for the Task Manager, then connects to the broker (last will CONNECTION
 then ONLINE, both retained) and serves <interface>/v2/<manufacturer>/<serialNumber>/order
 and instantActions. Ctrl-C or SIGTERM: OFFLINE is published (retained), then a clean
 disconnection. Exit codes: 0 after a clean stop, 2 for unusable settings, a mapping that
-cannot be read, credentials the broker refuses or no Task Manager, 3 when, held up, it no
-longer hears its Task Manager (start it again: its supervisor's work).
+cannot be read or credentials the broker refuses, 3 when no Task Manager answered within 30 s
+or, held up, it no longer hears its Task Manager (start it again: its supervisor's work).
 """
 
 import argparse
@@ -27,6 +27,7 @@ from task_manager.core.errors import TaskManagerError, TaskManagerUnavailable
 from task_manager.cpu_priority import GATEWAY_NICENESS, add_nice_argument, lower_cpu_priority
 from task_manager.process_setup import (
     EXIT_NODE_UNHEARD,
+    EXIT_START_AGAIN,
     end_within,
     prepare_ros_process,
     stop_when_unheard,
@@ -98,7 +99,10 @@ def main(argv: list[str] | None = None) -> int:
             declared = _declared_tasks(client, deadline)
         except TaskManagerError as error:
             print(f'task-manager-vda5050: {error}', file=sys.stderr)
-            code = EXIT_USAGE
+            # none within the wait, or not all of it (a newcomer's participant now and then
+            # never meets some of the node's endpoints): a new process may
+            unavailable = isinstance(error, TaskManagerUnavailable)
+            code = EXIT_START_AGAIN if unavailable else EXIT_USAGE
         else:
             code = _serve(client, declared, vehicle, broker, mapping, options, stop)
     finally:
