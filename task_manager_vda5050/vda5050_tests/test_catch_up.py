@@ -104,6 +104,30 @@ def test_a_drive_whose_end_comes_late_does_not_take_the_vehicle_back() -> None:
     assert [n['nodeId'] for n in state.node_states] == ['c']
 
 
+def test_an_action_of_a_node_whose_reaching_is_learnt_late_fails_unstarted() -> None:
+    """A NONE action starts once its node is reached; learnt only after a later node (the
+    drive's ENDED lost, then read again), the vehicle has left: FAILED, never started."""
+    client, state = StartsAnything(), VehicleState()
+    orders = Orders(
+        client,  # type: ignore[arg-type]
+        Planner(MAPPING, {'navigation/navigate_to_pose'}.__contains__),
+        state,
+        None,
+    )
+    action = photo('NONE')
+    orders.receive(
+        order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0, action), node('c', 4, 2.0, 0.0))
+    )
+    orders.on_event(ended('o/c/4'))
+
+    orders.on_event(ended('o/b/2'))
+
+    (action_state,) = state.document()['actionStates']
+    assert action_state['actionStatus'] == 'FAILED'
+    assert 'reaching node b was learnt after a later node' in action_state['resultDescription']
+    assert client.started == ['o']  # its mission, and no photo
+
+
 def test_an_event_read_again_after_the_end_changes_nothing() -> None:
     orders, state, _ = running_order()
     orders.on_event(ended('o/a/0'))

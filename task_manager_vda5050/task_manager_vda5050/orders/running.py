@@ -211,13 +211,30 @@ class Orders:
             self._move(event.task.feedback)
         elif kind is TaskEventKind.ENDED:
             self.state.driving = False
-            if event.task.status is TaskStatus.DONE and drive.sequence_id > self._reached:
-                self._reached = drive.sequence_id  # (not a drive before it, ended late)
+            after_reaching = self.running.after_reaching if self.running else {}
+            if event.task.status is not TaskStatus.DONE:
+                return
+            if drive.sequence_id > self._reached:
+                self._reached = drive.sequence_id
                 self._move(event.task.result)
                 self.state.node_reached(drive.node_id, drive.sequence_id)
-                self._start_beside(
-                    self.running.after_reaching if self.running else {}, drive.task_id
-                )
+                self._start_beside(after_reaching, drive.task_id)
+            else:  # a drive before the last node reached, its end learnt late
+                self._not_started_late(after_reaching.get(drive.task_id, []), drive.node_id)
+
+    def _not_started_late(self, tasks: list[PlannedTask], node_id: str) -> None:
+        """The actions to start on reaching `node_id`, whose reaching was learnt only after a
+        later node's (its events lost): FAILED, not started where the vehicle no longer is."""
+        for task in tasks:
+            if task.task_id in self._started_beside:
+                continue
+            self._started_beside.add(task.task_id)
+            self.state.set_action(
+                task.action_id,
+                'FAILED',
+                f'not started: reaching node {node_id} was learnt after a later node '
+                '(task events went missing), and the vehicle is no longer there',
+            )
 
     def _move(self, values: dict[str, Any] | None) -> None:
         """agvPosition from a drive's feedback or result, as the mapping names its fields."""
