@@ -10,6 +10,7 @@ launcher itself is killed, its children get SIGTERM.
 import argparse
 import os
 import re
+import secrets
 import shutil
 import sys
 import textwrap
@@ -27,6 +28,8 @@ ROBOT_EXECUTABLE = ('task-manager-demo-robot', PACKAGE)
 TASK_MANAGER_EXECUTABLE = ('task-manager', 'task_manager')
 WEB_EXECUTABLE = ('task-manager-web', 'task_manager_web')
 WEB_READY = re.compile(r'dashboard: (?P<dashboard>http://\S+)')
+WEB_ADMIN_TOKEN_VARIABLE = 'TASK_MANAGER_WEB_ADMIN_TOKEN'
+"""task-manager-web's admin token when it has no token file (docs/web.md)."""
 DEFAULT_WEB_PORT = 8080
 TASK_MANAGER_READY = re.compile(r'Task Manager ready with \d+ task\(s\): (?P<tasks>.*)$')
 ROBOT_READY = re.compile(re.escape(ROBOT_READY_LOG) + r' at (?P<pose>\([^)]*\))')
@@ -130,14 +133,19 @@ class Demo(Supervisor):
         self.params_file = params_file
         self.web_port = web_port
         self.token_file = token_file
+        self.admin_token = secrets.token_urlsafe(24)
+        """The gateway's admin token without a token file: made here, so that a gateway
+        started again (exit 3) keeps the one the dashboard was opened with."""
 
     def start(self) -> None:
         start_robot(self, self.params_file)
         if self.web_port is not None:
             web = [find_executable(*WEB_EXECUTABLE), '--port', str(self.web_port)]
+            env = {WEB_ADMIN_TOKEN_VARIABLE: self.admin_token}
             if self.token_file is not None:
                 web += ['--token-file', str(self.token_file)]
-            self.start_child('web', web, WEB_READY)
+                env = {}
+            self.start_child('web', web, WEB_READY, env=env)
 
     def banner(self, ready: dict[str, str]) -> str:
         return banner(ready['tasks'], ready['pose'], self.params_file, ready.get('dashboard', ''))

@@ -119,7 +119,8 @@ def _wait_connected(dashboard: re.Match[str] | None) -> None:
 
 def test_a_gateway_deaf_to_its_node_after_a_hold_up_is_started_again() -> None:
     """The web gateway held up with the node (SIGSTOP), then let go while the node stays
-    stopped, exits 3: the launcher starts a new one, which serves, and still stops cleanly."""
+    stopped, exits 3: the launcher starts a new one, which serves with the same admin token,
+    and still stops cleanly."""
     demo = DemoProcess('task-manager-demo', LAUNCHER)
     try:
         dashboard = demo.wait_for_line(r'dashboard: http', START_TIMEOUT_SEC)
@@ -136,6 +137,9 @@ def test_a_gateway_deaf_to_its_node_after_a_hold_up_is_started_again() -> None:
         finally:
             node.resume()
         wait_until(lambda: demo.output.count('dashboard: http') == 2, 'a new gateway serving')
+        first, again = re.finditer(r'(http://\S+)/\?token=(\S+)', demo.output)
+        assert again[2] == first[2]  # the token the dashboard holds still opens it
+        _wait_connected(again)
 
         demo.child.process.send_signal(signal.SIGTERM)
 

@@ -9,6 +9,7 @@ longer hears its Task Manager (start it again: its supervisor's work).
 import argparse
 import asyncio
 import logging
+import os
 import sys
 import threading
 
@@ -89,7 +90,7 @@ def main(argv: list[str] | None = None) -> None:
         level=logging.INFO, format='[%(levelname)s] [task_manager_web]: %(message)s'
     )
     try:
-        tokens = door_tokens('task-manager-web', arguments.token_file)
+        tokens = door_tokens('task-manager-web', arguments.token_file, os.environ)
         listener = listen('task-manager-web', arguments.host, arguments.port)
     except SystemExit as error:
         print(error, file=sys.stderr)

@@ -14,7 +14,7 @@ import hashlib
 import logging
 import re
 import secrets
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,6 +23,9 @@ from task_manager.core.sources import SOURCE_NAME, SOURCE_NAME_RULE
 from task_manager.gateway.secret_file import exposure_warning
 
 GENERATED_NAME = 'admin'
+ADMIN_TOKEN_VARIABLE = 'TASK_MANAGER_WEB_ADMIN_TOKEN'
+"""The admin token of a gateway given no token file, instead of one made at its start: a
+launcher that starts the gateway again gives the new one the token the dashboard holds."""
 """The name of the token the gateway makes when it is given no token file."""
 NAME = SOURCE_NAME
 """A token's name: it ends up in the source of every task the token starts (`WEB:alice`)."""
@@ -172,12 +175,23 @@ def _check_unique(tokens: tuple[Token, ...], numbers: list[int], where: str) -> 
             name_line[token.name] = number
 
 
-def door_tokens(program: str, token_file: Path | None) -> tuple[Token, ...]:
-    """The tokens of a door (`program`'s): those of `token_file`, else one made here (an
-    admin's); SystemExit naming the line when the file cannot be read, a warning logged when
-    other users may read it."""
+def door_tokens(
+    program: str, token_file: Path | None, environ: Mapping[str, str] | None = None
+) -> tuple[Token, ...]:
+    """The tokens of a door (`program`'s): those of `token_file`, else an admin's, that of
+    ADMIN_TOKEN_VARIABLE in `environ` (the web gateway's environment) or one made here;
+    SystemExit naming the line when the file cannot be read (or the variable's token is no
+    token), a warning logged when other users may read the file."""
     if token_file is None:
-        return (generated_token(),)
+        given = (environ or {}).get(ADMIN_TOKEN_VARIABLE, '')
+        if not given:
+            return (generated_token(),)
+        if not TOKEN.fullmatch(given) or len(given) < TOKEN_MIN_CHARACTERS:
+            raise SystemExit(
+                f'{program}: {ADMIN_TOKEN_VARIABLE} is no token: at least '
+                f'{TOKEN_MIN_CHARACTERS} printable ASCII characters without spaces'
+            )
+        return (Token(given, Role.ADMIN, GENERATED_NAME),)
     try:
         tokens = read_token_file(token_file)
     except TokenFileError as error:

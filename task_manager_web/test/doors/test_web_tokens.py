@@ -9,14 +9,17 @@ from typing import Any
 
 import pytest
 
+from task_manager.core.bounds import TOKEN_MIN_CHARACTERS
 from task_manager.gateway.secret_file import exposure_warning
 from task_manager.testing.gateway import TIMEOUT_SEC
 from task_manager_web.doors.access import Access, check_start_priority
 from task_manager_web.doors.tokens import (
+    ADMIN_TOKEN_VARIABLE,
     GENERATED_NAME,
     Role,
     Token,
     TokenFileError,
+    door_tokens,
     generated_token,
     parse_tokens,
 )
@@ -124,6 +127,19 @@ def test_the_token_made_without_a_file_is_an_admins_named_admin() -> None:
 
     assert (token.role, token.name, len(token.secret)) == (Role.ADMIN, GENERATED_NAME, 32)
     assert generated_token().secret != token.secret
+
+
+def test_without_a_file_the_variables_token_is_the_admins_and_a_bad_one_is_refused() -> None:
+    """TASK_MANAGER_WEB_ADMIN_TOKEN: what a launcher gives the gateway it starts again."""
+    given = 'k' * TOKEN_MIN_CHARACTERS
+    (token,) = door_tokens('task-manager-web', None, {ADMIN_TOKEN_VARIABLE: given})
+    assert (token.secret, token.role, token.name) == (given, Role.ADMIN, GENERATED_NAME)
+    (made,) = door_tokens('task-manager-web', None, {})
+    assert made.secret != given and made.role is Role.ADMIN
+    for bad in ('k' * (TOKEN_MIN_CHARACTERS - 1), 'with space ' * 4):
+        with pytest.raises(SystemExit, match=f'{ADMIN_TOKEN_VARIABLE} is no token') as refused:
+            door_tokens('task-manager-web', None, {ADMIN_TOKEN_VARIABLE: bad})
+        assert bad not in str(refused.value)
 
 
 def http_scope(authorization: str) -> dict[str, Any]:
