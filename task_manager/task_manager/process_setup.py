@@ -114,11 +114,15 @@ def block_stop_signals() -> None:
 
 def on_stop_signal(stop: Callable[[], object], program: str) -> None:
     """Call `stop` from a thread of its own when the first of STOP_SIGNALS comes (they must be
-    blocked in every thread: block_stop_signals)."""
+    blocked in every thread: block_stop_signals); a second one ends the process at once, with
+    one line on stderr and exit code 1 (a second Ctrl-C: do not wait for the end)."""
 
     def wait() -> None:
         signal.sigwait(STOP_SIGNALS)
         stop()
+        signal.sigwait(STOP_SIGNALS)
+        print(f'{program}: a second signal: exiting at once', file=sys.stderr, flush=True)
+        os._exit(1)
 
     threading.Thread(target=wait, name=f'{program}-signals', daemon=True).start()
 

@@ -219,3 +219,27 @@ def test_a_program_whose_client_no_longer_hears_the_node_stops_once() -> None:
         tell(5.2)
 
     assert unheard.is_set() and stops == ['stop']
+
+
+SIGNALS_TWICE = """
+import os, signal, sys, threading, time
+from task_manager import process_setup
+process_setup.block_stop_signals()
+stopping = threading.Event()
+process_setup.on_stop_signal(stopping.set, 'a-program')
+os.kill(os.getpid(), signal.SIGINT)
+assert stopping.wait(10)
+print('stopping', flush=True)
+os.kill(os.getpid(), signal.SIGTERM)
+time.sleep(30)  # an end that takes long: the second signal does not wait for it
+"""
+
+
+def test_a_second_stop_signal_ends_the_process_at_once_with_one_line() -> None:
+    started = time.monotonic()
+    ended = subprocess.run(
+        [sys.executable, '-c', SIGNALS_TWICE], capture_output=True, text=True, timeout=60
+    )
+    assert (ended.returncode, ended.stdout) == (1, 'stopping\n')
+    assert ended.stderr == 'a-program: a second signal: exiting at once\n'
+    assert time.monotonic() - started < 20
