@@ -47,8 +47,6 @@ from task_manager_mqtt.settings import BridgeSettings, Broker
 from task_manager_mqtt.topics import Topics
 
 LOG = logging.getLogger('task_manager_mqtt')
-HISTORY_PAGE = 1000
-"""Results read from the history per call when catching up."""
 MAX_IN_FLIGHT = 200
 """QoS 1 messages sent before their acknowledgements (paho's default, 20, slows a catch-up)."""
 SESSION_EXPIRY_SEC = 7 * 24 * 3600
@@ -404,13 +402,9 @@ class Bridge:
         if not (self._broker_up and self.outbox.known and self.client.connected):
             return
         try:
-            while True:
-                page = self.client.history(
-                    after_sequence=self.outbox.sent, limit=HISTORY_PAGE, oldest_first=True
-                )
-                for state in page:
-                    self._publish_result(state.sequence, task_json(state))
-                if len(page) < HISTORY_PAGE or not self._broker_up:
+            for state in self.client.ended_after(self.outbox.sent):
+                self._publish_result(state.sequence, task_json(state))
+                if not self._broker_up:
                     return
         except TaskManagerUnavailable as error:
             LOG.warning('cannot read the history to send the results missed: %s', error)

@@ -2,7 +2,7 @@
 its durable history (read page by page, with the statistics made from it) and the declared
 tasks (read from its parameters)."""
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from datetime import UTC, datetime, timedelta
 from typing import Any
 
@@ -147,24 +147,50 @@ class HistoryQueries(ClientParts):
         The history is read by sequence, 10,000 tasks per call (each call bounded by the
         timeout).
         """
+        ended = self.ended_after(
+            task_name=task_name,
+            source=source,
+            mission_id=mission_id,
+            since=since,
+            until=until,
+            page=HISTORY_QUERY_LIMIT_MAX,
+            timeout_sec=timeout_sec,
+        )
+        return task_stats(list(ended))
+
+    def ended_after(
+        self,
+        after_sequence: int = 0,
+        *,
+        task_name: str = '',
+        source: str = '',
+        mission_id: str = '',
+        since: datetime | timedelta | None = None,
+        until: datetime | None = None,
+        page: int = 1000,
+        timeout_sec: float | None = None,
+    ) -> Iterator[TaskState]:
+        """Every ended task of the history after `after_sequence` (the filters as `history`'s),
+        oldest first, read a page of `page` at a time as the caller takes them (each read
+        bounded by the timeout): a consumer resumes after the last one it took."""
         if isinstance(since, timedelta):
             since = datetime.now(UTC) - since  # one range for every page
-        ended: list[TaskState] = []
         while True:
-            page = self.history(
+            found = self.history(
                 task_name,
                 source=source,
                 mission_id=mission_id,
                 since=since,
                 until=until,
-                after_sequence=ended[-1].sequence if ended else 0,
-                limit=HISTORY_QUERY_LIMIT_MAX,
+                after_sequence=after_sequence,
+                limit=page,
                 oldest_first=True,
                 timeout_sec=timeout_sec,
             )
-            ended.extend(page)
-            if len(page) < HISTORY_QUERY_LIMIT_MAX:
-                return task_stats(ended)
+            yield from found
+            if len(found) < page:
+                return
+            after_sequence = found[-1].sequence
 
     def declared_tasks(self) -> list[dict[str, Any]]:
         """The declared tasks and their properties, read from the node's parameters, then the

@@ -149,7 +149,6 @@ def result_line(result: TaskResult, as_json: bool) -> str:
     )
 
 
-HISTORY_PAGE = 1000
 ABOVE_MAX = 1000
 """Results shown above `ShownResults.floor` at most: more, and the numbers below them are taken
 for gone (numbers the Task Manager gave without an event: those it closed at a restart)."""
@@ -230,13 +229,11 @@ def _missed_results(client: TaskManagerClient, shown: ShownResults) -> Iterator[
     """The history's results after `shown.floor` not shown yet, oldest first, to its newest
     (those whose events are still on the way are then not shown again). Before a first result
     was shown there is no place to start from: the client's warning says events were lost."""
-    after = shown.floor
-    while after is not None:
-        page = client.history(after_sequence=after, limit=HISTORY_PAGE, oldest_first=True)
-        for state in page:
-            if shown.first_time(state.sequence):
-                yield state.to_result()
-        after = page[-1].sequence if len(page) == HISTORY_PAGE else None
+    if shown.floor is None:
+        return
+    for state in client.ended_after(shown.floor):
+        if shown.first_time(state.sequence):
+            yield state.to_result()
     shown.filled()
 
 
