@@ -234,12 +234,17 @@ class HearingWatch:
         check: HearingCheck | None = None,
         lost: LostNodeCheck | None = None,
         look: Callable[[], bool] = node_seen_anew,
+        serving: Callable[[], bool] = lambda: True,
     ) -> None:
-        """`look`: whether a new participant sees the node (a test may give its own)."""
+        """`look`: whether a new participant sees the node (a test may give its own);
+        `serving`: whether the node's ExecuteTask server has met the client. The node is
+        reached (for the lost check) when its active list reaches the client and it serves:
+        a newcomer's participant can meet the one and never the other."""
         self._connection = connection
         self._check = check or HearingCheck()
         self._lost = lost or LostNodeCheck()
         self._look = look
+        self._serving = serving
         self._seen: queue.SimpleQueue[bool] = queue.SimpleQueue()
         """What each look found, for the executor thread to take (put by the look's thread)."""
         self._log = NodeLog.of(connection.node)
@@ -262,7 +267,7 @@ class HearingWatch:
                 # the first turn, here: a hold-up before the timer's first is seen too
                 reaching = self._connection.matched()
                 self._check.turn(time.monotonic(), reaching)
-                self._lost.reaching_changed(reaching)
+                self._lost.reaching_changed(self._node_reach(reaching))
                 self._connection.reaching.add(self)
                 self._timer = node.create_timer(self._check.period_sec, self._turn)
         return remove
@@ -270,7 +275,12 @@ class HearingWatch:
     def put(self, reaching: frozenset[str]) -> None:
         """What reaches the client changed (the connection's `reaching`, on the executor)."""
         self._check.reaching_changed(time.monotonic(), reaching)
-        self._lost.reaching_changed(reaching)
+        self._lost.reaching_changed(self._node_reach(reaching))
+
+    def _node_reach(self, reaching: frozenset[str]) -> frozenset[str]:
+        """What reaches the client, the active list left out while the node does not serve
+        it (its ExecuteTask server not met)."""
+        return reaching if self._serving() else reaching - {ACTIVE_TASKS_TOPIC}
 
     def _turn(self) -> None:
         now, reaching = time.monotonic(), self._connection.matched()
@@ -296,15 +306,17 @@ class HearingWatch:
     def _turn_lost(self, now: float, reaching: frozenset[str]) -> None:
         while not self._seen.empty():
             self._lost.looked(now, self._seen.get())
-        step = self._lost.turn(now, reaching)
+        step = self._lost.turn(now, self._node_reach(reaching))
         if step is Step.LOOK:
             threading.Thread(target=self._look_anew, name='task-manager-look', daemon=True).start()
         elif step is Step.UNHEARD:
             lost_for = self._lost.lost_for(now)
             self._log.error(
-                f'the Task Manager has not reached this process for {lost_for:.0f} s, though '
-                'a new participant of it sees the node (DDS can stay one-sided after a '
-                'participant was held up past the lease): a new process is needed'
+                f'the Task Manager has not reached this process for {lost_for:.0f} s (its '
+                'active list, or its ExecuteTask server), though a new participant of it sees '
+                'the node (DDS can stay one-sided after a participant was held up past the '
+                'lease, and a newcomer can miss some of the node for good): a new process is '
+                'needed'
             )
             self.unheard.put(lost_for)
 

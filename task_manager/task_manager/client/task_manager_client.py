@@ -55,7 +55,7 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
         self._results = self._tasks.results
         self._events = self._tasks.events
         self._services = ServiceCalls(self._connection)
-        self._hearing = HearingWatch(self._connection)
+        self._hearing = HearingWatch(self._connection, serving=self._tasks.serving)
         self._connection.start()
 
     @property

@@ -116,6 +116,10 @@ class Tasks:
         """StartTask (a request with options), made on first use."""
         connection.subscribe(TaskDoneResult, RESULTS_TOPIC, qos.RESULTS, self._on_result)
 
+    def serving(self) -> bool:
+        """Whether the Task Manager's ExecuteTask server has met this client now."""
+        return self._execute_task.server_is_ready()
+
     def wait_until_available(self, timeout_sec: float | None, *, events: bool) -> None:
         """See TaskManagerClient.wait_until_available."""
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec

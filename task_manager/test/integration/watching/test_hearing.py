@@ -314,3 +314,22 @@ def test_a_client_that_never_met_a_node_which_a_new_participant_sees_is_told(
     lost_for = told.get(timeout=TIMEOUT_SEC)
     assert len(looks) == 1 and looks[0] - started_at >= 0.5
     assert lost_for >= 1.0  # lost_sec, then the grace
+
+
+def test_a_client_whose_node_never_serves_it_which_a_new_participant_sees_is_told(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str, connection: Connection
+) -> None:
+    """The node's active list reaches the client, its ExecuteTask server never does (here a
+    stand-in says so, as for a newcomer whose participant missed the node's action server):
+    the node counts as not reached, and once a look sees it the listeners are told."""
+    _launch(launch_task_manager, topic_prefix)
+    lost = LostNodeCheck(lost_sec=0.5, look_again_sec=TIMEOUT_SEC, grace_sec=0.5)
+    check = HearingCheck(period_sec=PERIOD_SEC)
+    watch = HearingWatch(connection, check, lost, look=lambda: True, serving=lambda: False)
+    connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
+    connection.start()
+    assert connection.wait_matched({ACTIVE_TASKS_TOPIC}, TIMEOUT_SEC)
+    told: queue.SimpleQueue[float] = queue.SimpleQueue()
+    watch.add(told.put)
+
+    assert told.get(timeout=TIMEOUT_SEC) >= 1.0  # lost_sec, then the grace
