@@ -5,6 +5,8 @@ events were lost. (Through real DDS, a process stopped while the node floods it:
 closing note of 2026-11-30, the client at times heard nothing more at all.)"""
 
 import queue
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 from typing import Any
 
@@ -191,12 +193,7 @@ def test_the_adapter_reads_its_tasks_again_when_its_client_lost_events() -> None
     """The adapter as it runs (its worker thread), with its client's callbacks: told that
     events were lost, it asks the states of the order's tasks and takes their ends."""
     client, link = FollowsNothing(), StateLink()
-    adapter = Adapter(client, [], link, MAPPING)  # type: ignore[arg-type]
-    adapter.start()
-    try:
-        payload = with_header(order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0)))
-        adapter.on_message('order', payload.encode())
-        until_state(link, lambda s: s['orderId'] == 'o')
+    with order_running(client, link):
         assert client.started == ['o']
         client.states = {i: state_of(i, TaskStatus.DONE) for i in ('o/a/0', 'o/b/2', 'o')}
 
@@ -205,6 +202,19 @@ def test_the_adapter_reads_its_tasks_again_when_its_client_lost_events() -> None
 
         done = until_state(link, lambda s: s['lastNodeId'] == 'b')
         assert (done['driving'], done['nodeStates'], done['edgeStates']) == (False, [], [])
+
+
+@contextmanager
+def order_running(client: FollowsNothing, link: StateLink) -> Iterator[Adapter]:
+    """The adapter as it runs (its worker thread) with order `o` (nodes a, b) taken; stopped
+    after."""
+    adapter = Adapter(client, [], link, MAPPING)  # type: ignore[arg-type]
+    adapter.start()
+    try:
+        payload = with_header(order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0)))
+        adapter.on_message('order', payload.encode())
+        until_state(link, lambda s: s['orderId'] == 'o')
+        yield adapter
     finally:
         adapter.stop()
 
@@ -216,12 +226,7 @@ def test_a_read_that_failed_is_made_again_until_one_is_answered(
     again a moment later (CATCH_UP_AGAIN_SEC), and takes their ends then."""
     monkeypatch.setattr(adapter_module, 'CATCH_UP_AGAIN_SEC', 0.1)
     client, link = FollowsNothing(), StateLink()
-    adapter = Adapter(client, [], link, MAPPING)  # type: ignore[arg-type]
-    adapter.start()
-    try:
-        payload = with_header(order('o', node('a', 0, 0.0, 0.0), node('b', 2, 1.0, 0.0)))
-        adapter.on_message('order', payload.encode())
-        until_state(link, lambda s: s['orderId'] == 'o')
+    with order_running(client, link):
         client.states = {i: state_of(i, TaskStatus.DONE) for i in ('o/a/0', 'o/b/2', 'o')}
         client.unavailable = 2
 
@@ -230,8 +235,6 @@ def test_a_read_that_failed_is_made_again_until_one_is_answered(
 
         done = until_state(link, lambda s: s['lastNodeId'] == 'b')
         assert (done['driving'], done['nodeStates'], client.asked) == (False, [], 3)
-    finally:
-        adapter.stop()
 
 
 def test_tasks_of_an_earlier_adapter_are_cancelled_at_start_and_state_says_so() -> None:

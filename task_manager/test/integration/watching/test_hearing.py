@@ -262,32 +262,49 @@ def test_a_new_participant_sees_a_running_node_and_not_a_stopped_one(
     assert not node_seen_anew(1.0)
 
 
+class LostWatch:
+    """A connection following the active lists, its lost check with short times and a look
+    that always sees the node (as a new participant sees a node the client is deaf to); when
+    it looked, and what its listeners are told."""
+
+    def __init__(self, connection: Connection, serving: bool = True) -> None:
+        self.looks: list[float] = []
+        self.told: queue.SimpleQueue[float] = queue.SimpleQueue()
+        lost = LostNodeCheck(lost_sec=0.5, look_again_sec=TIMEOUT_SEC, grace_sec=0.5)
+        self._watch = HearingWatch(
+            connection,
+            HearingCheck(period_sec=PERIOD_SEC),
+            lost,
+            look=self._look,
+            serving=lambda: serving,
+        )
+        connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
+        connection.start()
+
+    def _look(self) -> bool:
+        self.looks.append(time.monotonic())
+        return True
+
+    def start(self) -> float:
+        """Start the checks; when."""
+        self._watch.add(self.told.put)
+        return time.monotonic()
+
+
 def test_a_client_that_lost_its_node_which_a_new_participant_sees_is_told(
     launch_task_manager: LaunchTaskManager, topic_prefix: str, connection: Connection
 ) -> None:
-    """The node stopped (SIGINT): the client loses it; the look (here a stand-in that sees
-    it, as a new participant sees a node the client is deaf to) makes the client's listeners
+    """The node stopped (SIGINT): the client loses it; the look makes the client's listeners
     told once the grace is over."""
     node = _launch(launch_task_manager, topic_prefix)
-    looks: list[float] = []
-
-    def look() -> bool:
-        looks.append(time.monotonic())
-        return True
-
-    lost = LostNodeCheck(lost_sec=0.5, look_again_sec=TIMEOUT_SEC, grace_sec=0.5)
-    watch = HearingWatch(connection, HearingCheck(period_sec=PERIOD_SEC), lost, look)
-    connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
-    connection.start()
+    watch = LostWatch(connection)
     assert connection.wait_matched({ACTIVE_TASKS_TOPIC}, TIMEOUT_SEC)
-    told: queue.SimpleQueue[float] = queue.SimpleQueue()
-    watch.add(told.put)
-    stopped_at = time.monotonic()
+    stopped_at = watch.start()
 
     assert node.stop() == 0
 
-    lost_for = told.get(timeout=TIMEOUT_SEC)
-    assert len(looks) == 1 and looks[0] - stopped_at >= 0.5
+    lost_for = watch.told.get(timeout=TIMEOUT_SEC)
+    assert len(watch.looks) == 1 and watch.looks[0] - stopped_at >= 0.5
     assert lost_for >= 1.0  # lost_sec, then the grace
 
 
@@ -295,41 +312,24 @@ def test_a_client_that_never_met_a_node_which_a_new_participant_sees_is_told(
     connection: Connection,
 ) -> None:
     """No node in reach of the client (as a newcomer whose participant never matches the
-    node's endpoints while others do): the look, a stand-in that sees one, makes the client's
-    listeners told once the grace is over."""
-    looks: list[float] = []
+    node's endpoints while others do): told once a look saw one and the grace is over."""
+    watch = LostWatch(connection)
+    started_at = watch.start()
 
-    def look() -> bool:
-        looks.append(time.monotonic())
-        return True
-
-    lost = LostNodeCheck(lost_sec=0.5, look_again_sec=TIMEOUT_SEC, grace_sec=0.5)
-    watch = HearingWatch(connection, HearingCheck(period_sec=PERIOD_SEC), lost, look)
-    connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
-    connection.start()
-    told: queue.SimpleQueue[float] = queue.SimpleQueue()
-    started_at = time.monotonic()
-    watch.add(told.put)
-
-    lost_for = told.get(timeout=TIMEOUT_SEC)
-    assert len(looks) == 1 and looks[0] - started_at >= 0.5
+    lost_for = watch.told.get(timeout=TIMEOUT_SEC)
+    assert len(watch.looks) == 1 and watch.looks[0] - started_at >= 0.5
     assert lost_for >= 1.0  # lost_sec, then the grace
 
 
 def test_a_client_whose_node_never_serves_it_which_a_new_participant_sees_is_told(
     launch_task_manager: LaunchTaskManager, topic_prefix: str, connection: Connection
 ) -> None:
-    """The node's active list reaches the client, its ExecuteTask server never does (here a
-    stand-in says so, as for a newcomer whose participant missed the node's action server):
+    """The node's active list reaches the client, its ExecuteTask server never does (here the
+    check is told so, as for a newcomer whose participant missed the node's action server):
     the node counts as not reached, and once a look sees it the listeners are told."""
     _launch(launch_task_manager, topic_prefix)
-    lost = LostNodeCheck(lost_sec=0.5, look_again_sec=TIMEOUT_SEC, grace_sec=0.5)
-    check = HearingCheck(period_sec=PERIOD_SEC)
-    watch = HearingWatch(connection, check, lost, look=lambda: True, serving=lambda: False)
-    connection.subscribe(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS, lambda _: None)
-    connection.start()
+    watch = LostWatch(connection, serving=False)
     assert connection.wait_matched({ACTIVE_TASKS_TOPIC}, TIMEOUT_SEC)
-    told: queue.SimpleQueue[float] = queue.SimpleQueue()
-    watch.add(told.put)
+    watch.start()
 
-    assert told.get(timeout=TIMEOUT_SEC) >= 1.0  # lost_sec, then the grace
+    assert watch.told.get(timeout=TIMEOUT_SEC) >= 1.0  # lost_sec, then the grace
