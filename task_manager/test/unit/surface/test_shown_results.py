@@ -3,6 +3,7 @@ once, whatever the order, and where to read the history from when events went mi
 follow itself with its client's callbacks. (Through real DDS, taskctl stopped while the node
 floods it: see the closing note of 2026-11-30, the client at times heard nothing more at all.)"""
 
+from collections.abc import Iterator
 from datetime import UTC, datetime
 from typing import Any
 
@@ -88,9 +89,8 @@ class HistoryOnly:
         self.on_lost.append(callback)
         return lambda: None
 
-    def history(self, *, after_sequence: int, limit: int, oldest_first: bool) -> list[TaskState]:
-        assert oldest_first
-        return [s for s in self.kept if s.sequence > after_sequence][:limit]
+    def ended_after(self, after_sequence: int) -> Iterator[TaskState]:
+        return (s for s in self.kept if s.sequence > after_sequence)
 
 
 def ended(sequence: int) -> TaskState:

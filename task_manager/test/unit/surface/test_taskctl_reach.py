@@ -15,9 +15,11 @@ from task_manager.cli.common import reach
 class StandIn:
     """A client that meets the Task Manager or never does; what was asked of it."""
 
-    def __init__(self, timeout_sec: float, meets: bool) -> None:
+    def __init__(self, timeout_sec: float, meets: bool, meets_late: bool = False) -> None:
+        """`meets_late`: not within its first wait, at any later one (a slow participant)."""
         self.timeout_sec = timeout_sec
         self.meets = meets
+        self.meets_late = meets_late
         self.waits: list[tuple[float, bool, tuple[str, ...]]] = []
         self.closed = 0
 
@@ -30,7 +32,7 @@ class StandIn:
     ) -> None:
         assert timeout_sec is not None
         self.waits.append((timeout_sec, events, tuple(services)))
-        if not self.meets:
+        if not (self.meets or (self.meets_late and len(self.waits) > 1)):
             raise TaskManagerUnavailable(f'no Task Manager answered within {timeout_sec:g} s')
 
     def close(self) -> None:
@@ -79,3 +81,15 @@ def test_when_neither_meets_it_both_are_closed_and_the_error_says_so() -> None:
         'no Task Manager answered within 2.5 s (and 2.5 s before with another DDS participant)'
     )
     assert first.closed == 1 and made[0].closed == 1
+
+
+def test_a_first_client_that_met_the_node_meanwhile_is_kept_if_the_new_one_did_not() -> None:
+    """A loaded machine: the first participant slower than half the timeout, not unlucky."""
+    first = StandIn(10.0, meets=False, meets_late=True)
+    made, new_client = _new_clients(False)
+    unheard = threading.Event()
+
+    kept = reach(first, unheard, new_client, events=True)
+
+    assert kept == (first, unheard) and first.closed == 0 and made[0].closed == 1
+    assert first.waits == [(5.0, True, ()), (0.0, True, ())]
