@@ -1,5 +1,6 @@
 """Fixtures of every test tree: an isolated ROS domain per test run, an in-process ROS node."""
 
+import faulthandler
 import json
 import math
 import os
@@ -49,6 +50,7 @@ os.environ['ROS_HOME'] = os.path.join(
 
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TextIO
 
 import pytest
 import rclpy
@@ -63,6 +65,39 @@ def pytest_configure(config: pytest.Config) -> None:
     none of them writes a core file."""
     prepare_ros_process()
     resource.setrlimit(resource.RLIMIT_CORE, (0, resource.getrlimit(resource.RLIMIT_CORE)[1]))
+
+
+STUCK_GRACE_SEC = 30.0
+"""How long after its timeout a test whose process cannot run Python ends that process."""
+STUCK_FILE = 'stuck-test-stacks.txt'
+_stuck: list[TextIO] = []  # the process's STUCK_FILE, open while it runs
+
+
+def _stuck_file() -> TextIO:
+    """STUCK_FILE of this process (opened on first use)."""
+    if not _stuck:
+        path = Path(os.environ['ROS_HOME']) / STUCK_FILE
+        path.parent.mkdir(parents=True, exist_ok=True)
+        _stuck.append(path.open('a', encoding='utf-8'))
+    return _stuck[0]
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    """pytest-timeout ends a test past its timeout from a thread of Python, which cannot run
+    while a call into C holds the GIL (rclpy destroying a node's DDS participant while Fast DDS
+    3.2 spins: docs/faults-and-shutdown.md). faulthandler's watchdog, a thread of C, ends this
+    test process STUCK_GRACE_SEC after the test's timeout, after every thread's stack: the run
+    fails naming the test (pytest.ini: a crashed worker is not replaced) instead of hanging.
+    The stacks go to STUCK_FILE in the process's ROS_HOME (its stderr is pytest's capture)."""
+    marker = item.get_closest_marker('timeout')
+    timeout = float(marker.args[0] if marker and marker.args else item.config.getini('timeout'))
+    if timeout > 0:
+        faulthandler.dump_traceback_later(timeout + STUCK_GRACE_SEC, exit=True, file=_stuck_file())
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 @pytest.fixture(scope='session')
