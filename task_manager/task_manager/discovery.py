@@ -22,6 +22,14 @@ participant after half its timeout and a gateway's hearing check looks for a nod
 met). Any message from a participant renews its lease; a silent one announces itself 5 times
 in it.
 
+The profile also turns Fast DDS's type propagation off (XTypes' TypeLookup service, which
+ROS 2 does not use: rmw_fastrtps matches types by name and hash). Its request thread answered
+other participants' questions about this one's types, and a participant deleted while it did
+crashed the process (a null mutex in `WriterHistory::create_change`, seen in core files): a
+segmentation fault as a program ended soon after it started, a taskctl or a node refusing its
+parameters, in 6 of 480 demo starts with a bad parameters file beside a starting robot and web
+gateway; none of 300 with it off.
+
 Call `use_quick_discovery()` before rclpy starts a participant; a profile file the user gives
 Fast DDS (FASTDDS_DEFAULT_PROFILES_FILE) is left alone.
 """
