@@ -141,10 +141,9 @@ class Demo(Supervisor):
         start_robot(self, self.params_file)
         if self.web_port is not None:
             web = [find_executable(*WEB_EXECUTABLE), '--port', str(self.web_port)]
-            env = {WEB_ADMIN_TOKEN_VARIABLE: self.admin_token}
             if self.token_file is not None:
                 web += ['--token-file', str(self.token_file)]
-                env = {}
+            env = {WEB_ADMIN_TOKEN_VARIABLE: self.admin_token} if self.token_file is None else {}
             self.start_child('web', web, WEB_READY, env=env)
 
     def banner(self, ready: dict[str, str]) -> str:

@@ -40,9 +40,10 @@ from task_manager_vda5050.state.vehicle_state import VehicleState
 LOG = logging.getLogger('task_manager_vda5050')
 STATE_PERIOD_SEC = 30.0
 MESSAGES_DROPPED = 'messagesDropped'
-ORDER_LOST = 'orderLost'
-"""state.errors when the adapter started while tasks of an earlier adapter of the vehicle ran."""
 """The errorType of the error saying how many inbound messages were dropped unread."""
+ORDER_LOST = 'orderLost'
+"""The errorType of the error saying the adapter started while tasks of an earlier adapter of
+the vehicle ran (cancelled)."""
 
 
 @dataclass(frozen=True)
@@ -98,10 +99,10 @@ class Stop:
 
 Item = Inbound | TaskEvent | Connected | EventsLost | Stop
 CAUGHT_UP = 'read again: task events of it went missing'
+"""The reason of an event that stands in for lost ones (see standing_in)."""
 CATCH_UP_AGAIN_SEC = 2.0
 """How long after a read of the tasks followed failed (the Task Manager unavailable or slow
 to answer) the adapter reads them again, until one succeeds."""
-"""The reason of an event that stands in for lost ones (see standing_in)."""
 
 
 def standing_in(task: TaskState) -> TaskEvent | None:

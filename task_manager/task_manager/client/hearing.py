@@ -154,9 +154,8 @@ class HearingCheck:
 
 class LostNodeCheck:
     """Whether a client that lost the node, or never met it, is deaf to it: decisions from
-    the times of the
-    check's turns, whether the node's active list reaches the client and what a new
-    participant saw; no ROS here."""
+    the times of the check's turns, whether the node's active list reaches the client and
+    what a new participant saw; no ROS here."""
 
     def __init__(
         self,

@@ -11,7 +11,7 @@ from rclpy.parameter import parameter_value_to_python
 from task_manager_msgs.srv import GetTaskResults, GetTaskStates, QueryTaskHistory
 
 from task_manager.client.records import Decision, TaskResult, TaskState
-from task_manager.client.services import ClientParts
+from task_manager.client.services import ClientParts, id_asks
 from task_manager.core.errors import TaskManagerError
 from task_manager.core.history.stats import TaskStats, task_stats
 from task_manager.core.names import (
@@ -19,7 +19,6 @@ from task_manager.core.names import (
     GET_TASK_RESULTS_SERVICE,
     GET_TASK_STATES_SERVICE,
     HISTORY_QUERY_LIMIT_MAX,
-    IDS_MAX,
     LIST_PARAMETERS_SERVICE,
     QUERY_TASK_HISTORY_SERVICE,
 )
@@ -41,9 +40,8 @@ class HistoryQueries(ClientParts):
         Ids the Task Manager does not know are left out. More than IDS_MAX ids (what it answers
         in one request) are asked in several.
         """
-        asks = [list(task_ids[i : i + IDS_MAX]) for i in range(0, len(task_ids), IDS_MAX)]
         states = []
-        for ids in asks or [[]]:  # no ids: one request, for every active task
+        for ids in id_asks(task_ids):  # no ids: one request, for every active task
             request = GetTaskStates.Request(task_ids=ids)
             response = self._call(GetTaskStates, GET_TASK_STATES_SERVICE, request, timeout_sec)
             states += [TaskState.from_message(m) for m in response.tasks]

@@ -17,11 +17,11 @@ from task_manager.client.schedules import (
     schedule_request,
     when_of,
 )
-from task_manager.client.services import ClientParts
+from task_manager.client.services import ClientParts, id_asks
 from task_manager.client.tasks import request_options
 from task_manager.core.admission.options import OnConflict, RequestOptions
 from task_manager.core.names import ENABLE_SCHEDULE as ENABLE_SCHEDULE_TASK
-from task_manager.core.names import GET_SCHEDULES_SERVICE, IDS_MAX, MISSION
+from task_manager.core.names import GET_SCHEDULES_SERVICE, MISSION
 from task_manager.core.names import SCHEDULE as SCHEDULE_TASK
 from task_manager.core.names import UNSCHEDULE as UNSCHEDULE_TASK
 
@@ -156,10 +156,8 @@ class Scheduling(ClientParts):
         """These schedules (ids that are not schedules are left out), or every one (None).
         More than IDS_MAX ids (what the Task Manager answers in one request) are asked in
         several."""
-        ids = list(schedule_ids or [])
-        asks = [ids[i : i + IDS_MAX] for i in range(0, len(ids), IDS_MAX)]
         schedules = []
-        for some_ids in asks or [[]]:  # no ids: one request, for every schedule
+        for some_ids in id_asks(schedule_ids or []):
             request = GetSchedules.Request(schedule_ids=some_ids)
             response = self._call(GetSchedules, GET_SCHEDULES_SERVICE, request, timeout_sec)
             schedules += [ScheduleInfo.from_message(m) for m in response.schedules]

@@ -4,7 +4,7 @@ is lost, and what every part of the client stands on (`ClientParts`)."""
 
 import threading
 import time
-from collections.abc import Collection
+from collections.abc import Collection, Sequence
 from typing import Any
 
 from rcl_interfaces.srv import GetParameters, ListParameters
@@ -27,6 +27,7 @@ from task_manager.core.names import (
     GET_SCHEDULES_SERVICE,
     GET_TASK_RESULTS_SERVICE,
     GET_TASK_STATES_SERVICE,
+    IDS_MAX,
     LIST_PARAMETERS_SERVICE,
     QUERY_TASK_HISTORY_SERVICE,
 )
@@ -42,6 +43,12 @@ SERVICE_TYPES: dict[str, Any] = {
     GET_PARAMETERS_SERVICE: GetParameters,
 }
 """key: a service of the Task Manager that the client calls, value: its type."""
+
+
+def id_asks(ids: Sequence[str]) -> list[list[str]]:
+    """`ids` in requests of at most IDS_MAX (what the Task Manager answers of one request);
+    no ids: one request without any, which asks for every one."""
+    return [list(ids[i : i + IDS_MAX]) for i in range(0, len(ids), IDS_MAX)] or [[]]
 
 
 class ClientParts:

@@ -211,9 +211,9 @@ class Orders:
             self._move(event.task.feedback)
         elif kind is TaskEventKind.ENDED:
             self.state.driving = False
-            after_reaching = self.running.after_reaching if self.running else {}
             if event.task.status is not TaskStatus.DONE:
                 return
+            after_reaching = self.running.after_reaching if self.running else {}
             if drive.sequence_id > self._reached:
                 self._reached = drive.sequence_id
                 self._move(event.task.result)

@@ -23,10 +23,10 @@ from task_manager.core.sources import SOURCE_NAME, SOURCE_NAME_RULE
 from task_manager.gateway.secret_file import exposure_warning
 
 GENERATED_NAME = 'admin'
+"""The name of the token the gateway makes when it is given no token file."""
 ADMIN_TOKEN_VARIABLE = 'TASK_MANAGER_WEB_ADMIN_TOKEN'
 """The admin token of a gateway given no token file, instead of one made at its start: a
 launcher that starts the gateway again gives the new one the token the dashboard holds."""
-"""The name of the token the gateway makes when it is given no token file."""
 NAME = SOURCE_NAME
 """A token's name: it ends up in the source of every task the token starts (`WEB:alice`)."""
 TOKEN = re.compile(r'[!-~]+')
