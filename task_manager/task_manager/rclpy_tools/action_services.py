@@ -18,6 +18,7 @@ from rclpy.subscription import Subscription
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
+from task_manager.rclpy_tools.calls import call_async
 from task_manager.rclpy_tools.futures import completed_future
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, RESULT_REPLIES
 from task_manager.rclpy_tools.request_window import DEFAULT_SLOT_TIMEOUT_SEC, RequestWindow
@@ -121,7 +122,7 @@ class ActionServicesClient:
         request = self._impl.SendGoalService.Request(goal_id=_uuid(goal_id), goal=goal)
         if self._windows is not None:
             return goal_id, self._windows[0].call_async(request)
-        return goal_id, self._send_goal.call_async(request)
+        return goal_id, call_async(self._send_goal, request)
 
     def get_result(self, goal_id: bytes, again: bool = False) -> Future[Any]:
         """A future of the GetResult response (`status`, `result`), once the goal has ended.
@@ -131,7 +132,7 @@ class ActionServicesClient:
         request = self._impl.GetResultService.Request(goal_id=_uuid(goal_id))
         if again and self._windows is not None:
             return self._windows[1].call_async(request)
-        return self._get_result.call_async(request)
+        return call_async(self._get_result, request)
 
     def cancel(self, goal_id: bytes) -> Future[Any]:
         """A future of the CancelGoal response for one goal."""
@@ -139,7 +140,7 @@ class ActionServicesClient:
         request.goal_info.goal_id = _uuid(goal_id)
         if self._windows is not None:
             return self._windows[2].call_async(request)
-        return self._cancel.call_async(request)
+        return call_async(self._cancel, request)
 
     def goal_sent(self, future: Future[Any]) -> Future[None]:
         """A future done once a SendGoal request is sent to the server: at once, or once it

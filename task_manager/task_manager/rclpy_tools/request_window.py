@@ -30,6 +30,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
 
+from task_manager.rclpy_tools.calls import call_async
 from task_manager.rclpy_tools.futures import completed_future
 
 # Below the 10 unread requests rclpy's and rclcpp's servers keep by default.
@@ -124,7 +125,7 @@ class RequestWindow:
                 continue
             self._unsent.discard(future)
             number = next(self._numbers)
-            sent = self._client.call_async(request)
+            sent = call_async(self._client, request)
             self._sent[future] = _Sent(sent, number)
             self._in_flight[future] = (number, now)
             sent.add_done_callback(functools.partial(self._answered, future))

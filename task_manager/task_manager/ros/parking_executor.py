@@ -17,6 +17,11 @@ the entities found ready by one wait are still all handled before any of them.
 A service or a client that had a request (a response) taken in a turn is taken from again at
 the end of that turn, within the same limit, until it has none: rclpy takes one message per
 entity per wait, so a burst of 500 goals cost 500 wait sets on ExecuteTask's send_goal alone.
+That next message is taken before a task is made for it: one with none left costs no task.
+
+A response completes its request's future in its handler, whose done callbacks run there and
+then (rclpy_tools.calls): rclpy gives the future its executor first, which runs each done
+callback as a task of its own, and finds the request among all those pending.
 
 What gathers the changes of a turn (a history commit, a list published whole) is queued with
 `spawn_after_turn`: it runs once nothing else is ready, just before the executor waits again;
@@ -51,6 +56,7 @@ from rclpy.node import Node
 from rclpy.service import Service
 from rclpy.task import Future, Task
 
+from task_manager.rclpy_tools.calls import take_pending
 from task_manager.rclpy_tools.wakeless_executor import Execute, Take, WakelessExecutor
 
 _noted = threading.local()
@@ -202,11 +208,31 @@ class ParkingExecutor(WakelessExecutor):
         return task, None, None
 
     def _next_take(self) -> tuple[Task[None], Any, Node] | None:
+        """The handler of the next message of a service or client taken from this turn: taken
+        first, so that one with none left costs no task."""
         while self._taken and not self._is_shutdown:
             entity, node, take = self._taken.popleft()
-            if self.can_execute(entity):
-                return self._make_handler(entity, node, take), entity, node
+            group = entity.callback_group
+            if not self.can_execute(entity) or not group.beginning_execution(entity):
+                continue
+            execute = take(entity)
+            if execute is None:
+                group.ending_execution(entity)
+                continue
+            self._taken.append((entity, node, take))
+            task = _ParkingTask(self, self._run_taken, (entity, execute), {})
+            with self._tasks_lock:
+                self._tasks.append((task, entity, node))
+            return task, entity, node
         return None
+
+    async def _run_taken(self, entity: Any, execute: Execute) -> None:
+        """The callback of a message `_next_take` took, within the entity's callback group."""
+        with self._work_tracker:
+            try:
+                await execute()
+            finally:
+                entity.callback_group.ending_execution(entity)
 
     def _take_service(self, srv: Service[Any, Any]) -> Execute | None:
         """rclpy's take of one request, but None when there was none."""
@@ -235,12 +261,9 @@ class ParkingExecutor(WakelessExecutor):
             return None
 
         async def execute() -> None:
-            try:
-                future = client.get_pending_request(header.request_id.sequence_number)
-            except KeyError:
-                return  # the request was cancelled
-            future._set_executor(self)
-            future.set_result(response)
+            future = take_pending(client, header.request_id.sequence_number)
+            if future is not None and not future.done():  # else it was cancelled
+                future.set_result(response)  # its done callbacks run now (rclpy_tools.calls)
 
         return execute
 
