@@ -210,7 +210,6 @@ vda5050: install
 	ROS_HOME=$(DEMO_ROS_HOME) $(PY) -m task_manager_demo.run_vda5050 --broker-port $(FLEET_PORT)
 
 bench: install
-	$(UV_INSTALL) -r requirements/bench.txt
 	$(PY) -m bench
 
 clean:

@@ -58,6 +58,7 @@ import rclpy
 from task_manager.process_setup import prepare_ros_process
 from task_manager.testing.gateway import Robot, ScriptedRobot
 from task_manager.testing.harness import RosHarness
+from task_manager.testing.native_stacks import NativeStacks
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -69,17 +70,26 @@ def pytest_configure(config: pytest.Config) -> None:
 
 STUCK_GRACE_SEC = 30.0
 """How long after its timeout a test whose process cannot run Python ends that process."""
+NATIVE_STACKS_BEFORE_SEC = 15.0
+"""How long before that end the process's native stacks are written (py-spy takes 1-3 s)."""
 STUCK_FILE = 'stuck-test-stacks.txt'
 _stuck: list[TextIO] = []  # the process's STUCK_FILE, open while it runs
+
+
+def _stuck_path() -> Path:
+    return Path(os.environ['ROS_HOME']) / STUCK_FILE
 
 
 def _stuck_file() -> TextIO:
     """STUCK_FILE of this process (opened on first use)."""
     if not _stuck:
-        path = Path(os.environ['ROS_HOME']) / STUCK_FILE
+        path = _stuck_path()
         path.parent.mkdir(parents=True, exist_ok=True)
         _stuck.append(path.open('a', encoding='utf-8'))
     return _stuck[0]
+
+
+_native_stacks = NativeStacks(_stuck_path())
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -89,15 +99,19 @@ def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> 
     3.2 spins: docs/faults-and-shutdown.md). faulthandler's watchdog, a thread of C, ends this
     test process STUCK_GRACE_SEC after the test's timeout, after every thread's stack: the run
     fails naming the test (pytest.ini: a crashed worker is not replaced) instead of hanging.
-    The stacks go to STUCK_FILE in the process's ROS_HOME (its stderr is pytest's capture)."""
+    The stacks go to STUCK_FILE in the process's ROS_HOME (its stderr is pytest's capture),
+    after the threads' native stacks, where a lock cycle in C is read (testing.native_stacks)."""
     marker = item.get_closest_marker('timeout')
     timeout = float(marker.args[0] if marker and marker.args else item.config.getini('timeout'))
     if timeout > 0:
         faulthandler.dump_traceback_later(timeout + STUCK_GRACE_SEC, exit=True, file=_stuck_file())
+        _native_stacks.arm(timeout + STUCK_GRACE_SEC - NATIVE_STACKS_BEFORE_SEC)
     try:
         yield
     finally:
         faulthandler.cancel_dump_traceback_later()
+        if timeout > 0:
+            _native_stacks.disarm()
 
 
 @pytest.fixture(scope='session')

@@ -139,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ['ROS_HOME'] = str(log_dir / 'ros_home')
     profiling = not args.no_profile and bool(py_spy_executable())
     if not args.no_profile and not profiling:
-        print('[bench] py-spy not found: no profile (pip install -r requirements/bench.txt)')
+        print('[bench] py-spy not found: no profile (make install installs it)')
     with running_bench(log_dir, profiling) as ctx:
         ok = True
         goals_ended = time.monotonic()

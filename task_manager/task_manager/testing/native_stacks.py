@@ -1,0 +1,111 @@
+"""A watcher process that writes the native stacks of its parent, a test process, when a test
+runs past its deadline: faulthandler's watchdog (conftest.py) prints only the Python stacks, and
+a process stuck inside Fast DDS is stuck in C, where the lock cycle is to be read.
+
+The parent writes each test's deadline, in seconds from now, as a line to the watcher's stdin,
+and `off` when the test ends; at a deadline passed, the watcher appends `py-spy dump --native`
+of the parent to its file, once. It ends when its stdin closes (the parent has gone).
+
+Run as `python -m task_manager.testing.native_stacks FILE`.
+"""
+
+import os
+import select
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+DUMP_TIMEOUT_SEC = 60.0
+OFF = 'off'
+
+
+def py_spy() -> str | None:
+    """The py-spy beside this interpreter (the venv's), else on PATH; None without one."""
+    beside = Path(sys.executable).with_name('py-spy')
+    return str(beside) if beside.exists() else shutil.which('py-spy')
+
+
+def watch(commands: int, out: Path, dump: list[str], parent: int) -> None:
+    """Follow the deadlines on the file descriptor `commands` until it closes; at one passed,
+    `dump` of `parent`. Read unbuffered: a line left in a buffer would be a deadline missed."""
+    deadline: float | None = None
+    pending = b''
+    while True:
+        wait = None if deadline is None else max(deadline - time.monotonic(), 0.0)
+        if select.select([commands], [], [], wait)[0]:
+            chunk = os.read(commands, 4096)
+            if not chunk:
+                return
+            *lines, pending = (pending + chunk).split(b'\n')
+            for line in lines:
+                command = line.decode().strip()
+                deadline = None if command == OFF else time.monotonic() + float(command)
+        elif deadline is not None:
+            deadline = None
+            with out.open('a', encoding='utf-8') as file:
+                file.write(f'native stacks of process {parent}, {time.ctime()}:\n')
+                file.flush()
+                try:
+                    subprocess.run(
+                        [*dump, '--pid', str(parent)],
+                        stdout=file,
+                        stderr=subprocess.STDOUT,
+                        timeout=DUMP_TIMEOUT_SEC,
+                        check=False,
+                    )
+                except (OSError, subprocess.TimeoutExpired) as error:
+                    file.write(f'no native stacks: {error}\n')
+
+
+class NativeStacks:
+    """The parent's end: a watcher started on first use when py-spy is there, else nothing."""
+
+    def __init__(self, out: Path) -> None:
+        self._out = out
+        self._watcher: subprocess.Popen[str] | None = None
+        self._tried = False
+
+    def arm(self, after_sec: float) -> None:
+        """Dump this process's native stacks `after_sec` from now, unless disarmed first."""
+        self._send(f'{after_sec:.3f}')
+
+    def disarm(self) -> None:
+        self._send(OFF)
+
+    def _send(self, command: str) -> None:
+        watcher = self._start()
+        if watcher is None or watcher.stdin is None:
+            return
+        try:
+            watcher.stdin.write(command + '\n')
+            watcher.stdin.flush()
+        except OSError:  # the watcher has gone: the tests go on without it
+            self._watcher = None
+
+    def _start(self) -> 'subprocess.Popen[str] | None':
+        if self._tried:
+            return self._watcher
+        self._tried = True
+        if py_spy() is None:
+            return None
+        self._out.parent.mkdir(parents=True, exist_ok=True)
+        self._watcher = subprocess.Popen(
+            [sys.executable, '-m', __name__, str(self._out)],
+            stdin=subprocess.PIPE,
+            text=True,
+        )
+        return self._watcher
+
+
+def main() -> int:
+    dump = py_spy()
+    if dump is None:
+        return 0
+    watch(sys.stdin.fileno(), Path(sys.argv[1]), [dump, 'dump', '--native'], os.getppid())
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

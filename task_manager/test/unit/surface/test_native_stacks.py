@@ -1,0 +1,60 @@
+"""The watcher of a test process's deadlines (testing.native_stacks): a deadline passed dumps
+the parent once, one disarmed in time dumps nothing, and it ends when its parent's pipe closes.
+A command that prints what it was given stands in for py-spy."""
+
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+
+from task_manager.testing.native_stacks import OFF, watch
+
+WAIT_SEC = 5.0
+STAND_IN = [sys.executable, '-c', 'import sys; print("dumped", *sys.argv[1:])']
+
+
+def _watching(out: Path) -> tuple[threading.Thread, int]:
+    """The watcher in a thread, reading a pipe (closed with the test's process); the pipe's
+    write end."""
+    read_end, write_end = os.pipe()
+    thread = threading.Thread(target=watch, args=(read_end, out, STAND_IN, 4242), daemon=True)
+    thread.start()
+    return thread, write_end
+
+
+def _wait_for_text(out: Path) -> str:
+    deadline = time.monotonic() + WAIT_SEC
+    while time.monotonic() < deadline:
+        if out.exists() and 'dumped' in out.read_text():
+            return out.read_text()
+        threading.Event().wait(0.02)
+    return out.read_text() if out.exists() else ''
+
+
+def test_a_deadline_passed_dumps_the_parent_once_and_the_pipe_closing_ends_the_watcher(
+    tmp_path: Path,
+) -> None:
+    out = tmp_path / 'stacks.txt'
+    thread, commands = _watching(out)
+    os.write(commands, b'0.05\n')
+    text = _wait_for_text(out)
+    os.close(commands)
+    thread.join(WAIT_SEC)
+
+    assert not thread.is_alive()
+    assert text.startswith('native stacks of process 4242, ')
+    assert text.count('dumped --pid 4242') == 1
+
+
+def test_a_test_that_ends_before_its_deadline_dumps_nothing(tmp_path: Path) -> None:
+    out = tmp_path / 'stacks.txt'
+    thread, commands = _watching(out)
+    os.write(commands, f'0.3\n{OFF}\n'.encode())
+    os.write(commands, b'60\n')  # the next test, far from its deadline
+    threading.Event().wait(0.6)  # past the first deadline: the input under test is time
+    os.close(commands)
+    thread.join(WAIT_SEC)
+
+    assert not thread.is_alive()
+    assert not out.exists()
