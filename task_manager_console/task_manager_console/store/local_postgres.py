@@ -122,14 +122,13 @@ class PostgresServer:
     @property
     def command(self) -> list[str]:
         """The server's command line in the foreground (its log on stderr, READY_LINE once it
-        answers; SIGINT: a fast shutdown), after `make_cluster`. As root, it runs as
-        SERVER_USER, switched to by an exec (the signals reach the server itself), and keeps
-        SIGTERM as its parent-death signal."""
+        answers; SIGINT: a fast shutdown), after `make_cluster`. SIGTERM is its parent-death
+        signal (setpriv sets it, then execs the server: the signals reach the server itself):
+        it ends with the process that started it, however that ends. As root, it runs as
+        SERVER_USER, switched to by the same exec."""
         server = [str(self.bin / 'postgres'), '-D', str(self.data), *self._server_options().split()]
-        if not self._as_root:
-            return server
-        switch = ['setpriv', '--reuid', SERVER_USER, '--regid', SERVER_USER, '--init-groups']
-        return [*switch, '--pdeathsig', 'TERM', *server]
+        switch = ['--reuid', SERVER_USER, '--regid', SERVER_USER, '--init-groups']
+        return ['setpriv', *(switch if self._as_root else []), '--pdeathsig', 'TERM', *server]
 
     def _server_options(self) -> str:
         return (
