@@ -236,9 +236,10 @@ class HearingWatch:
         serving: Callable[[], bool] = lambda: True,
     ) -> None:
         """`look`: whether a new participant sees the node (a test may give its own);
-        `serving`: whether the node's ExecuteTask server has met the client. The node is
-        reached (for the lost check) when its active list reaches the client and it serves:
-        a newcomer's participant can meet the one and never the other."""
+        `serving`: whether the node's ExecuteTask server (and each of its services the client
+        uses) has met the client. The node is reached (for the lost check) when its active list
+        reaches the client and it serves: a newcomer's participant can meet the one and never
+        the other."""
         self._connection = connection
         self._check = check or HearingCheck()
         self._lost = lost or LostNodeCheck()
@@ -312,7 +313,8 @@ class HearingWatch:
             lost_for = self._lost.lost_for(now)
             self._log.error(
                 f'the Task Manager has not reached this process for {lost_for:.0f} s (its '
-                'active list, or its ExecuteTask server), though a new participant of it sees '
+                'active list, its ExecuteTask server or a service of it this process uses), '
+                'though a new participant of it sees '
                 'the node (DDS can stay one-sided after a participant was held up past the '
                 'lease, and a newcomer can miss some of the node for good): a new process is '
                 'needed'

@@ -113,6 +113,13 @@ class ServiceCalls:
             if not wait_until_ready(client.service_is_ready, max(0.0, deadline - time.monotonic())):
                 raise TaskManagerUnavailable(f'{name} is not available')
 
+    def all_met(self) -> bool:
+        """Whether every service this client has used so far has met it (a newcomer's
+        participant can meet some of the node and never one of its services)."""
+        with self._connection.lock:
+            clients = list(self._clients.values())
+        return all(client.service_is_ready() for client in clients)
+
     def _client(self, service_type: Any, name: str) -> Client[Any, Any]:
         """This client's client of the service `name`, made on first use."""
         with self._connection.lock:

@@ -55,8 +55,13 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
         self._results = self._tasks.results
         self._events = self._tasks.events
         self._services = ServiceCalls(self._connection)
-        self._hearing = HearingWatch(self._connection, serving=self._tasks.serving)
+        self._hearing = HearingWatch(self._connection, serving=self._served)
         self._connection.start()
+
+    def _served(self) -> bool:
+        """Whether the node serves this client: its ExecuteTask server, and each service this
+        client has used, have met it (see HearingWatch)."""
+        return self._tasks.serving() and self._services.all_met()
 
     @property
     def timeout_sec(self) -> float:

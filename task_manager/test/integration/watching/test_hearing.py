@@ -13,7 +13,9 @@ from collections.abc import Iterator
 
 import pytest
 from task_manager_msgs.msg import ActiveTaskArray
+from task_manager_msgs.srv import GetTaskStates
 
+from task_manager.client import TaskManagerClient
 from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
 from task_manager.client.hearing import (
     HearingCheck,
@@ -333,3 +335,19 @@ def test_a_client_whose_node_never_serves_it_which_a_new_participant_sees_is_tol
     watch.start()
 
     assert watch.told.get(timeout=TIMEOUT_SEC) >= 1.0  # lost_sec, then the grace
+
+
+def test_a_client_counts_the_node_as_serving_it_only_while_each_service_it_used_met_it(
+    launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    """What the client's lost check is given as `serving`: its ExecuteTask server and every
+    service the client has used (here one the node never serves stands for a service its
+    participant missed)."""
+    _launch(launch_task_manager, topic_prefix)
+    with TaskManagerClient('serving_services', timeout_sec=TIMEOUT_SEC) as client:
+        client.wait_until_available(services=['/task_manager/get_task_states'])
+        served_before = client._served()
+
+        client._services._client(GetTaskStates, f'{topic_prefix}/never_served')
+
+        assert served_before and not client._served()
