@@ -1,6 +1,7 @@
 """The `task_manager` node: declared tasks, ExecuteTask, active tasks and results."""
 
 import sqlite3
+from collections.abc import Sequence
 from typing import Any
 
 from rclpy.node import Node
@@ -314,18 +315,25 @@ class TaskManagerNode(Node):
             response.tasks = active
             return response
         by_id = {state.task_id: state for state in active}
-        if len(request.task_ids) > IDS_MAX:  # each id not active costs a history query
-            self.get_logger().warning(
-                f'get_task_states asked for {len(request.task_ids)} tasks: the first {IDS_MAX} '
-                'answered, the rest left out',
-                throttle_duration_sec=LOG_THROTTLE_SEC,
-            )
-        for task_id in request.task_ids[:IDS_MAX]:
+        # each id not active costs a history query
+        for task_id in self._first_ids(request.task_ids, 'get_task_states', 'tasks'):
             if task_id in by_id:
                 response.tasks.append(by_id[task_id])
             elif task_id and (stored := self.history.query(HistoryQuery(task_id=task_id, limit=1))):
                 response.tasks.append(task_state_of_row(stored[0]))
         return response
+
+    def _first_ids(self, ids: Sequence[str], service: str, what: str) -> Sequence[str]:
+        """The first IDS_MAX of the ids `service` was asked for; a warning when there were more
+        (from this one place, so that rclpy's throttle, which keys on where it is called, makes
+        a flood on either service one line a while)."""
+        if len(ids) > IDS_MAX:
+            self.get_logger().warning(
+                f'{service} asked for {len(ids)} {what}: the first {IDS_MAX} answered, the rest '
+                'left out',
+                throttle_duration_sec=LOG_THROTTLE_SEC,
+            )
+        return ids[:IDS_MAX]
 
     def _query_task_history(
         self, request: QueryTaskHistory.Request, response: QueryTaskHistory.Response
@@ -339,13 +347,9 @@ class TaskManagerNode(Node):
     ) -> GetSchedules.Response:
         """Every schedule (or those asked for, in the order asked: the first IDS_MAX), with its
         runs."""
-        if len(request.schedule_ids) > IDS_MAX:  # each one asked is a schedule in the answer
-            self.get_logger().warning(
-                f'get_schedules asked for {len(request.schedule_ids)} schedules: the first '
-                f'{IDS_MAX} answered, the rest left out',
-                throttle_duration_sec=LOG_THROTTLE_SEC,
-            )
-        wanted = list(request.schedule_ids[:IDS_MAX]) or self.scheduler.book.ids()
+        # each one asked is a schedule in the answer
+        asked = self._first_ids(request.schedule_ids, 'get_schedules', 'schedules')
+        wanted = list(asked) or self.scheduler.book.ids()
         found = (self.scheduler.book.get(schedule_id) for schedule_id in wanted)
         response.schedules = [schedule_msg(*item) for item in found if item is not None]
         return response
