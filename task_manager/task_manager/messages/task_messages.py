@@ -16,7 +16,6 @@ from task_manager_msgs.msg import (
     Schedule,
     SubtaskResult,
     TaskDoneResult,
-    TaskEvent,
     TaskOptions,
     TaskState,
 )
@@ -46,12 +45,18 @@ _STATE_FIELDS = (
 )  # fmt: skip
 
 
+def stamp_parts(seconds: float | None) -> tuple[int, int]:
+    """A wall-clock time as builtin_interfaces/Time's sec and nanosec; zero for None."""
+    if seconds is None:
+        return 0, 0
+    total_ns = round(seconds * NANOSECONDS)
+    return total_ns // NANOSECONDS, total_ns % NANOSECONDS
+
+
 def stamp(seconds: float | None) -> Time:
     """A wall-clock time as builtin_interfaces/Time; zero for None (not yet)."""
-    if seconds is None:
-        return Time()
-    total_ns = round(seconds * NANOSECONDS)
-    return Time(sec=total_ns // NANOSECONDS, nanosec=total_ns % NANOSECONDS)
+    sec, nanosec = stamp_parts(seconds)
+    return Time(sec=sec, nanosec=nanosec)
 
 
 def seconds_of(time_msg: Time) -> float | None:
@@ -79,23 +84,41 @@ def _times(received: float | None, started: float | None, ended: float | None) -
     return {'received': stamp(received), 'started': stamp(started), 'ended': stamp(ended)}
 
 
-def task_state_msg(record: TaskRecord) -> TaskState:
-    """An active (or just ended) task's whole state."""
-    return TaskState(
+def task_state_fields(record: TaskRecord) -> dict[str, Any]:
+    """An active (or just ended) task's whole state: TaskState's fields by name, its three
+    stamps as seconds (None: not yet)."""
+    return {
         **_names(record),
         **_admitted(record),
-        **_times(record.received_at, record.started_at, record.ended_at),
-        task_status=str(record.status),
-        error_code=str(record.error_code),
-        mission_id=record.parent_id,
-        feedback=to_json(record.latest_feedback),
-        task_result=to_json(record.result) if record.is_final else '',
-        sequence=record.sequence or 0,
-        paused_sec=record.paused_sec(),
-        pauses=pauses_to_json(record.pauses),
-        queue_position=record.queue_position,
-        decisions=decisions_to_json(record.decisions),
+        'received': record.received_at,
+        'started': record.started_at,
+        'ended': record.ended_at,
+        'task_status': str(record.status),
+        'error_code': str(record.error_code),
+        'mission_id': record.parent_id,
+        'feedback': to_json(record.latest_feedback),
+        'task_result': to_json(record.result) if record.is_final else '',
+        'sequence': record.sequence or 0,
+        'paused_sec': record.paused_sec(),
+        'pauses': pauses_to_json(record.pauses),
+        'queue_position': record.queue_position,
+        'decisions': decisions_to_json(record.decisions),
+    }
+
+
+def task_state_of_fields(fields: dict[str, Any]) -> TaskState:
+    """The TaskState of `task_state_fields`' values."""
+    return TaskState(
+        **{
+            **fields,
+            **_times(fields['received'], fields['started'], fields['ended']),
+        }
     )
+
+
+def task_state_msg(record: TaskRecord) -> TaskState:
+    """An active (or just ended) task's whole state."""
+    return task_state_of_fields(task_state_fields(record))
 
 
 def task_state_of_row(row: HistoryRow) -> TaskState:
@@ -113,11 +136,6 @@ def task_state_of_row(row: HistoryRow) -> TaskState:
         pauses=row.pauses,
         decisions=row.decisions,
     )
-
-
-def task_event_msg(event: str, record: TaskRecord, reason: str, now: float) -> TaskEvent:
-    """One event of a task (TaskEvent.RECEIVED, ...) at `now`, with its whole state."""
-    return TaskEvent(event=event, stamp=stamp(now), task=task_state_msg(record), reason=reason)
 
 
 def result_fields(record: TaskRecord) -> dict[str, str]:

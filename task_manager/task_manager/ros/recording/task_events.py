@@ -12,6 +12,7 @@ task is IN_PROGRESS (a system task's first, made as it starts) goes out just aft
 """
 
 import time
+from typing import Any
 
 from rclpy.node import Node
 from rclpy.publisher import Publisher
@@ -24,10 +25,16 @@ from task_manager.core.event_batch import EventBatch
 from task_manager.core.feedback_rate import FeedbackAction, FeedbackGate
 from task_manager.core.names import TASK_EVENT_BATCHES_TOPIC, TASK_EVENTS_TOPIC
 from task_manager.core.task import TaskRecord
-from task_manager.messages.task_messages import task_event_msg
+from task_manager.messages.task_messages import task_state_fields
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.ros.parking_executor import spawn_after_turn
+from task_manager.ros.recording.event_batch_wire import (
+    EncodedEvent,
+    encode_event,
+    event_batch_encoding,
+    event_message,
+)
 
 _ENDING_DECISIONS = (DecisionKind.REFUSED, DecisionKind.PREEMPTED, DecisionKind.TIMEOUT)
 
@@ -48,8 +55,12 @@ class TaskEventStream:
         self._min_interval_sec = 1.0 / feedback_rate_hz
         self._publisher: Publisher[TaskEvent] | None = None
         self._batches: Publisher[TaskEventArray] | None = None
-        # the events of this turn not published on the batch topic yet
-        self._batch = EventBatch[TaskEvent](TaskEventArray.EVENTS_MAX, EVENT_BATCH_MAX_BYTES)
+        # the events of this turn not published on the batch topic yet: encoded, where the
+        # middleware writes what event_batch_wire does, else messages
+        self._encoding = event_batch_encoding()
+        self._batch = EventBatch[EncodedEvent | TaskEvent](
+            TaskEventArray.EVENTS_MAX, EVENT_BATCH_MAX_BYTES
+        )
         self._flush_after_turn = False
         # key: task id, value: its feedback rate limit, while the task is active
         self._gates: dict[str, FeedbackGate] = {}
@@ -151,14 +162,19 @@ class TaskEventStream:
         batched = self._batches.get_subscription_count() > 0
         if not (one_by_one or batched):
             return  # nobody listens: building the message is the larger part of the cost
-        message = task_event_msg(event, record, reason, time.time())
+        now, fields = time.time(), task_state_fields(record)
         if one_by_one:
-            self._publisher.publish(message)
+            self._publisher.publish(event_message(event, now, fields, reason))
         if batched:
-            self._add_to_batch(message)
+            encoded: EncodedEvent | TaskEvent = (
+                encode_event(event, now, fields, reason)
+                if self._encoding is not None
+                else event_message(event, now, fields, reason)
+            )
+            self._add_to_batch(encoded, _text_size(fields))
 
-    def _add_to_batch(self, message: TaskEvent) -> None:
-        self._send_batch(self._batch.add(message, _text_size(message)))
+    def _add_to_batch(self, event: 'EncodedEvent | TaskEvent', size: int) -> None:
+        self._send_batch(self._batch.add(event, size))
         if not self._flush_after_turn:
             self._flush_after_turn = True
             spawn_after_turn(self._node, self._end_of_turn())
@@ -167,12 +183,15 @@ class TaskEventStream:
         self._flush_after_turn = False
         self.flush()
 
-    def _send_batch(self, events: list[TaskEvent]) -> None:
-        if events and self._batches is not None:
+    def _send_batch(self, events: 'list[EncodedEvent | TaskEvent]') -> None:
+        if not events or self._batches is None:
+            return
+        if self._encoding is not None:
+            self._batches.publish(self._encoding.array(events))
+        else:
             self._batches.publish(TaskEventArray(events=events))
 
 
-def _text_size(message: TaskEvent) -> int:
+def _text_size(fields: dict[str, Any]) -> int:
     """About what an event weighs on the wire: its text fields, in characters."""
-    task = message.task
-    return len(task.feedback) + len(task.task_result) + len(task.decisions) + len(task.pauses)
+    return sum(len(fields[name]) for name in ('feedback', 'task_result', 'decisions', 'pauses'))
