@@ -18,6 +18,7 @@ from task_manager.core.names import TASK_EVENTS_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.harness import RosHarness, WaitTimeoutError
 from task_manager.testing.process import (
+    ABORT_TIMEOUT_SEC,
     TASKCTL,
     LaunchTaskManager,
     action_task,
@@ -160,9 +161,14 @@ def test_a_follow_held_up_that_no_longer_hears_the_node_says_so_and_exits_4(
         code = following.wait(ANSWER_SEC + TIMEOUT_SEC)
     finally:
         os.kill(node, signal.SIGCONT)
-        if following.poll() is None:
-            following.kill()
-            following.wait()
+        if following.poll() is None:  # its threads' stacks (faulthandler), then its output
+            following.send_signal(signal.SIGABRT)
+            try:
+                following.wait(ABORT_TIMEOUT_SEC)
+            except subprocess.TimeoutExpired:
+                following.kill()
+                following.wait()
+            print('taskctl did not end; what it printed:\n' + following.stdout.read())
 
     assert code == 4
     assert 'no longer hears the Task Manager' in following.stdout.read()
