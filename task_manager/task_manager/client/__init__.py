@@ -15,6 +15,7 @@ from task_manager.client.missions import Subtask
 from task_manager.client.records import (
     ActiveTaskInfo,
     Decision,
+    EventsLost,
     Pause,
     TaskEvent,
     TaskEventKind,
@@ -30,6 +31,7 @@ __all__ = [
     'ActiveTaskInfo',
     'ConfirmAnswer',
     'Decision',
+    'EventsLost',
     'FeedbackCallback',
     'Pause',
     'ScheduleInfo',

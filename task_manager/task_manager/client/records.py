@@ -379,6 +379,15 @@ class TaskEvent:
         return cls(event_kind_of(message.event), stamp, task, message.reason)
 
 
+@dataclass(frozen=True)
+class EventsLost:
+    """In `task_events(losses=True)`, where task events went missing (see `on_events_lost`):
+    what a caller keeps from the events should be read again (`task_states`)."""
+
+    batches: int
+    """How many batches of events (up to 100 events each) were lost."""
+
+
 def event_kind_of(text: str) -> TaskEventKind:
     """An event kind from a message; one this client does not know is DECIDED (some other
     change: the event's state says what the task is now)."""

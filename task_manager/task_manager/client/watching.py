@@ -4,7 +4,7 @@ publishes (active lists, results, task events)."""
 import queue
 import weakref
 from collections.abc import Callable, Iterator
-from typing import Any, TypeVar
+from typing import Any, Literal, TypeVar, overload
 
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
@@ -14,7 +14,13 @@ from task_manager_msgs.msg import ActiveTaskArray
 
 from task_manager.client.connection import Connection, EventFeed, Place, place_of
 from task_manager.client.listeners import Callback, Inbox, Listeners, drain
-from task_manager.client.records import ActiveTaskInfo, TaskEvent, TaskResult, status_of
+from task_manager.client.records import (
+    ActiveTaskInfo,
+    EventsLost,
+    TaskEvent,
+    TaskResult,
+    status_of,
+)
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import ACTIVE_TASKS_TOPIC
 from task_manager.rclpy_tools import qos
@@ -170,13 +176,41 @@ class Watching:
         stops = [self._active.listeners.add(inbox), self._results.add(inbox)]
         return _from_now(inbox, lambda: [stop() for stop in stops], timeout_sec, until)
 
+    @overload
     def task_events(
-        self, timeout_sec: float | None = None, until: Future[Any] | None = None
-    ) -> Iterator[TaskEvent]:
-        """Every event of every task from this call on; stops as active_task_updates does."""
+        self,
+        timeout_sec: float | None = None,
+        until: Future[Any] | None = None,
+        *,
+        losses: Literal[False] = False,
+    ) -> Iterator[TaskEvent]: ...
+
+    @overload
+    def task_events(
+        self,
+        timeout_sec: float | None = None,
+        until: Future[Any] | None = None,
+        *,
+        losses: Literal[True],
+    ) -> Iterator[TaskEvent | EventsLost]: ...
+
+    def task_events(
+        self,
+        timeout_sec: float | None = None,
+        until: Future[Any] | None = None,
+        *,
+        losses: bool = False,
+    ) -> Iterator[TaskEvent] | Iterator[TaskEvent | EventsLost]:
+        """Every event of every task from this call on; stops as active_task_updates does.
+
+        With `losses`, an EventsLost comes too wherever events went missing, in its place:
+        after the events of the batch that showed the gap, as `on_events_lost` is called."""
         self._events.follow()
-        inbox: Inbox[TaskEvent] = queue.SimpleQueue()
-        return _from_now(inbox, self._events.listeners.add(inbox), timeout_sec, until)
+        inbox: Inbox[TaskEvent | EventsLost] = queue.SimpleQueue()
+        stops = [self._events.listeners.add(inbox)]
+        if losses:
+            stops.append(self._events.lost.add(_LossesInto(inbox)))
+        return _from_now(inbox, lambda: [stop() for stop in stops], timeout_sec, until)
 
     def on_task_event(self, callback: Callable[[TaskEvent], None]) -> Callable[[], None]:
         """Call `callback(event)` with every task event from now on; returns the unsubscribe.
@@ -197,6 +231,16 @@ class Watching:
         """
         self._events.subscribe()
         return self._events.lost.add(Callback(callback, NodeLog.of(self.node)))
+
+
+class _LossesInto:
+    """Puts an EventsLost into an inbox of events for each loss told."""
+
+    def __init__(self, inbox: Inbox[TaskEvent | EventsLost]) -> None:
+        self._inbox = inbox
+
+    def put(self, batches: int, /) -> None:
+        self._inbox.put(EventsLost(batches))
 
 
 def _from_now(

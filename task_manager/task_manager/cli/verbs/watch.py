@@ -1,8 +1,7 @@
 """taskctl active [--watch] and taskctl results [--follow]."""
 
 import json
-import queue
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import replace
 from datetime import UTC, datetime
 from typing import TypeAlias
@@ -14,6 +13,7 @@ from rich.text import Text
 
 from task_manager import (
     ActiveTaskInfo,
+    EventsLost,
     TaskEvent,
     TaskEventKind,
     TaskManagerClient,
@@ -202,27 +202,18 @@ def _results_of_events(client: TaskManagerClient) -> Iterator[TaskResult]:
     each once; when events went missing (taskctl fell more than its reader keeps behind the
     Task Manager), the results among them are read from the history (by number, after the
     last one shown in turn), so that none is skipped."""
-    arrived: queue.SimpleQueue[TaskEvent | int] = queue.SimpleQueue()
-    stops = [client.on_task_event(arrived.put), client.on_events_lost(arrived.put)]
-    return _shown_once(client, arrived, stops)
+    return _shown_once(client, client.task_events(losses=True))
 
 
 def _shown_once(
-    client: TaskManagerClient,
-    arrived: 'queue.SimpleQueue[TaskEvent | int]',
-    stops: list[Callable[[], None]],
+    client: TaskManagerClient, arrived: Iterator[TaskEvent | EventsLost]
 ) -> Iterator[TaskResult]:
     shown = ShownResults()
-    try:
-        while True:
-            item = arrived.get()
-            if isinstance(item, int):  # batches lost
-                yield from _missed_results(client, shown)
-            elif item.kind is TaskEventKind.ENDED and shown.first_time(item.task.sequence):
-                yield item.task.to_result()
-    finally:
-        for stop in stops:
-            stop()
+    for item in arrived:
+        if isinstance(item, EventsLost):
+            yield from _missed_results(client, shown)
+        elif item.kind is TaskEventKind.ENDED and shown.first_time(item.task.sequence):
+            yield item.task.to_result()
 
 
 def _missed_results(client: TaskManagerClient, shown: ShownResults) -> Iterator[TaskResult]:

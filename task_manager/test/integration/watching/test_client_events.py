@@ -12,6 +12,7 @@ from task_manager_msgs.msg import TaskEventArray
 from test_msgs.action import Fibonacci
 
 from task_manager.client import (
+    EventsLost,
     Subtask,
     TaskEventKind,
     TaskManagerClient,
@@ -32,6 +33,8 @@ from task_manager.testing.servers import (
 )
 
 TIMEOUT_SEC = 15.0
+DRAINED_SEC = 1.0
+"""How long an iterator read after its last item is known to have come waits for more."""
 BURST = 500
 BURST_TIMEOUT_SEC = 60.0
 # The burst's server shares this process with the client and two recorders of every event: on a
@@ -472,6 +475,7 @@ def test_events_a_client_fell_too_far_behind_for_are_told_as_lost(
 
     client.on_task_event(take)
     client.on_events_lost(lost.append)
+    followed = client.task_events(timeout_sec=DRAINED_SEC, losses=True)
     writer = batch_writer(ros, readers=2)  # the client's and the recorder beside it
     try:
         writer.publish(event_batch('hold'))
@@ -487,3 +491,15 @@ def test_events_a_client_fell_too_far_behind_for_are_told_as_lost(
     assert taken == sorted(taken, key=lambda task_id: int(task_id[1:])), 'out of order'
     assert lost, 'no loss told'
     assert len(taken) + sum(lost) == count, (len(taken), lost)
+    # the iterator: the same events, and each loss right after the first event past its gap
+    items = list(followed)
+    assert [i.task.task_id for i in items if not isinstance(i, EventsLost)] == seen
+    numbers: list[int] = []  # of the events so far ('hold' is -1, b0 0)
+    gaps: list[int] = []  # the batches missing between the two events before each loss
+    for item in items:
+        if isinstance(item, EventsLost):
+            gaps.append(numbers[-1] - numbers[-2] - 1)
+        else:
+            numbers.append(-1 if item.task.task_id == 'hold' else int(item.task.task_id[1:]))
+    assert [i for i in items if isinstance(i, EventsLost)] == [EventsLost(n) for n in lost]
+    assert gaps == lost

@@ -1,17 +1,18 @@
 """taskctl results --follow's account of the results it showed (ShownResults): each result
 once, whatever the order, and where to read the history from when events went missing; and the
-follow itself with its client's callbacks. (Through real DDS, taskctl stopped while the node
-floods it: see the closing note of 2026-11-30, the client at times heard nothing more at all.)"""
+follow itself with its client's iterator of events and losses. (Through real DDS, taskctl
+stopped while the node floods it: see the closing note of 2026-11-30, the client at times heard
+nothing more at all.)"""
 
+import queue
 from collections.abc import Iterator
 from datetime import UTC, datetime
-from typing import Any
 
 from hypothesis import given
 from hypothesis import strategies as st
 
 from task_manager.cli.verbs.watch import ABOVE_MAX, ShownResults, _results_of_events
-from task_manager.client import TaskEvent, TaskEventKind, TaskState
+from task_manager.client import EventsLost, TaskEvent, TaskEventKind, TaskState
 from task_manager.core.status import TaskStatus
 
 
@@ -73,21 +74,16 @@ def test_each_number_is_new_once(numbers: list[int]) -> None:
 
 
 class HistoryOnly:
-    """Stands in for taskctl's client: its callbacks kept for the test to call, and a history
-    of ended tasks numbered 1 to `newest`."""
+    """Stands in for taskctl's client: the events and losses the test puts, as its iterator
+    gives them, and a history of ended tasks numbered 1 to `newest`."""
 
     def __init__(self, newest: int) -> None:
-        self.on_event: list[Any] = []
-        self.on_lost: list[Any] = []
+        self.arrived: queue.SimpleQueue[TaskEvent | EventsLost] = queue.SimpleQueue()
         self.kept = [ended(n) for n in range(1, newest + 1)]
 
-    def on_task_event(self, callback: Any) -> Any:
-        self.on_event.append(callback)
-        return lambda: None
-
-    def on_events_lost(self, callback: Any) -> Any:
-        self.on_lost.append(callback)
-        return lambda: None
+    def task_events(self, *, losses: bool) -> Iterator[TaskEvent | EventsLost]:
+        assert losses
+        return iter(self.arrived.get, None)
 
     def ended_after(self, after_sequence: int) -> Iterator[TaskState]:
         return (s for s in self.kept if s.sequence > after_sequence)
@@ -100,11 +96,11 @@ def ended(sequence: int) -> TaskState:
 def test_follow_fills_what_lost_events_carried_from_the_history_and_shows_each_once() -> None:
     client = HistoryOnly(newest=6)
     results = _results_of_events(client)
-    (event,), (lost,) = client.on_event, client.on_lost
+    event = client.arrived.put
 
     for number in (1, 5):  # 2 to 4 went missing; 5 came in the batch that showed it
         event(TaskEvent(TaskEventKind.ENDED, datetime.now(UTC), ended(number)))
-    lost(3)
+    event(EventsLost(3))
     for number in range(6, 12):  # 6 already read from the history, the others new
         event(TaskEvent(TaskEventKind.ENDED, datetime.now(UTC), ended(number)))
 
