@@ -9,11 +9,13 @@ file, line), through rclpy's own binding, which rclpy keeps private: where a ver
 has it not, the line goes through `RcutilsLogger.log` (as it does for a stand-in logger, a
 test's, that has only `log(message, severity)`). What rclpy adds for its filters (once,
 throttle, skip_first) is not offered. Code without a node (the gateways, core) logs through
-Python's `logging`.
+Python's `logging`. `log_warnings` makes Python's warnings lines of a logger (the node's).
 """
 
 import sys
-from typing import Any
+import warnings
+from collections.abc import Callable
+from typing import Any, TextIO
 
 from rclpy.impl.logging_severity import LoggingSeverity
 from rclpy.impl.rcutils_logger import RcutilsLogger
@@ -64,3 +66,38 @@ class NodeLog:
         caller = sys._getframe(2)  # who called debug(), info(), warning() or error()
         code = caller.f_code
         _write(severity, self.logger.name, message, code.co_name, code.co_filename, caller.f_lineno)
+
+
+DONE_CALLBACK_FAILED = 'Unhandled exception in done callback'
+"""How rclpy's warning begins when a done callback it ran in place raised (a future without an
+executor: the node's requests, rclpy_tools.calls)."""
+
+
+def log_warnings(logger: Any) -> None:
+    """Python's warnings as lines of `logger` (an RcutilsLogger: its `error` and `warning`), not
+    on stderr only, and every one of rclpy's for a done callback that raised (Python shows a
+    warning once per place): as a callback's error was logged when rclpy ran done callbacks as
+    tasks."""
+    warnings.showwarning = warning_writer(logger)
+    warnings.filterwarnings('always', message=DONE_CALLBACK_FAILED)
+
+
+def warning_writer(logger: Any) -> Callable[..., None]:
+    """A `warnings.showwarning` that writes one line of `logger`: an error for a done callback
+    that raised, else a warning."""
+
+    def show(
+        message: Warning | str,
+        category: type[Warning],
+        filename: str,
+        lineno: int,
+        file: TextIO | None = None,
+        line: str | None = None,
+    ) -> None:
+        text = f'{category.__name__}: {message} ({filename}:{lineno})'
+        if str(message).startswith(DONE_CALLBACK_FAILED):
+            logger.error(text)
+        else:
+            logger.warning(text)
+
+    return show

@@ -20,6 +20,7 @@ from task_manager.core.params_file import check_params_file, params_files
 from task_manager.middleware_watchdog import MiddlewareWatchdog
 from task_manager.process_setup import EXIT_START_AGAIN, STOP_SIGNALS, end_within
 from task_manager.rclpy_tools.futures import wake
+from task_manager.rclpy_tools.log import log_warnings
 from task_manager.ros import parking_executor
 from task_manager.ros.instances import describe
 from task_manager.ros.node import TaskManagerNode
@@ -92,6 +93,7 @@ def run(args: list[str]) -> int:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as error:  # rcl refuses the arguments or the parameters file
         return _refuse_configuration(error)
+    log_warnings(get_logger(NODE_NAME))
     parking_executor.install()
     executor = ParkingExecutor()
     try:
