@@ -18,8 +18,10 @@ from collections.abc import Sequence
 
 from action_msgs.msg import GoalInfo, GoalStatus, GoalStatusArray
 from builtin_interfaces.msg import Time
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import serialize_message
 from unique_identifier_msgs.msg import UUID
+
+from task_manager.rclpy_tools.wire import written_as_serialized
 
 _LENGTH = struct.Struct('<I')
 _STAMP_AND_STATUS = struct.Struct('<iIb')
@@ -78,13 +80,6 @@ def status_array_encoding() -> StatusArrayEncoding | None:
             for index in range(3)
         ]
     )
-    expected = serialize_message(sample)
-    encoding = StatusArrayEncoding(expected[:4])
+    encoding = StatusArrayEncoding(serialize_message(sample)[:4])
     written = encoding.array([part_of(status) for status in sample.status_list])
-    if len(written) != len(expected):
-        return None
-    try:
-        read_back = deserialize_message(written, GoalStatusArray)
-    except RuntimeError:  # rclpy's RMWError: bytes its middleware cannot read
-        return None
-    return encoding if read_back == sample else None
+    return encoding if written_as_serialized(written, sample) else None

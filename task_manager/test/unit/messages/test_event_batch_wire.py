@@ -8,8 +8,10 @@ from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from task_manager_msgs.msg import TaskEventArray
 
+from task_manager.rclpy_tools.wire import written_as_serialized
 from task_manager.ros.recording.event_batch_wire import (
     EventBatchEncoding,
+    _sample_fields,
     encode_event,
     event_batch_encoding,
     event_message,
@@ -54,3 +56,15 @@ def test_an_encoded_batch_reads_back_as_its_messages_and_is_as_long_as_rclpys(
 
     assert deserialize_message(encoded, TaskEventArray) == message
     assert len(encoded) == len(serialize_message(message))
+
+
+def test_bytes_the_serializer_would_not_write_are_told_apart() -> None:
+    """The check made once at start: bytes shorter, or that read back as another message, are
+    not taken for the message's."""
+    message = TaskEventArray(events=[event_message('ENDED', 1.5, _sample_fields(3), 'why')])
+    serialized = serialize_message(message)
+    other_text = serialized.replace(b'why', b'who')
+
+    assert written_as_serialized(serialized, message)
+    assert not written_as_serialized(serialized[:-4], message)
+    assert not written_as_serialized(other_text, message)
