@@ -20,6 +20,9 @@ from task_manager.testing.output_reader import OutputReader
 
 STOP_TIMEOUT_SEC = 10.0
 ABORT_TIMEOUT_SEC = 5.0
+SHARED_MEMORY_MARK = 'RTPS_TRANSPORT_SHM'
+"""In Fast DDS's own lines about its shared-memory ports, which a process may print beside the
+program's (see without_shared_memory_lines)."""
 TASKCTL = str(Path(sys.executable).with_name('taskctl'))
 TASKCTL_TIMEOUT_SEC = 30.0
 TASKCTL_REACH_SEC = 15.0
@@ -109,7 +112,12 @@ class NodeProcess:
         )
         assert self.process.stdout is not None
         self._output = OutputReader(self.process.stdout)
-        self.log_lines = self._output.lines
+
+    @property
+    def log_lines(self) -> list[str]:
+        """What the program printed so far, without Fast DDS's own lines about shared-memory
+        ports (see without_shared_memory_lines: a test counts the program's lines)."""
+        return [line for line in self._output.lines if SHARED_MEMORY_MARK not in line]
 
     def wait_for_log(self, pattern: str, timeout_sec: float) -> str:
         """Wait for a log line matching the regular expression `pattern`; return it."""
@@ -118,14 +126,14 @@ class NodeProcess:
             ended = 'the process has exited' if self._output.ended else f'{timeout_sec} s passed'
             raise WaitTimeoutError(
                 f'no log line matching {pattern!r} ({ended}); log so far:\n'
-                + '\n'.join(self.log_lines)
+                + '\n'.join(self._output.lines)
             )
         return line
 
     def print_output(self) -> None:
         """Print what the process printed: a fixture does it at teardown, and pytest shows it
         for a test that failed."""
-        print('\n'.join(self.log_lines))
+        print('\n'.join(self._output.lines))
 
     def wait_exit(self, timeout_sec: float) -> int:
         code = self.process.wait(timeout_sec)
@@ -161,7 +169,7 @@ class NodeProcess:
             self.process.kill()
             self.process.wait()
         self._output.join(ABORT_TIMEOUT_SEC)
-        print(f'{self._program} {why}; aborted, its output:\n' + '\n'.join(self.log_lines))
+        print(f'{self._program} {why}; aborted, its output:\n' + '\n'.join(self._output.lines))
 
 
 def held_up_with_its_node(program: NodeProcess, node: NodeProcess, timeout_sec: float) -> int:
@@ -205,5 +213,5 @@ def without_shared_memory_lines(output: str) -> str:
     while another of the run is stopped (SIGSTOP) for seconds, as some tests do, may print
     one (`RTPS_TRANSPORT_SHM Error ... Failed init_port ...`), which is not the program's."""
     return ''.join(
-        line for line in output.splitlines(keepends=True) if 'RTPS_TRANSPORT_SHM' not in line
+        line for line in output.splitlines(keepends=True) if SHARED_MEMORY_MARK not in line
     )
