@@ -7,10 +7,12 @@ import threading
 import traceback
 from collections.abc import Callable, Iterator
 from enum import Enum
-from typing import Any, Generic, Protocol, TypeAlias, TypeVar
+from typing import Any, Generic, Protocol, TypeVar
 
 from rclpy.task import Future
 
+from task_manager.core.bounds import UPDATES_UNREAD_MAX
+from task_manager.core.errors import FellBehind
 from task_manager.rclpy_tools.log import NodeLog
 
 T = TypeVar('T')
@@ -24,8 +26,42 @@ class End(Enum):
     """The `until` future of the iteration completed."""
 
 
-# What the executor thread puts for one iterator of updates, and the end marker.
-Inbox: TypeAlias = queue.SimpleQueue[T | End]
+class _Dropped:
+    """In an inbox, where it began to drop updates; how many it has dropped so far."""
+
+    def __init__(self) -> None:
+        self.count = 1
+
+
+class Inbox(Generic[T]):
+    """What the executor thread puts for one iterator of updates (it never waits), and the end
+    marker. Past `max_unread` unread updates it drops the next ones, counted, and its reader
+    gets FellBehind in their place (`drain`): a caller that holds an iterator and stops reading
+    cannot grow the process without bound."""
+
+    def __init__(self, max_unread: int = UPDATES_UNREAD_MAX) -> None:
+        self._queue: queue.SimpleQueue[T | End | _Dropped] = queue.SimpleQueue()
+        self._max_unread = max_unread
+        self._dropped: _Dropped | None = None
+
+    def put(self, item: T | End, /) -> None:
+        if item is End.OF_UPDATES:  # always kept: the iteration must be able to end
+            self._queue.put(item)
+        elif self._dropped is not None:  # the reader stops where dropping began
+            self._dropped.count += 1
+        elif self._queue.qsize() >= self._max_unread:
+            self._dropped = _Dropped()
+            self._queue.put(self._dropped)
+        else:
+            self._queue.put(item)
+
+    def get(self, timeout_sec: float | None) -> 'T | End | _Dropped':
+        """The next item; queue.Empty after `timeout_sec` (None: wait for good)."""
+        return self._queue.get(timeout=timeout_sec)
+
+    @property
+    def max_unread(self) -> int:
+        return self._max_unread
 
 
 class Listener(Protocol[T_contra]):
@@ -84,9 +120,15 @@ def drain(inbox: Inbox[T], timeout_sec: float | None, until: Future[Any] | None)
         until.add_done_callback(lambda _: inbox.put(End.OF_UPDATES))
     while True:
         try:
-            item = inbox.get(timeout=timeout_sec)
+            item = inbox.get(timeout_sec)
         except queue.Empty:
             return
         if item is End.OF_UPDATES:
             return
+        if isinstance(item, _Dropped):
+            raise FellBehind(
+                f'this iterator kept {inbox.max_unread} updates unread and dropped the next '
+                f'({item.count} so far): read it faster, or read again what it follows '
+                '(task_states(), history(after_sequence=...), active_tasks())'
+            )
         yield item

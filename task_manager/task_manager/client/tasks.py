@@ -10,7 +10,6 @@ Each event of /task_manager/task_events goes to the handle of its task by id.
 """
 
 import math
-import queue
 import threading
 import time
 import uuid
@@ -261,7 +260,7 @@ class Tasks:
     ) -> Iterator[dict[str, Any]]:
         """See TaskHandle.feedback."""
         self.events.follow()
-        inbox: Inbox[dict[str, Any]] = queue.SimpleQueue()
+        inbox: Inbox[dict[str, Any]] = Inbox()
         listeners = handle.tracking.feedback_listeners
         with self._lock:  # the latest first: no update can come between
             listeners.append(inbox)

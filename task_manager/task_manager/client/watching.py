@@ -1,7 +1,6 @@
 """Watching the Task Manager: its active task list, and iterators and callbacks over what it
 publishes (active lists, results, task events)."""
 
-import queue
 import weakref
 from collections.abc import Callable, Iterator
 from typing import Any, Literal, TypeVar, overload
@@ -156,14 +155,14 @@ class Watching:
         an update (None: never), or once `until` completes.
         """
         self._active.follow()
-        inbox: Inbox[list[ActiveTaskInfo]] = queue.SimpleQueue()
+        inbox: Inbox[list[ActiveTaskInfo]] = Inbox()
         return _from_now(inbox, self._active.listeners.add(inbox), timeout_sec, until)
 
     def results(
         self, timeout_sec: float | None = None, until: Future[Any] | None = None
     ) -> Iterator[TaskResult]:
         """Every task result from this call on; stops as active_task_updates does."""
-        inbox: Inbox[TaskResult] = queue.SimpleQueue()
+        inbox: Inbox[TaskResult] = Inbox()
         return _from_now(inbox, self._results.add(inbox), timeout_sec, until)
 
     def updates(
@@ -172,7 +171,7 @@ class Watching:
         """Active task lists and results from this call on, in the order they arrive; stops as
         active_task_updates does."""
         self._active.follow()
-        inbox: Inbox[list[ActiveTaskInfo] | TaskResult] = queue.SimpleQueue()
+        inbox: Inbox[list[ActiveTaskInfo] | TaskResult] = Inbox()
         stops = [self._active.listeners.add(inbox), self._results.add(inbox)]
         return _from_now(inbox, lambda: [stop() for stop in stops], timeout_sec, until)
 
@@ -206,7 +205,7 @@ class Watching:
         With `losses`, an EventsLost comes too wherever events went missing, in its place:
         after the events of the batch that showed the gap, as `on_events_lost` is called."""
         self._events.follow()
-        inbox: Inbox[TaskEvent | EventsLost] = queue.SimpleQueue()
+        inbox: Inbox[TaskEvent | EventsLost] = Inbox()
         stops = [self._events.listeners.add(inbox)]
         if losses:
             stops.append(self._events.lost.add(_LossesInto(inbox)))

@@ -142,6 +142,11 @@ TOKEN_MIN_CHARACTERS = 16
 characters are over 100 bits when drawn at random (`secrets.token_urlsafe(24)` makes 32)."""
 
 
+UPDATES_UNREAD_MAX = 10_000
+"""Updates (active lists, results, task events, feedback) one iterator of the Python client
+keeps unread; it drops the next ones, and its reader then gets FellBehind in their place."""
+
+
 # ---- the fleet console --------------------------------------------------------------------------
 FLEET_HISTORY_ROWS_DEFAULT = 100
 """The results a query of the fleet history returns when it asks for no `limit`."""

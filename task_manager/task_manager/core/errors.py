@@ -6,6 +6,7 @@ TaskManagerError
  +-- InvalidTransition       a lifecycle step that the task's current status does not allow
  +-- TaskManagerUnavailable  no Task Manager answered a client in time
  +-- TaskTimeout             a client's wait for a task ran out
+ +-- FellBehind              a client's iterator was read too slowly and dropped updates
 """
 
 from task_manager.core.status import ErrorCode
@@ -37,3 +38,8 @@ class TaskManagerUnavailable(TaskManagerError):  # noqa: N818 - reads as a state
 
 class TaskTimeout(TaskManagerError):  # noqa: N818
     """A task did not end within the time a client was willing to wait."""
+
+
+class FellBehind(TaskManagerError):  # noqa: N818 - reads as what happened, like TaskTimeout
+    """An iterator of the client was read so slowly that it dropped updates (see
+    bounds.UPDATES_UNREAD_MAX); what it follows should be read again."""
