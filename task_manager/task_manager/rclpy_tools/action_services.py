@@ -18,7 +18,7 @@ from rclpy.subscription import Subscription
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
-from task_manager.rclpy_tools.calls import call_async
+from task_manager.rclpy_tools.calls import call_async, forget
 from task_manager.rclpy_tools.futures import completed_future
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE, RESULT_REPLIES
 from task_manager.rclpy_tools.request_window import DEFAULT_SLOT_TIMEOUT_SEC, RequestWindow
@@ -154,14 +154,14 @@ class ActionServicesClient:
         if self._windows is not None:
             self._windows[0].forget(future)
         else:
-            self._send_goal.remove_pending_request(future)
+            forget(self._send_goal, future)
 
     def forget_cancel_request(self, future: Future[Any]) -> None:
         """Stop waiting for the response to a CancelGoal request (it is sent again)."""
         if self._windows is not None:
             self._windows[2].forget(future)
         else:
-            self._cancel.remove_pending_request(future)
+            forget(self._cancel, future)
 
     def result_request_waits(self, future: Future[Any]) -> bool:
         """Whether a GetResult request asked again still waits its turn in the window."""
@@ -171,12 +171,11 @@ class ActionServicesClient:
         """Stop waiting for the response to a GetResult request (asked again, or answered).
 
         The first ask goes to the client directly, asks again through the window: a window's
-        request is forgotten there, without rclpy's scan of every pending request; an answered
-        one is no longer pending anywhere."""
+        request is forgotten there; an answered one is no longer pending anywhere."""
         if self._windows is not None and self._windows[1].holds(future):
             self._windows[1].forget(future)
         elif not future.done():
-            self._get_result.remove_pending_request(future)
+            forget(self._get_result, future)
 
     def forget(self, goal_id: bytes) -> None:
         """The goal has ended: drop its feedback callback."""

@@ -30,7 +30,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer
 
-from task_manager.rclpy_tools.calls import call_async
+from task_manager.rclpy_tools.calls import call_async, forget
 from task_manager.rclpy_tools.futures import completed_future
 
 # Below the 10 unread requests rclpy's and rclcpp's servers keep by default.
@@ -106,7 +106,7 @@ class RequestWindow:
             signal.cancel()
         sent = self._sent.pop(future, None)
         if sent is not None and not sent.future.done():
-            self._client.remove_pending_request(sent.future)
+            forget(self._client, sent.future)
         if not future.done():
             future.cancel()
         self._in_flight.pop(future, None)

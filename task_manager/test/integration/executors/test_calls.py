@@ -1,6 +1,6 @@
-"""Service requests through rclpy_tools.calls: every answered or cancelled request leaves its
-client's table of pending requests, on the node's executor and on rclpy's; on the node's, an
-answer costs no task beyond its handler."""
+"""Service requests through rclpy_tools.calls: every answered, cancelled or forgotten request
+leaves its client's table of pending requests, on the node's executor and on rclpy's; on the
+node's, an answer costs no task beyond its handler."""
 
 import os
 from collections.abc import Iterator
@@ -14,7 +14,7 @@ from rclpy.node import Node
 from rclpy.task import Future
 from std_srvs.srv import Empty, Trigger
 
-from task_manager.rclpy_tools.calls import call_async
+from task_manager.rclpy_tools.calls import call_async, forget
 from task_manager.rclpy_tools.futures import all_completed
 from task_manager.rclpy_tools.qos import DEEP_RELIABLE
 from task_manager.rclpy_tools.server_wait import wait_until_ready
@@ -81,13 +81,17 @@ def test_a_burst_answered_on_rclpys_executor_leaves_nothing_pending(
     assert client._pending_requests == {}
 
 
-def test_a_cancelled_request_leaves_the_table_and_the_others_stay(ros_context: None) -> None:
+def test_a_cancelled_or_forgotten_request_leaves_the_table_and_the_others_stay(
+    ros_context: None,
+) -> None:
     node = rclpy.create_node(f'calls_unserved_{os.getpid()}')
     try:
         client: Client[Any, Any] = node.create_client(Trigger, f'/nobody_{os.getpid()}')
-        first, second = (call_async(client, Trigger.Request()) for _ in range(2))
+        first, second, third = (call_async(client, Trigger.Request()) for _ in range(3))
         first.cancel()
+        forget(client, third)  # its caller waits no more: out of the table, the future as it is
         assert list(client._pending_requests.values()) == [second]
+        assert not third.done()
         with pytest.raises(TypeError, match='Empty_Request is not a request of Trigger'):
             call_async(client, Empty.Request())
     finally:
