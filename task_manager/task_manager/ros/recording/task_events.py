@@ -31,6 +31,7 @@ from task_manager.rclpy_tools.cleanup import destroy_timer
 from task_manager.ros.parking_executor import spawn_after_turn
 from task_manager.ros.recording.event_batch_wire import (
     EncodedEvent,
+    EventBatchEncoding,
     encode_event,
     event_batch_encoding,
     event_message,
@@ -56,8 +57,8 @@ class TaskEventStream:
         self._publisher: Publisher[TaskEvent] | None = None
         self._batches: Publisher[TaskEventArray] | None = None
         # the events of this turn not published on the batch topic yet: encoded, where the
-        # middleware writes what event_batch_wire does, else messages
-        self._encoding = event_batch_encoding()
+        # middleware writes what event_batch_wire does (checked in `open`), else messages
+        self._encoding: EventBatchEncoding | None = None
         self._batch = EventBatch[EncodedEvent | TaskEvent](
             TaskEventArray.EVENTS_MAX, EVENT_BATCH_MAX_BYTES
         )
@@ -72,6 +73,7 @@ class TaskEventStream:
     def open(self) -> None:
         """Create the publisher (when the node starts serving)."""
         if self.enabled:
+            self._encoding = event_batch_encoding()
             self._publisher = self._node.create_publisher(
                 TaskEvent,
                 TASK_EVENTS_TOPIC,
