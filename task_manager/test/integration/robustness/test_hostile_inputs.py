@@ -4,10 +4,11 @@ ids, missions). Afterwards the node is alive, every request was answered exactly
 runs on its server untracked, and the schedules can still be read (docs/security.md: bounds).
 """
 
+import contextlib
 import json
 import math
 from collections import Counter
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
@@ -19,6 +20,7 @@ from test_msgs.action import Fibonacci
 
 from task_manager.client import TaskManagerClient
 from task_manager.core.bounds import IDS_MAX
+from task_manager.core.names import GET_SCHEDULES_SERVICE, GET_TASK_STATES_SERVICE
 from task_manager.rclpy_tools.server_wait import wait_until_ready
 from task_manager.testing.harness import RosHarness, WaitTimeoutError, wait_for_future
 from task_manager.testing.probe import TaskManagerProbe
@@ -207,6 +209,25 @@ def test_hostile_system_task_documents_get_one_answer_and_the_node_serves_on(
     one_request()
 
 
+@contextlib.contextmanager
+def _asking(
+    ros: RosHarness, service_type: Any, name: str, ids_field: str, read: Callable[[Any], Any]
+) -> Iterator[Callable[[list[str]], list[Any]]]:
+    """While the block runs, `ask(ids)`: a request of `service_type` to the node's service
+    `name` with `ids` in its `ids_field`, and what `read` takes of the answer."""
+    client: Client[Any, Any] = ros.node.create_client(service_type, name)
+    try:
+        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
+
+        def ask(ids: list[str]) -> list[Any]:
+            request = service_type.Request(**{ids_field: ids})
+            return list(read(wait_for_future(client.call_async(request), TIMEOUT_SEC, name)))
+
+        yield ask
+    finally:
+        ros.node.destroy_client(client)
+
+
 def test_states_of_more_tasks_than_a_request_may_name_answer_the_first_ones(
     ros: RosHarness, accounting: Accounting
 ) -> None:
@@ -214,21 +235,10 @@ def test_states_of_more_tasks_than_a_request_may_name_answer_the_first_ones(
     executor): the first 1,000 are answered, the rest left out, and the log says so; the
     client asks such a list in requests of 1,000."""
     accounting.tm.run('drive', {'order': 1}, task_id='known')
-    client: Client[GetTaskStates.Request, GetTaskStates.Response] = ros.node.create_client(
-        GetTaskStates, '/task_manager/get_task_states'
-    )
-    try:
-        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
-
-        def states(ids: list[str]) -> list[str]:
-            request = GetTaskStates.Request(task_ids=ids)
-            answer = wait_for_future(client.call_async(request), TIMEOUT_SEC, 'states')
-            return [state.task_id for state in answer.tasks]
-
-        assert states([*['unknown'] * IDS_MAX, 'known']) == []
-        assert states([*['unknown'] * (IDS_MAX - 1), 'known']) == ['known']
-    finally:
-        ros.node.destroy_client(client)
+    asking = _asking(ros, GetTaskStates, GET_TASK_STATES_SERVICE, 'task_ids', lambda a: a.tasks)
+    with asking as states:
+        assert [s.task_id for s in states([*['unknown'] * IDS_MAX, 'known'])] == []
+        assert [s.task_id for s in states([*['unknown'] * (IDS_MAX - 1), 'known'])] == ['known']
     process = accounting.tm.process  # type: ignore[attr-defined]
     process.wait_for_log(f'get_task_states asked for {IDS_MAX + 1} tasks', TIMEOUT_SEC)
     with TaskManagerClient('hostile_ids', timeout_sec=TIMEOUT_SEC) as tasks:
@@ -249,21 +259,12 @@ def test_schedules_asked_by_more_ids_than_a_request_may_name_answer_the_first_on
         'delay_sec': 3600.0,
     }
     assert accounting.tm.run('system/schedule', schedule, task_id='keep').task_status == 'DONE'
-    client: Client[GetSchedules.Request, GetSchedules.Response] = ros.node.create_client(
-        GetSchedules, '/task_manager/get_schedules'
+    asking = _asking(
+        ros, GetSchedules, GET_SCHEDULES_SERVICE, 'schedule_ids', lambda a: a.schedules
     )
-    try:
-        assert wait_until_ready(client.service_is_ready, TIMEOUT_SEC)
-
-        def schedules(ids: list[str]) -> list[str]:
-            request = GetSchedules.Request(schedule_ids=ids)
-            answer = wait_for_future(client.call_async(request), TIMEOUT_SEC, 'schedules')
-            return [info.schedule_id for info in answer.schedules]
-
-        assert schedules([*['unknown'] * IDS_MAX, 'kept']) == []
-        assert schedules(['kept'] * (IDS_MAX + 1)) == ['kept'] * IDS_MAX
-    finally:
-        ros.node.destroy_client(client)
+    with asking as schedules:
+        assert [i.schedule_id for i in schedules([*['unknown'] * IDS_MAX, 'kept'])] == []
+        assert [i.schedule_id for i in schedules(['kept'] * (IDS_MAX + 1))] == ['kept'] * IDS_MAX
     process = accounting.tm.process  # type: ignore[attr-defined]
     process.wait_for_log(f'get_schedules asked for {IDS_MAX + 1} schedules', TIMEOUT_SEC)
     with TaskManagerClient('hostile_schedule_ids', timeout_sec=TIMEOUT_SEC) as scheduling:
