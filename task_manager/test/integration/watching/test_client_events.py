@@ -6,13 +6,11 @@ from datetime import UTC, datetime, timedelta
 from typing import Any
 
 import pytest
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 from task_manager_msgs.msg import TaskEventArray
 from test_msgs.action import Fibonacci
 
 from task_manager.client import (
-    EventsLost,
     Subtask,
     TaskEventKind,
     TaskManagerClient,
@@ -24,7 +22,6 @@ from task_manager.core.status import TaskStatus
 from task_manager.rclpy_tools import qos
 from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
-from task_manager.testing.lost_events import batch_writer, event_batch
 from task_manager.testing.process import LaunchTaskManager, action_task
 from task_manager.testing.servers import (
     ScriptedActionServer,
@@ -33,8 +30,6 @@ from task_manager.testing.servers import (
 )
 
 TIMEOUT_SEC = 15.0
-DRAINED_SEC = 1.0
-"""How long an iterator read after its last item is known to have come waits for more."""
 BURST = 500
 BURST_TIMEOUT_SEC = 60.0
 # The burst's server shares this process with the client and two recorders of every event: on a
@@ -448,58 +443,3 @@ def test_the_latest_active_list_is_read_only_when_asked_for(
     listed = [(t.task_id, t.status) for t in client.active_tasks()]
     assert listed == [('held', TaskStatus.IN_PROGRESS)]
     assert active._latest is not None  # read once, kept until the next list
-
-
-def test_events_a_client_fell_too_far_behind_for_are_told_as_lost(
-    ros: RosHarness, client: TaskManagerClient
-) -> None:
-    """A client held up while more batches come than its reader keeps (1,000) loses the
-    oldest: it is told how many, after the events that came, from the numbers the middleware
-    gives each message. The batches here are published by the test (a stand-in for the
-    node's writer, the same topic and QoS)."""
-    count = 3 * qos.DEEP_QUEUE_DEPTH
-    beside = ros.record(
-        TaskEventArray,
-        TASK_EVENT_BATCHES_TOPIC,
-        QoSProfile(depth=2 * count, reliability=ReliabilityPolicy.RELIABLE),
-    )
-    seen: list[str] = []
-    lost: list[int] = []
-    held, released = threading.Event(), threading.Event()
-
-    def take(event: Any) -> None:
-        seen.append(event.task.task_id)
-        if event.task.task_id == 'hold':
-            held.set()
-            released.wait(TIMEOUT_SEC)
-
-    client.on_task_event(take)
-    client.on_events_lost(lost.append)
-    followed = client.task_events(timeout_sec=DRAINED_SEC, losses=True)
-    writer = batch_writer(ros, readers=2)  # the client's and the recorder beside it
-    try:
-        writer.publish(event_batch('hold'))
-        assert held.wait(TIMEOUT_SEC), 'the client never got the first batch'
-        for number in range(count):
-            writer.publish(event_batch(f'b{number}'))
-        beside.wait_until(lambda messages: len(messages) == count + 1, TIMEOUT_SEC, 'all sent')
-    finally:
-        released.set()
-
-    wait_until(lambda: seen and seen[-1] == f'b{count - 1}', 'the last batch taken')
-    taken = seen[1:]
-    assert taken == sorted(taken, key=lambda task_id: int(task_id[1:])), 'out of order'
-    assert lost, 'no loss told'
-    assert len(taken) + sum(lost) == count, (len(taken), lost)
-    # the iterator: the same events, and each loss right after the first event past its gap
-    items = list(followed)
-    assert [i.task.task_id for i in items if not isinstance(i, EventsLost)] == seen
-    numbers: list[int] = []  # of the events so far ('hold' is -1, b0 0)
-    gaps: list[int] = []  # the batches missing between the two events before each loss
-    for item in items:
-        if isinstance(item, EventsLost):
-            gaps.append(numbers[-1] - numbers[-2] - 1)
-        else:
-            numbers.append(-1 if item.task.task_id == 'hold' else int(item.task.task_id[1:]))
-    assert [i for i in items if isinstance(i, EventsLost)] == [EventsLost(n) for n in lost]
-    assert gaps == lost
