@@ -15,15 +15,21 @@ conditions, clients and services, a timeout as rclpy's) over a wait set kept whi
 entities stay the same and all may run. A turn in which some may not (a handler's callback
 group busy) waits on the others with a wait set made for it, as rclpy's does.
 
+rclpy's take of a timer looks up, at each call, whether its callback takes a TimerInfo
+(`inspect.signature`, a third of a millisecond, more than most of the node's timer callbacks);
+here it is looked up once per callback of a timer.
+
 The client's executor (every message of a gateway's node, three to seven per task) and the
 node's ParkingExecutor both use it.
 """
 
+import functools
+import inspect
 import time
 from collections.abc import Callable, Coroutine, Generator, Iterator
 from typing import Any
 
-from rclpy.exceptions import InvalidHandle
+from rclpy.exceptions import InvalidHandle, TimerCancelledError
 from rclpy.executors import (
     ConditionReachedException,
     ExternalShutdownException,
@@ -34,6 +40,7 @@ from rclpy.executors import (
 )
 from rclpy.node import Node
 from rclpy.task import Task
+from rclpy.timer import Timer, TimerInfo
 from rclpy.utilities import timeout_sec_to_nsec
 
 from task_manager.rclpy_tools.reusable_wait_set import NodeEntities, Ready, ReusableWaitSet
@@ -154,6 +161,35 @@ class WakelessExecutor(SingleThreadedExecutor):
                 take = getattr(self, _TAKES[found.kind])
                 yield self._make_handler(entity, node, take), entity, node
 
+    def _take_timer(self, tmr: Timer) -> Execute | None:
+        """rclpy's take of a timer (its call counted), what its callback takes looked up once
+        per callback; None if the timer is gone or was cancelled."""
+        try:
+            with tmr.handle:
+                info = tmr.handle.call_timer_with_info()
+        except (InvalidHandle, TimerCancelledError):
+            return None
+        callback: Callable[..., Any] | None = tmr.callback
+        if callback is None:
+            return None
+        arg_name, is_coroutine = _timer_callback_kind(tmr, callback)
+        call: Callable[[], Any] = callback
+        if arg_name is not None:
+            timer_info = TimerInfo(
+                expected_call_time=info['expected_call_time'],
+                actual_call_time=info['actual_call_time'],
+                clock_type=tmr.clock.clock_type,
+            )
+            call = functools.partial(callback, **{arg_name: timer_info})
+
+        async def execute() -> None:
+            if is_coroutine:
+                await call()
+            else:
+                call()
+
+        return execute
+
     def shutdown(self, timeout_sec: float | None = None) -> bool:
         done = super().shutdown(timeout_sec)
         self._kept = None
@@ -187,3 +223,24 @@ class WakelessExecutor(SingleThreadedExecutor):
             finally:
                 if group is not None:
                     group.ending_execution(entity)
+
+
+def _timer_callback_kind(timer: Timer, callback: Callable[..., Any]) -> tuple[str | None, bool]:
+    """The name of the callback's parameter annotated TimerInfo (None: it takes none) and
+    whether it is a coroutine function, kept on the timer for as long as its callback is the
+    same."""
+    kept = getattr(timer, '_task_manager_callback_kind', None)
+    if kept is not None and kept[0] is callback:
+        known: tuple[str | None, bool] = kept[1]
+        return known
+    name = next(
+        (
+            parameter.name
+            for parameter in inspect.signature(callback).parameters.values()
+            if parameter.annotation == TimerInfo
+        ),
+        None,
+    )
+    kind = (name, inspect.iscoroutinefunction(callback))
+    timer._task_manager_callback_kind = (callback, kind)  # type: ignore[attr-defined]
+    return kind
