@@ -92,7 +92,7 @@ class ActionExecution:
         self._server_ids = server_ids
         self._servers_of_goal: frozenset[bytes] | None = server_ids() if servers_known else None
         self.outcome: Future[Any] = Future()
-        self._ticks_since_ask = 0
+        self._ask_at: int | None = None  # the watch's check at which to ask again (first: next)
         self._ticks_between_asks = 1
         self._asks_again = 0
         self._first_request = self._ask_for_result()
@@ -105,25 +105,23 @@ class ActionExecution:
         request.add_done_callback(self._on_result)
         return request
 
-    def on_watch_tick(self) -> None:
+    def on_watch_tick(self, tick: int) -> int | None:
         """Ask for the result again if the last request has waited its interval unanswered
-        (RESULT_ASKS_AGAIN_MAX times), or at once if the server restarted."""
+        (RESULT_ASKS_AGAIN_MAX times), or at once if the server restarted; the check at which
+        to ask next."""
         if self.outcome.done():
-            return
+            return None
         if self._server_restarted():
             self._ask_again()
-            return
-        if self._asks_again == RESULT_ASKS_AGAIN_MAX:
-            return
-        self._ticks_since_ask += 1
-        if self._ticks_since_ask < self._ticks_between_asks:
-            return
-        self._ticks_since_ask = 0
-        self._ticks_between_asks *= 2
-        if self._asked_again and self._client.result_request_waits(self._asked_again[-1]):
-            return
-        self._asks_again += 1
-        self._ask_again()
+        elif self._asks_again < RESULT_ASKS_AGAIN_MAX and (
+            self._ask_at is None or tick >= self._ask_at
+        ):
+            self._ask_at = tick + self._ticks_between_asks * 2
+            self._ticks_between_asks *= 2
+            if not (self._asked_again and self._client.result_request_waits(self._asked_again[-1])):
+                self._asks_again += 1
+                self._ask_again()
+        return self._ask_at if self._asks_again < RESULT_ASKS_AGAIN_MAX else None
 
     def _server_restarted(self) -> bool:
         """Whether none of the servers known when the goal was accepted is there any more,
@@ -299,8 +297,11 @@ class ActionTaskRunner(TaskRunner):
             'the goal may still run'
         )
 
-    def _note_server_ids(self) -> None:
-        self._server_ids = self._client.server_ids()
+    def _note_server_ids(self) -> bool:
+        """Read the servers' DDS ids at a check of the watch; whether they changed (then each
+        goal is told, to notice a restart of its server)."""
+        before, self._server_ids = self._server_ids, self._client.server_ids()
+        return self._server_ids != before
 
     def _probe(self) -> bool | Future[Any]:
         """A cancel request for a goal id that does not exist: a live server answers at

@@ -68,8 +68,9 @@ class ServiceExecution:
         if not self.outcome.done():
             self.outcome.set_result(TaskEnd(TaskStatus.ERROR, {'error': reason}))
 
-    def on_watch_tick(self) -> None:
+    def on_watch_tick(self, tick: int) -> int | None:
         """Nothing to ask again: a call cannot be repeated (its service may act twice)."""
+        return None
 
     def _clean_up(self) -> None:
         if self._deadline is not None:
