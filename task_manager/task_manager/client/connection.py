@@ -32,6 +32,10 @@ DEFAULT_TIMEOUT_SEC = 5.0
 # A request is sent again after this long without a reply, then after twice as long, ...:
 # a reply sent before DDS matched this client's reply reader is lost.
 SERVICE_RETRY_SEC = 0.5
+GOAL_RESEND_WITHIN_SEC = 8.0
+"""A goal not answered is sent again (same goal id) only this long after its first sending: the
+node keeps an ended goal's id 10 s (its action server's result_timeout) and refuses it while
+it does; a goal sent again after the node forgot it would run a second time."""
 LOST_EVENTS_LOG_SEC = 10.0
 """The most often the client logs that task events went missing (with the count since)."""
 

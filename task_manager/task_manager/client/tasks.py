@@ -21,7 +21,12 @@ from task_manager_msgs.action import ExecuteTask, StartTask
 from task_manager_msgs.msg import TaskDoneResult
 from task_manager_msgs.msg import TaskEvent as TaskEventMessage
 
-from task_manager.client.connection import SERVICE_RETRY_SEC, Connection, EventFeed
+from task_manager.client.connection import (
+    GOAL_RESEND_WITHIN_SEC,
+    SERVICE_RETRY_SEC,
+    Connection,
+    EventFeed,
+)
 from task_manager.client.handle import FeedbackCallback, TaskHandle
 from task_manager.client.listeners import Callback, Inbox, Listener, Listeners, drain
 from task_manager.client.message_values import json_text
@@ -216,11 +221,11 @@ class Tasks:
         """Send the goal until the Task Manager answers (bounded); whether it did.
 
         A request sent just as DDS matches the node's reader can be lost, so the same goal
-        (same goal id) is sent again after SERVICE_RETRY_SEC, then twice as long, ...: the
-        node's action server refuses a goal id it already has, so it never runs twice.
+        (same goal id) is sent again (goal_resend_offsets): the node's action server refuses a
+        goal id it already has, so it never runs twice.
         """
-        deadline = time.monotonic() + self._connection.timeout_sec
-        retry_sec = SERVICE_RETRY_SEC
+        started = time.monotonic()
+        deadline = started + self._connection.timeout_sec
         goal_id, first = server.send_goal(goal)
         requests = [first]
 
@@ -229,16 +234,15 @@ class Tasks:
 
         first.add_done_callback(lambda f: self._on_goal_response(handle, goal_id, f, retried=False))
         with self._lock:
-            while not answered() and (remaining := deadline - time.monotonic()) > 0:
-                if self._lock.wait_for(answered, min(retry_sec, remaining)):
+            for offset in goal_resend_offsets(self._connection.timeout_sec):
+                if self._lock.wait_for(answered, max(started + offset - time.monotonic(), 0)):
                     break
-                retry_sec *= 2
                 _, again = server.send_goal(goal, goal_id)
                 again.add_done_callback(
                     lambda f: self._on_goal_response(handle, goal_id, f, retried=True)
                 )
                 requests.append(again)
-            done = answered()
+            done = self._lock.wait_for(answered, max(deadline - time.monotonic(), 0))
         for request in requests:
             if not request.done():
                 server.forget_request(request)
@@ -386,6 +390,21 @@ class Tasks:
         early_result = handle.tracking.early_result
         if early_result is not None:
             self._complete(handle, early_result, final=True)
+
+
+def goal_resend_offsets(timeout_sec: float) -> list[float]:
+    """When, in seconds after its first sending, a goal not answered is sent again: after
+    SERVICE_RETRY_SEC, then twice as long, ...; only before the caller's timeout (a goal sent as
+    the caller gives up would start a task it was told did not start) and within
+    GOAL_RESEND_WITHIN_SEC."""
+    offsets: list[float] = []
+    wait_sec = SERVICE_RETRY_SEC
+    while (at := (offsets[-1] if offsets else 0.0) + wait_sec) < min(
+        timeout_sec, GOAL_RESEND_WITHIN_SEC
+    ):
+        offsets.append(at)
+        wait_sec *= 2
+    return offsets
 
 
 def _refused(handle: TaskHandle, action: str) -> TaskResult:
