@@ -16,6 +16,7 @@ from task_manager.cli.verbs.schedule import schedule_app
 from task_manager.cli.verbs.start import start
 from task_manager.cli.verbs.tasks import tasks
 from task_manager.cli.verbs.watch import active, results
+from task_manager.core.bounds import SECONDS
 from task_manager.process_setup import prepare_ros_process
 
 app = typer.Typer(
@@ -28,11 +29,20 @@ app = typer.Typer(
 )
 
 
+def _client_seconds(value: float) -> float:
+    if problem := SECONDS.problem('--timeout', value):
+        raise typer.BadParameter(problem)
+    return value
+
+
 @app.callback()
 def options(
     ctx: typer.Context,
     timeout: float = typer.Option(
-        5.0, '--timeout', help='Seconds to wait for the Task Manager to answer'
+        5.0,
+        '--timeout',
+        callback=_client_seconds,
+        help='Seconds to wait for the Task Manager to answer',
     ),
 ) -> None:
     ctx.obj = {'timeout_sec': timeout}

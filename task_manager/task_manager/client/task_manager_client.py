@@ -35,6 +35,7 @@ from task_manager.client.services import ServiceCalls
 from task_manager.client.tasks import NO_OPTIONS, Tasks, check_priority, request_options
 from task_manager.client.watching import ActiveTasks, Watching
 from task_manager.core.admission.options import OnConflict
+from task_manager.core.bounds import SECONDS
 from task_manager.core.names import CANCEL_TASK, REPRIORITIZE, STOP
 from task_manager.rclpy_tools.log import NodeLog
 
@@ -48,6 +49,7 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
     def __init__(
         self, node_name: str = 'task_manager_client', timeout_sec: float = DEFAULT_TIMEOUT_SEC
     ) -> None:
+        SECONDS.check('timeout_sec', timeout_sec)  # threading's waits take no infinity
         self._connection = Connection(node_name, timeout_sec)
         self.node = self._connection.node
         self._active = ActiveTasks(self._connection)
@@ -70,6 +72,7 @@ class TaskManagerClient(Watching, HistoryQueries, Interventions, Scheduling):
 
     @timeout_sec.setter
     def timeout_sec(self, timeout_sec: float) -> None:
+        SECONDS.check('timeout_sec', timeout_sec)
         self._connection.timeout_sec = timeout_sec
 
     # ---- lifecycle and connection ------------------------------------------------------------

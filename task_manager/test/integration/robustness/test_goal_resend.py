@@ -1,6 +1,7 @@
 """A goal the Task Manager does not answer is sent again only while its client waits: none goes
 out as the client gives up (it would start a task its caller was told did not start)."""
 
+import math
 import threading
 import time
 from typing import Any
@@ -68,3 +69,18 @@ def test_a_goal_unanswered_is_not_sent_again_as_the_client_gives_up(ros: RosHarn
     assert sent_after, 'no goal reached the service'
     # the last one sent again, give or take its delivery, not one at the timeout
     assert max(sent_after) < (last_resend + TIMEOUT_SEC) / 2, sent_after
+
+
+@pytest.mark.parametrize('timeout_sec', [math.inf, math.nan, -1.0, 8 * 24 * 3600.0])
+def test_a_client_refuses_a_timeout_it_cannot_wait(timeout_sec: float) -> None:
+    """Infinity reached threading's waits (OverflowError as the client closed); a week at most."""
+    with pytest.raises(ValueError, match='timeout_sec must be'):
+        TaskManagerClient('unbounded_timeout', timeout_sec=timeout_sec)
+
+
+@pytest.mark.usefixtures('ros_context')
+def test_a_clients_timeout_set_later_is_bounded_too() -> None:
+    with TaskManagerClient('bounded_timeout', timeout_sec=TIMEOUT_SEC) as client:
+        with pytest.raises(ValueError, match='timeout_sec must be a finite number'):
+            client.timeout_sec = math.inf
+        assert client.timeout_sec == TIMEOUT_SEC

@@ -1,8 +1,12 @@
-"""When the client sends a goal not answered again (goal_resend_offsets)."""
+"""When the client sends a goal not answered again (goal_resend_offsets); the timeouts it
+and taskctl take."""
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from typer.testing import CliRunner
 
+from task_manager.cli import main as cli_main
 from task_manager.client.connection import GOAL_RESEND_WITHIN_SEC, SERVICE_RETRY_SEC
 from task_manager.client.tasks import goal_resend_offsets
 
@@ -22,3 +26,12 @@ def test_never_as_the_caller_gives_up_nor_once_the_node_may_have_forgotten_the_g
 
     assert all(at < min(timeout_sec, GOAL_RESEND_WITHIN_SEC) for at in offsets)
     assert offsets == [SERVICE_RETRY_SEC * (2 ** (n + 1) - 1) for n in range(len(offsets))]
+
+
+@pytest.mark.parametrize('timeout', ['inf', 'nan', '-1', '700000'])
+def test_taskctl_refuses_a_timeout_its_client_cannot_wait(timeout: str) -> None:
+    """A usage error (exit 2) before any ROS work, not a traceback from the client."""
+    outcome = CliRunner().invoke(cli_main.app, ['--timeout', timeout, 'tasks'])
+
+    assert outcome.exit_code == 2
+    assert '--timeout must be' in outcome.output
