@@ -127,6 +127,15 @@ def on_stop_signal(stop: Callable[[], object], program: str) -> None:
     threading.Thread(target=wait, name=f'{program}-signals', daemon=True).start()
 
 
+def interrupt_main_thread() -> None:
+    """Raise KeyboardInterrupt in the main thread, as Ctrl-C would, from any thread: SIGINT sent
+    to the main thread itself. One sent to the process may be delivered to another thread (one
+    of DDS's, when the main thread does not want it just then, say just after a SIGCONT);
+    Python's handler then runs only once the main thread runs Python again, and a main thread
+    waiting with no timeout (taskctl following results) never would."""
+    signal.pthread_kill(threading.main_thread().ident or 0, signal.SIGINT)
+
+
 def stop_when_unheard(client: Any, stop: Callable[[], object]) -> threading.Event:
     """Call `stop` once `client` (a TaskManagerClient) no longer hears its Task Manager after
     a hold-up (it logs why); the event returned is set then: the program ends with

@@ -1,8 +1,6 @@
 """What the taskctl verbs share: the client, exit codes, output."""
 
 import json
-import os
-import signal
 import sys
 import threading
 from collections.abc import Callable, Collection, Iterator
@@ -17,7 +15,7 @@ from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, 
 from task_manager.client.records import Decision
 from task_manager.core.admission.options import OnConflict
 from task_manager.core.bounds import PRIORITY
-from task_manager.process_setup import end_within, stop_when_unheard
+from task_manager.process_setup import end_within, interrupt_main_thread, stop_when_unheard
 
 EXIT_DONE = 0
 EXIT_ERROR = 1
@@ -158,7 +156,7 @@ def _new_client(timeout_sec: float) -> tuple[TaskManagerClient, threading.Event]
     after a hold-up (Ctrl-Z, a paused machine; its or the node's): the wait in progress then
     ends as Ctrl-C would end it, and taskctl says why (exit 4)."""
     client = TaskManagerClient('taskctl', timeout_sec=timeout_sec)
-    return client, stop_when_unheard(client, lambda: os.kill(os.getpid(), signal.SIGINT))
+    return client, stop_when_unheard(client, interrupt_main_thread)
 
 
 class Reaching(Protocol):

@@ -243,3 +243,34 @@ def test_a_second_stop_signal_ends_the_process_at_once_with_one_line() -> None:
     assert (ended.returncode, ended.stdout) == (1, 'stopping\n')
     assert ended.stderr == 'a-program: a second signal: exiting at once\n'
     assert time.monotonic() - started < 20
+
+
+INTERRUPTED_WHILE_WAITING = """
+import queue, threading
+from task_manager import process_setup
+waiting = threading.Event()
+def interrupt():
+    waiting.wait(10)
+    process_setup.interrupt_main_thread()
+busy = [threading.Thread(target=threading.Event().wait, args=(30,), daemon=True) for _ in range(8)]
+for thread in busy:
+    thread.start()
+threading.Thread(target=interrupt, daemon=True).start()
+waiting.set()
+try:
+    queue.SimpleQueue().get()  # no timeout, as taskctl following results
+except KeyboardInterrupt:
+    print('interrupted', flush=True)
+"""
+
+
+def test_the_main_thread_waiting_with_no_timeout_is_interrupted_from_another_thread() -> None:
+    """How taskctl ends when its client no longer hears the node (a CI run once saw the
+    process-directed SIGINT taken by another thread and taskctl wait on for good)."""
+    ended = subprocess.run(
+        [sys.executable, '-c', INTERRUPTED_WHILE_WAITING],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert (ended.returncode, ended.stdout) == (0, 'interrupted\n'), ended.stderr
