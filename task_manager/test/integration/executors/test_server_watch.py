@@ -1,11 +1,7 @@
 """The server watch's checks call only the tasks that asked for it (ServerWatch), on a real
 node's timer: a thousand goals held for minutes cost no work per goal at each check."""
 
-import os
-from collections.abc import Iterator
-
 import pytest
-import rclpy
 from rclpy.node import Node
 from rclpy.task import Future
 
@@ -32,16 +28,6 @@ class Execution:
     def on_watch_tick(self, tick: int) -> int | None:
         self.called_at.append(tick)
         return None if self.every is None else tick + self.every
-
-
-@pytest.fixture
-def spun(ros_context: None) -> Iterator[tuple[WakelessExecutor, Node]]:
-    node = rclpy.create_node(f'server_watch_{os.getpid()}')
-    executor = WakelessExecutor()
-    executor.add_node(node)
-    yield executor, node
-    executor.shutdown()
-    node.destroy_node()
 
 
 def watch_checks(

@@ -1,9 +1,7 @@
 """A node's timeouts on one timer: each action runs once its delay has passed, earliest first,
 unless cancelled; however many are pending, the node has one timer for them."""
 
-import os
 import time
-from collections.abc import Iterator
 
 import pytest
 import rclpy
@@ -16,16 +14,6 @@ from task_manager.ros.running.deadline_timer import Deadline, DeadlineTimer
 
 pytestmark = pytest.mark.ros
 TIMEOUT_SEC = 5.0
-
-
-@pytest.fixture
-def spun(ros_context: None) -> Iterator[tuple[WakelessExecutor, rclpy.node.Node]]:
-    node = rclpy.create_node(f'timeouts_{os.getpid()}')
-    executor = WakelessExecutor()
-    executor.add_node(node)
-    yield executor, node
-    executor.shutdown()
-    node.destroy_node()
 
 
 def spin_until(executor: WakelessExecutor, future: Future[None]) -> None:

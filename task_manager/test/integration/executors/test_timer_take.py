@@ -2,12 +2,9 @@
 callback takes looked up once per callback instead of at every call."""
 
 import inspect
-import os
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
-import rclpy
 from rclpy.node import Node
 from rclpy.task import Future
 from rclpy.timer import Timer, TimerInfo
@@ -15,22 +12,13 @@ from rclpy.timer import Timer, TimerInfo
 from task_manager.rclpy_tools.wakeless_executor import WakelessExecutor
 from task_manager.ros.parking_executor import ParkingExecutor
 
-pytestmark = pytest.mark.ros
+pytestmark = [
+    pytest.mark.ros,
+    pytest.mark.parametrize('spun', [WakelessExecutor, ParkingExecutor], indirect=True),
+]
 TIMEOUT_SEC = 5.0
 PERIOD_SEC = 0.005
 CALLS = 5
-
-
-@pytest.fixture(params=[WakelessExecutor, ParkingExecutor])
-def spun(
-    ros_context: None, request: pytest.FixtureRequest
-) -> Iterator[tuple[WakelessExecutor, Node]]:
-    node = rclpy.create_node(f'timer_take_{os.getpid()}')
-    executor = request.param()
-    executor.add_node(node)
-    yield executor, node
-    executor.shutdown()
-    node.destroy_node()
 
 
 class SignatureCounted:
