@@ -21,6 +21,7 @@ from task_manager_msgs.msg import TaskEventArray
 
 from task_manager.client.listeners import Listeners
 from task_manager.client.records import TaskEvent
+from task_manager.core.bounds import check_wait_seconds
 from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.rclpy_tools.cleanup import destroy_waitables
@@ -181,6 +182,7 @@ class Connection:
 
     def wait_matched(self, keys: set[str], timeout_sec: float | None) -> bool:
         """Wait until a publisher reaches each reader of `keys`; whether one did."""
+        check_wait_seconds(timeout_sec)
         with self.lock:
             return self.lock.wait_for(lambda: keys <= self._matched, timeout_sec)
 

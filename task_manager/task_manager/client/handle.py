@@ -11,6 +11,7 @@ from rclpy.timer import Timer
 from task_manager.client.connection import DEFAULT_TIMEOUT_SEC
 from task_manager.client.listeners import Listener
 from task_manager.client.records import TaskResult, TaskState
+from task_manager.core.bounds import check_wait_seconds
 from task_manager.core.errors import TaskTimeout
 from task_manager.rclpy_tools.action_services import ActionServicesClient
 from task_manager.rclpy_tools.futures import result_of
@@ -95,6 +96,7 @@ class TaskHandle:
 
     def result(self, timeout_sec: float | None = None) -> TaskResult:
         """Wait for the task to end; raises TaskTimeout after `timeout_sec` (None: no limit)."""
+        check_wait_seconds(timeout_sec)
         ended = threading.Event()
         self.result_future.add_done_callback(lambda _: ended.set())
         if not ended.wait(timeout_sec) and not self.result_future.done():

@@ -11,7 +11,7 @@ from typing import Any, Generic, Protocol, TypeVar
 
 from rclpy.task import Future
 
-from task_manager.core.bounds import UPDATES_UNREAD_MAX
+from task_manager.core.bounds import UPDATES_UNREAD_MAX, check_wait_seconds
 from task_manager.core.errors import FellBehind
 from task_manager.rclpy_tools.log import NodeLog
 
@@ -116,6 +116,7 @@ class Listeners(Generic[T]):
 
 def drain(inbox: Inbox[T], timeout_sec: float | None, until: Future[Any] | None) -> Iterator[T]:
     """What arrives in `inbox`, until `timeout_sec` passes without any or `until` completes."""
+    check_wait_seconds(timeout_sec)
     if until is not None:
         until.add_done_callback(lambda _: inbox.put(End.OF_UPDATES))
     while True:

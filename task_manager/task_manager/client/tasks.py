@@ -34,7 +34,7 @@ from task_manager.client.missions import Subtask, mission_task_data
 from task_manager.client.records import TaskEvent, TaskEventKind, TaskResult
 from task_manager.client.watching import ActiveTasks
 from task_manager.core.admission.options import OnConflict, RequestOptions, parse_on_conflict
-from task_manager.core.bounds import PRIORITY
+from task_manager.core.bounds import PRIORITY, check_wait_seconds
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import (
     ACTIVE_TASKS_TOPIC,
@@ -126,6 +126,7 @@ class Tasks:
 
     def wait_until_available(self, timeout_sec: float | None, *, events: bool) -> None:
         """See TaskManagerClient.wait_until_available."""
+        check_wait_seconds(timeout_sec)
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         if events:  # first: DDS matches both ends of it while we wait for the rest
             self.events.subscribe()
@@ -419,6 +420,7 @@ def _refused(handle: TaskHandle, action: str) -> TaskResult:
 
 
 def _wait(future: Future[T], timeout_sec: float) -> T | None:
+    check_wait_seconds(timeout_sec)
     done = threading.Event()
     future.add_done_callback(lambda _: done.set())
     return future.result() if done.wait(timeout_sec) or future.done() else None

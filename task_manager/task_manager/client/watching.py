@@ -20,6 +20,7 @@ from task_manager.client.records import (
     TaskResult,
     status_of,
 )
+from task_manager.core.bounds import check_wait_seconds
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import ACTIVE_TASKS_TOPIC
 from task_manager.rclpy_tools import qos
@@ -68,6 +69,7 @@ class ActiveTasks:
 
     def latest(self, timeout_sec: float | None = None) -> list[ActiveTaskInfo]:
         """The latest list; waits for the first, then TaskManagerUnavailable."""
+        check_wait_seconds(timeout_sec)
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         lock = self._connection.lock
         with lock:

@@ -46,6 +46,7 @@ __all__ = [
     'VDA5050_UPDATES_WAITING_MAX',
     'VDA5050_WAITING_MAX_BYTES',
     'NumberBound',
+    'check_wait_seconds',
     'cut_text',
     'duplicate_problem',
     'ids_problem',
@@ -90,6 +91,15 @@ def _number(value: float) -> str:
 SECONDS = NumberBound(0.0, 7 * 24 * 3600.0, 's')
 """Any timeout, wait, grace, backoff or confirmation: at most a week. A ROS timer holds its
 period in signed 64-bit nanoseconds (292 years); a week keeps every sum of them far from it."""
+
+
+def check_wait_seconds(timeout_sec: float | None) -> None:
+    """A client call's wait: None (its default, or for good, as the call says) or SECONDS (an
+    infinite one reached threading's waits as OverflowError); ValueError otherwise."""
+    if timeout_sec is not None:
+        SECONDS.check('timeout_sec', timeout_sec)
+
+
 PERIOD_SECONDS = NumberBound(0.1, 366 * 24 * 3600.0, 's')
 """A schedule's period: at most ten runs a second (one every 0.001 s ran 200 times a second and
 kept doing so after restarts), at most a year."""

@@ -79,8 +79,14 @@ def test_a_client_refuses_a_timeout_it_cannot_wait(timeout_sec: float) -> None:
 
 
 @pytest.mark.usefixtures('ros_context')
-def test_a_clients_timeout_set_later_is_bounded_too() -> None:
+def test_a_clients_timeout_set_later_and_its_calls_waits_are_bounded_too() -> None:
+    """No Task Manager runs here: a wait let through would never end."""
     with TaskManagerClient('bounded_timeout', timeout_sec=TIMEOUT_SEC) as client:
         with pytest.raises(ValueError, match='timeout_sec must be a finite number'):
             client.timeout_sec = math.inf
         assert client.timeout_sec == TIMEOUT_SEC
+        for wait in (client.wait_until_available, client.active_tasks):
+            with pytest.raises(ValueError, match='timeout_sec must be a finite number'):
+                wait(math.inf)
+        with pytest.raises(ValueError, match='timeout_sec must be a finite number'):
+            next(client.results(math.inf))

@@ -2,8 +2,11 @@
 past its unread bound and its reader is told where, never silently; the end of the updates is
 always kept."""
 
+import math
+
 import pytest
 
+from task_manager.client.handle import TaskHandle
 from task_manager.client.listeners import End, Inbox, drain
 from task_manager.core.bounds import UPDATES_UNREAD_MAX
 from task_manager.core.errors import FellBehind
@@ -41,3 +44,13 @@ def test_the_end_of_the_updates_is_kept_when_the_inbox_is_full() -> None:
     inbox.put(End.OF_UPDATES)
 
     assert list(drain(inbox, None, None)) == [0, 1]  # ended, not waiting for good
+
+
+@pytest.mark.parametrize('timeout_sec', [math.inf, math.nan, -1.0])
+def test_a_wait_the_client_cannot_keep_is_refused_before_it_waits(timeout_sec: float) -> None:
+    """An infinite timeout reached the queue's wait as OverflowError; None waits for good."""
+    inbox: Inbox[int] = Inbox()
+    with pytest.raises(ValueError, match='timeout_sec must be'):
+        next(drain(inbox, timeout_sec, None))
+    with pytest.raises(ValueError, match='timeout_sec must be'):
+        TaskHandle(owner=None, task_id='t', task_name='n').result(timeout_sec)  # type: ignore[arg-type]
