@@ -20,6 +20,7 @@ from task_manager_msgs.srv import (
 
 from task_manager.client.connection import SERVICE_RETRY_SEC, Connection
 from task_manager.client.records import TaskResult
+from task_manager.core.bounds import check_wait_seconds
 from task_manager.core.errors import TaskManagerUnavailable
 from task_manager.core.names import (
     CONFIRM_TASK_SERVICE,
@@ -83,6 +84,7 @@ class ServiceCalls:
     ) -> Any:
         """Call a Task Manager service that only reads, or takes a repeat as the first (see
         confirm_task); a lost reply is asked for again."""
+        check_wait_seconds(timeout_sec)
         timeout_sec = self._connection.timeout_sec if timeout_sec is None else timeout_sec
         deadline = time.monotonic() + timeout_sec
         client = self._client(service_type, name)

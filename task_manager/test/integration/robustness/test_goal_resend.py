@@ -90,3 +90,5 @@ def test_a_clients_timeout_set_later_and_its_calls_waits_are_bounded_too() -> No
                 wait(math.inf)
         with pytest.raises(ValueError, match='timeout_sec must be a finite number'):
             next(client.results(math.inf))
+        with pytest.raises(ValueError, match='timeout_sec must be a finite number'):
+            client.why('a-task', timeout_sec=math.inf)  # a service call
