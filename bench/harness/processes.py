@@ -81,16 +81,6 @@ def spin_child(node_name: str, build: Callable[[Node], object]) -> None:
         rclpy.try_shutdown()
 
 
-def cpu_percent(pid: int, seconds: float) -> float:
-    """The process's CPU time (user + system) over `seconds` of wall time, in % of one core."""
-    process = psutil.Process(pid)
-    before = process.cpu_times()
-    time.sleep(seconds)  # the measured interval itself: nothing to wait for
-    after = process.cpu_times()
-    used = (after.user - before.user) + (after.system - before.system)
-    return 100 * used / seconds
-
-
 class ResourceSampler:
     """Samples a process's thread count and RSS in a background thread, keeping the peaks."""
 

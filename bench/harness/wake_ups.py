@@ -10,7 +10,7 @@ measure waiting report the wake-ups (voluntary context switches of all the proce
 and the machine's bill for one beside the CPU, so that a figure is read against its floor.
 """
 
-import threading
+import functools
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -54,26 +54,15 @@ def cpu_use(pid: int, seconds: float) -> CpuUse:
     return CpuUse(100 * used / seconds, (woke_after - woke_before) / seconds)
 
 
-_billed_ms: list[float] = []
-
-
+@functools.cache
 def billed_per_wake_up_ms() -> float:
     """What this machine bills a thread that sleeps SLEEPER_PERIOD_SEC and wakes to do nothing,
-    in ms per wake-up (measured once per bench run, SLEEPER_WAKE_UPS times)."""
-    if not _billed_ms:
-        billed: list[float] = []
-
-        def sleep_and_wake() -> None:
-            started = time.thread_time()
-            for _ in range(SLEEPER_WAKE_UPS):
-                time.sleep(SLEEPER_PERIOD_SEC)  # the wake-ups are what is measured
-            billed.append((time.thread_time() - started) * 1000 / SLEEPER_WAKE_UPS)
-
-        sleeper = threading.Thread(target=sleep_and_wake, name='bench-sleeper')
-        sleeper.start()
-        sleeper.join()
-        _billed_ms.append(billed[0])
-    return _billed_ms[0]
+    in ms per wake-up (measured once per bench run, SLEEPER_WAKE_UPS times, in the calling
+    thread: its own CPU time)."""
+    started = time.thread_time()
+    for _ in range(SLEEPER_WAKE_UPS):
+        time.sleep(SLEEPER_PERIOD_SEC)  # the wake-ups are what is measured
+    return (time.thread_time() - started) * 1000 / SLEEPER_WAKE_UPS
 
 
 def wake_up_context(use: CpuUse) -> str:

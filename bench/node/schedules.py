@@ -32,10 +32,11 @@ from typing import Any
 from bench.harness import config
 from bench.harness.client import BenchClient, error_code, task_status
 from bench.harness.context import BenchContext
-from bench.harness.processes import cpu_percent, start_node
+from bench.harness.processes import start_node
 from bench.harness.replies import BenchError, wait_reply
 from bench.harness.report import Row
 from bench.harness.stats import ratio, wait_all
+from bench.harness.wake_ups import cpu_use
 from bench.node.startup import READY_LINE
 from task_manager.core.bounds import SCHEDULES_MAX
 from task_manager.core.history.store import TaskHistory
@@ -304,13 +305,13 @@ def idle_benchmark(ctx: BenchContext, stored_path: Path) -> tuple[Startup, Start
     both starts (stored, empty). The node is left running on the stored schedules."""
     empty = restart_timed(ctx, 'task_manager_schedules_empty')
     ctx.wait_kept_goals_gone()
-    empty_idle = cpu_percent(ctx.node.pid, config.IDLE_SEC)
+    empty_idle = cpu_use(ctx.node.pid, config.IDLE_SEC).percent
     full = restart_timed(ctx, 'task_manager_schedules_10k', history_path=str(stored_path))
     loaded = loaded_schedules(ctx)
     if loaded != STORED_SCHEDULES:
         raise BenchError(f'the node loaded {loaded} schedules, expected {STORED_SCHEDULES}')
     ctx.wait_kept_goals_gone()
-    full_idle = cpu_percent(ctx.node.pid, config.IDLE_SEC)
+    full_idle = cpu_use(ctx.node.pid, config.IDLE_SEC).percent
     ctx.report.add(
         Row(
             benchmark='schedules idle',
