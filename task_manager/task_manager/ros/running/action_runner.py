@@ -116,8 +116,8 @@ class ActionExecution:
         elif self._asks_again < RESULT_ASKS_AGAIN_MAX and (
             self._ask_at is None or tick >= self._ask_at
         ):
-            self._ask_at = tick + self._ticks_between_asks * 2
             self._ticks_between_asks *= 2
+            self._ask_at = tick + self._ticks_between_asks
             if not (self._asked_again and self._client.result_request_waits(self._asked_again[-1])):
                 self._asks_again += 1
                 self._ask_again()
