@@ -70,8 +70,9 @@ def pytest_configure(config: pytest.Config) -> None:
 
 STUCK_GRACE_SEC = 30.0
 """How long after its timeout a test whose process cannot run Python ends that process."""
-NATIVE_STACKS_BEFORE_SEC = 15.0
-"""How long before that end the process's native stacks are written (py-spy takes 1-3 s)."""
+NATIVE_STACKS_BEFORE_SEC = 25.0
+"""How long before that end the process's native stacks are written (py-spy takes 1-3 s, gdb up
+to 10)."""
 STUCK_FILE = 'stuck-test-stacks.txt'
 _stuck: list[TextIO] = []  # the process's STUCK_FILE, open while it runs
 

@@ -3,8 +3,11 @@ runs past its deadline: faulthandler's watchdog (conftest.py) prints only the Py
 a process stuck inside Fast DDS is stuck in C, where the lock cycle is to be read.
 
 The parent writes each test's deadline, in seconds from now, as a line to the watcher's stdin,
-and `off` when the test ends; at a deadline passed, the watcher appends `py-spy dump --native`
-of the parent to its file, once. It ends when its stdin closes (the parent has gone).
+and `off` when the test ends; at a deadline passed, the watcher appends to its file, once,
+`py-spy dump --native` of the parent (its Python threads, their Python frames among the C ones)
+and, where gdb is installed, gdb's backtrace of every thread: Fast DDS's own threads (its timer
+thread, its listeners), which py-spy does not list, hold the other end of a lock cycle. It ends
+when its stdin closes (the parent has gone).
 
 Run as `python -m task_manager.testing.native_stacks FILE`.
 """
@@ -16,9 +19,13 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import TextIO
 
 DUMP_TIMEOUT_SEC = 60.0
 OFF = 'off'
+PID = '{pid}'
+"""Where a dump's command takes the parent's process id."""
+GDB_EVERY_THREAD = ['-batch', '-nx', '-ex', 'set pagination off', '-ex', 'thread apply all bt']
 
 
 def py_spy() -> str | None:
@@ -27,9 +34,20 @@ def py_spy() -> str | None:
     return str(beside) if beside.exists() else shutil.which('py-spy')
 
 
-def watch(commands: int, out: Path, dump: list[str], parent: int) -> None:
+def dump_commands() -> list[list[str]]:
+    """py-spy's dump and gdb's, those of them installed (PID where the process id goes)."""
+    commands = []
+    if (spy := py_spy()) is not None:
+        commands.append([spy, 'dump', '--native', '--pid', PID])
+    if (gdb := shutil.which('gdb')) is not None:
+        commands.append([gdb, '-p', PID, *GDB_EVERY_THREAD])
+    return commands
+
+
+def watch(commands: int, out: Path, dumps: list[list[str]], parent: int) -> None:
     """Follow the deadlines on the file descriptor `commands` until it closes; at one passed,
-    `dump` of `parent`. Read unbuffered: a line left in a buffer would be a deadline missed."""
+    run each of `dumps` on `parent`, one after the other (a process takes one tracer at a time).
+    Read unbuffered: a line left in a buffer would be a deadline missed."""
     deadline: float | None = None
     pending = b''
     while True:
@@ -46,17 +64,24 @@ def watch(commands: int, out: Path, dump: list[str], parent: int) -> None:
             deadline = None
             with out.open('a', encoding='utf-8') as file:
                 file.write(f'native stacks of process {parent}, {time.ctime()}:\n')
-                file.flush()
-                try:
-                    subprocess.run(
-                        [*dump, '--pid', str(parent)],
-                        stdout=file,
-                        stderr=subprocess.STDOUT,
-                        timeout=DUMP_TIMEOUT_SEC,
-                        check=False,
-                    )
-                except (OSError, subprocess.TimeoutExpired) as error:
-                    file.write(f'no native stacks: {error}\n')
+                for dump in dumps:
+                    _run_dump([part.replace(PID, str(parent)) for part in dump], file)
+
+
+def _run_dump(command: list[str], file: TextIO) -> None:
+    file.write(f'$ {" ".join(command)}\n')
+    file.flush()
+    try:
+        subprocess.run(
+            command,
+            stdin=subprocess.DEVNULL,
+            stdout=file,
+            stderr=subprocess.STDOUT,
+            timeout=DUMP_TIMEOUT_SEC,
+            check=False,
+        )
+    except (OSError, subprocess.TimeoutExpired) as error:
+        file.write(f'no native stacks: {error}\n')
 
 
 class NativeStacks:
@@ -88,7 +113,7 @@ class NativeStacks:
         if self._tried:
             return self._watcher
         self._tried = True
-        if py_spy() is None:
+        if not dump_commands():
             return None
         self._out.parent.mkdir(parents=True, exist_ok=True)
         self._watcher = subprocess.Popen(
@@ -100,10 +125,9 @@ class NativeStacks:
 
 
 def main() -> int:
-    dump = py_spy()
-    if dump is None:
-        return 0
-    watch(sys.stdin.fileno(), Path(sys.argv[1]), [dump, 'dump', '--native'], os.getppid())
+    dumps = dump_commands()
+    if dumps:
+        watch(sys.stdin.fileno(), Path(sys.argv[1]), dumps, os.getppid())
     return 0
 
 

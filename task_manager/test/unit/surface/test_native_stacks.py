@@ -1,6 +1,6 @@
 """The watcher of a test process's deadlines (testing.native_stacks): a deadline passed dumps
 the parent once, one disarmed in time dumps nothing, and it ends when its parent's pipe closes.
-A command that prints what it was given stands in for py-spy."""
+Commands that print what they were given stand in for py-spy and gdb."""
 
 import os
 import sys
@@ -8,17 +8,20 @@ import threading
 import time
 from pathlib import Path
 
-from task_manager.testing.native_stacks import OFF, watch
+from task_manager.testing.native_stacks import OFF, PID, watch
 
 WAIT_SEC = 5.0
-STAND_IN = [sys.executable, '-c', 'import sys; print("dumped", *sys.argv[1:])']
+STAND_INS = [
+    [sys.executable, '-c', 'import sys; print("dumped", *sys.argv[1:])', '--pid', PID],
+    [sys.executable, '-c', 'import sys; print("every thread of", *sys.argv[1:])', PID],
+]
 
 
 def _watching(out: Path) -> tuple[threading.Thread, int]:
     """The watcher in a thread, reading a pipe (closed with the test's process); the pipe's
     write end."""
     read_end, write_end = os.pipe()
-    thread = threading.Thread(target=watch, args=(read_end, out, STAND_IN, 4242), daemon=True)
+    thread = threading.Thread(target=watch, args=(read_end, out, STAND_INS, 4242), daemon=True)
     thread.start()
     return thread, write_end
 
@@ -26,7 +29,7 @@ def _watching(out: Path) -> tuple[threading.Thread, int]:
 def _wait_for_text(out: Path) -> str:
     deadline = time.monotonic() + WAIT_SEC
     while time.monotonic() < deadline:
-        if out.exists() and 'dumped' in out.read_text():
+        if out.exists() and 'every thread of 4242' in out.read_text():
             return out.read_text()
         threading.Event().wait(0.02)
     return out.read_text() if out.exists() else ''
@@ -45,6 +48,8 @@ def test_a_deadline_passed_dumps_the_parent_once_and_the_pipe_closing_ends_the_w
     assert not thread.is_alive()
     assert text.startswith('native stacks of process 4242, ')
     assert text.count('dumped --pid 4242') == 1
+    assert text.count('every thread of 4242') == 1  # after the first: one tracer at a time
+    assert text.index('every thread of 4242') > text.index('dumped --pid')
 
 
 def test_a_test_that_ends_before_its_deadline_dumps_nothing(tmp_path: Path) -> None:
