@@ -3,8 +3,9 @@
 Each run is an ordinary task request through the dispatcher (conflicts, results, events,
 history), with id `<schedule_id>-run-<n>` and source `schedule:<schedule_id>`. The schedules
 and their states are stored in the history file; a change is saved in one transaction per
-executor turn. Nothing here polls: the one timer rings at the next due time, or after
-MAX_TIMER_SEC at the latest, so that a wall clock that jumps forward is noticed soon.
+executor turn. Nothing here polls: the one timer rings at the next due time (set a little
+short of it, then again for the rest: core.schedules.timer_delay), or after MAX_TIMER_SEC at
+the latest, so that a wall clock that jumps forward is noticed soon.
 """
 
 import sqlite3
@@ -29,16 +30,13 @@ from task_manager.core.schedules.book import (
 )
 from task_manager.core.schedules.schedule import ScheduleSpec
 from task_manager.core.schedules.store import ScheduleStore
+from task_manager.core.schedules.timer_delay import MAX_TIMER_SEC, timer_delay
 from task_manager.core.status import CancelReason
 from task_manager.core.task import TaskRequest
 from task_manager.rclpy_tools.futures import all_completed, resolved
 from task_manager.rclpy_tools.log import NodeLog
 from task_manager.ros.parking_executor import spawn
 from task_manager.ros.running.protocols import TaskCancelling, TaskRunning
-
-# The longest the timer waits before it looks at the wall clock again (see the module doc).
-MAX_TIMER_SEC = 300.0
-MIN_TIMER_SEC = 0.001
 
 
 class ScheduledTasks(TaskRunning, TaskCancelling, Protocol):
@@ -131,8 +129,7 @@ class TaskScheduler:
         due = self.book.next_due()
         if due is None or self._stopped:
             return
-        delay_sec = min(max(due - time.time(), MIN_TIMER_SEC), MAX_TIMER_SEC)
-        self._timer.timer_period_ns = round(delay_sec * 1e9)
+        self._timer.timer_period_ns = round(timer_delay(due - time.time()) * 1e9)
         self._timer.reset()
 
     def _on_timer(self) -> None:
