@@ -44,6 +44,25 @@ def dump_commands() -> list[list[str]]:
     return commands
 
 
+def every_thread(pid: int) -> str:
+    """gdb's backtrace of every thread of process `pid` (what it printed; '' without gdb)."""
+    gdb = shutil.which('gdb')
+    if gdb is None:
+        return ''
+    try:
+        done = subprocess.run(
+            [gdb, '-p', str(pid), *GDB_EVERY_THREAD],
+            stdin=subprocess.DEVNULL,
+            capture_output=True,
+            text=True,
+            timeout=DUMP_TIMEOUT_SEC,
+            check=False,
+        )
+    except (OSError, subprocess.TimeoutExpired) as error:
+        return f'no native stacks: {error}'
+    return done.stdout + done.stderr
+
+
 def watch(commands: int, out: Path, dumps: list[list[str]], parent: int) -> None:
     """Follow the deadlines on the file descriptor `commands` until it closes; at one passed,
     run each of `dumps` on `parent`, one after the other (a process takes one tracer at a time).

@@ -16,6 +16,7 @@ import yaml
 from task_manager.client.hearing import ANSWER_SEC, HELD_UP_SEC
 from task_manager.cpu_priority import thread_ids
 from task_manager.testing.harness import WaitTimeoutError
+from task_manager.testing.native_stacks import every_thread
 from task_manager.testing.output_reader import OutputReader
 
 STOP_TIMEOUT_SEC = 10.0
@@ -159,9 +160,12 @@ class NodeProcess:
             raise
 
     def abort(self, why: str) -> None:
-        """SIGABRT (faulthandler prints the threads' stacks), SIGKILL if that is not enough;
-        then print `why` and what the process printed."""
+        """Every thread's native stack first (gdb's, where installed: Fast DDS's threads hold
+        the other end of a deadlock in C), then SIGABRT (faulthandler prints the Python
+        threads' stacks), SIGKILL if that is not enough; then print `why`, what the process
+        printed and the native stacks."""
         self.killed = True
+        native = every_thread(self.process.pid) if self.process.poll() is None else ''
         self.process.send_signal(signal.SIGABRT)
         try:
             self.process.wait(ABORT_TIMEOUT_SEC)
@@ -170,6 +174,8 @@ class NodeProcess:
             self.process.wait()
         self._output.join(ABORT_TIMEOUT_SEC)
         print(f'{self._program} {why}; aborted, its output:\n' + '\n'.join(self._output.lines))
+        if native:
+            print(f"{self._program}: every thread's native stack before the abort:\n{native}")
 
 
 def held_up_with_its_node(program: NodeProcess, node: NodeProcess, timeout_sec: float) -> int:

@@ -3,14 +3,24 @@ the parent once, one disarmed in time dumps nothing, and it ends when its parent
 Commands that print what they were given stand in for py-spy and gdb."""
 
 import os
+import shutil
+import subprocess
 import sys
 import threading
 import time
 from pathlib import Path
 
-from task_manager.testing.native_stacks import OFF, PID, watch
+import pytest
+
+from task_manager.testing.native_stacks import OFF, PID, every_thread, watch
 
 WAIT_SEC = 5.0
+SLEEPER = (
+    'import threading, time\n'
+    'threading.Thread(target=time.sleep, args=(60,), daemon=True).start()\n'
+    'print("ready", flush=True)\n'
+    'time.sleep(60)\n'
+)
 STAND_INS = [
     [sys.executable, '-c', 'import sys; print("dumped", *sys.argv[1:])', '--pid', PID],
     [sys.executable, '-c', 'import sys; print("every thread of", *sys.argv[1:])', PID],
@@ -63,3 +73,19 @@ def test_a_test_that_ends_before_its_deadline_dumps_nothing(tmp_path: Path) -> N
 
     assert not thread.is_alive()
     assert not out.exists()
+
+
+@pytest.mark.skipif(shutil.which('gdb') is None, reason='gdb is not installed')
+def test_every_thread_gives_the_native_stack_of_each_thread_of_a_live_process() -> None:
+    """What a test prints of a process it aborts (NodeProcess.abort): a thread waiting in C is
+    shown in C (py-spy would list only the Python threads)."""
+    child = subprocess.Popen([sys.executable, '-c', SLEEPER], stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None and child.stdout.readline() == 'ready\n'
+        stacks = every_thread(child.pid)
+    finally:
+        child.kill()
+        child.wait()
+
+    assert stacks.count('Thread ') >= 2  # the main thread and the one it started
+    assert 'sleep' in stacks
