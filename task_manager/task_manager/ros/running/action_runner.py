@@ -51,22 +51,23 @@ RESULT_ASKS_KEPT = 3
 class ActionExecution:
     """A goal accepted by a task's action server.
 
-    Its result is asked for at once, and that request stays awaited until the task ends: a
-    server holds it while the goal runs and answers it as the goal ends, even one that keeps
-    no result afterwards (rclpy's result_timeout, 10 s by default; 0 on some servers). It is
-    asked again while no answer comes, since a busy server's result service keeps only its
-    last few unread requests (10 by default, rclpy's and rclcpp's) and drops older ones
-    unanswered: the watch's tick asks again once the last request has waited 1, then 2, 4, up
-    to 64 ticks, RESULT_ASKS_AGAIN_MAX times in all; one still waiting its turn in the request
-    window keeps its place (none is added behind it). Then no more: the server holds every
-    request it took and answers each as the goal ends, so asking on for hours would pile up
-    answers that, for a thousand goals ending at once, overflow the node's reader and lose
+    Its result was asked for right behind the goal (the runner's `start`; asked again if the
+    server answered that request before it had the goal), and that request stays awaited until
+    the task ends: a server holds it while the goal runs and answers it as the goal ends, even
+    one that keeps no result afterwards (rclpy's result_timeout, 10 s by default; 0 on some
+    servers). It is asked again while no answer comes, since a busy server's result service
+    keeps only its last few unread requests (10 by default, rclpy's and rclcpp's) and drops
+    older ones unanswered: the watch's tick asks again once the last request has waited 1, then
+    2, 4, up to 64 ticks, RESULT_ASKS_AGAIN_MAX times in all; one still waiting its turn in the
+    request window keeps its place (none is added behind it). Then no more: the server holds
+    every request it took and answers each as the goal ends, so asking on for hours would pile
+    up answers that, for a thousand goals ending at once, overflow the node's reader and lose
     the only ones that count (their goal's result then expired on the server before the next
     ask). A server that restarted is noticed by its new DDS ids (`server_ids`, checked at each
     tick): the result is asked for again at once. The latest RESULT_ASKS_KEPT requests asked
     again stay awaited too: forgetting one costs a scan of the client's pending requests
-    (rclpy's). A server that no longer knows the goal (STATUS_UNKNOWN: it restarted, or let
-    the result expire) ends the task ERROR.
+    (rclpy's). A server that no longer knows the goal (STATUS_UNKNOWN: it restarted, or let the
+    result expire) ends the task ERROR.
     """
 
     def __init__(
@@ -78,12 +79,15 @@ class ActionExecution:
         server_ids: Callable[[], frozenset[bytes]],
         server_alive: Callable[[], None],
         servers_known: bool,
+        sent_with_goal: Future[Any] | None = None,
     ) -> None:
         """`server_ids`: the DDS ids of the action's servers as of the watch's last tick;
         `servers_known`: whether that tick is recent (the watch was ticking), else the goal's
         servers are those of its first tick (which asks for the result again anyway: a
         server restarted before it loses nothing); `server_alive` is told each answer of the
-        server."""
+        server; `sent_with_goal`: the GetResult request sent right behind the goal, before
+        the server accepted it (see `_on_result_sent_with_goal`), else the result is asked
+        for now."""
         self._node = node
         self._server_alive = server_alive
         self._client = client
@@ -95,10 +99,14 @@ class ActionExecution:
         self._ask_at: int | None = None  # the watch's check at which to ask again (first: next)
         self._ticks_between_asks = 1
         self._asks_again = 0
-        self._first_request = self._ask_for_result()
         # the latest requests asked again, oldest first
         self._asked_again: deque[Future[Any]] = deque()
         self.outcome.add_done_callback(lambda _: self._forget())
+        if sent_with_goal is None:
+            self._first_request = self._ask_for_result()
+        else:
+            self._first_request = sent_with_goal
+            sent_with_goal.add_done_callback(self._on_result_sent_with_goal)
 
     def _ask_for_result(self, again: bool = False) -> Future[Any]:
         request = self._client.get_result(self._goal_id, again)
@@ -146,6 +154,20 @@ class ActionExecution:
         for request in (self._first_request, *self._asked_again):
             if not request.done():
                 self._client.forget_result_request(request)
+
+    def _on_result_sent_with_goal(self, future: Future[Any]) -> None:
+        """The answer to the request sent right behind the goal: the goal's result (the server
+        held the request until the goal ended, a hop saved on every task), or STATUS_UNKNOWN
+        when the server took that request before the goal (the two travel on topics of their
+        own, in no set order): then it is asked for now, the server having accepted the goal,
+        and only that answer's STATUS_UNKNOWN ends the task."""
+        response = future.result()
+        if response is None or response.status != GoalStatus.STATUS_UNKNOWN:
+            self._on_result(future)
+            return
+        self._server_alive()
+        if not self.outcome.done():
+            self._first_request = self._ask_for_result()
 
     def _on_result(self, future: Future[Any]) -> None:
         response = future.result()
@@ -247,7 +269,11 @@ class ActionTaskRunner(TaskRunner):
         # goal_response_timeout is the server's time: from when the goal left the request
         # window (a burst waits there its turn, 8 at a time), not from when it was queued
         await resolved(self._node, self._client.goal_sent(goal_future))
+        # the result asked for right behind the goal, not once it is accepted: the server
+        # holds the request until the goal ends (ActionExecution._on_result_sent_with_goal)
+        result_request = self._client.get_result(goal_id)
         if not await wait_for(self._node, goal_future, self._timeouts.goal_response_sec):
+            self._client.forget_result_request(result_request)
             goal_future.add_done_callback(lambda f: self._cancel_late_goal(goal_id, f))
             raise TaskRequestError(
                 ErrorCode.TASK_START_FAILED,
@@ -259,6 +285,7 @@ class ActionTaskRunner(TaskRunner):
             self._watch.mark_alive()
         if response is None or not response.accepted:
             self._client.forget(goal_id)
+            self._client.forget_result_request(result_request)
             raise TaskRequestError(
                 ErrorCode.TASK_START_FAILED, f'action server {topic} rejected the goal'
             )
@@ -274,9 +301,11 @@ class ActionTaskRunner(TaskRunner):
                 lambda: self._server_ids,
                 self._watch.mark_alive,
                 servers_known=self._watch.watching,
+                sent_with_goal=result_request,
             )
             self._watch.track(execution)
         except Exception as error:  # a bug of ours must not leave the goal running untracked
+            self._client.forget_result_request(result_request)
             raise TaskRequestError(
                 ErrorCode.TASK_START_FAILED,
                 f'the Task Manager failed to track the goal {topic} accepted ({error!r}); '

@@ -24,6 +24,8 @@ from task_manager.testing.servers import ScriptedActionServer, ScriptedGoal
 TIMEOUT_SEC = 15.0
 # a fast watch: the asks again (after 1, 2, 4, ... 64 ticks) are over within 2.6 s
 WATCH = {'server_check_period': 0.02, 'server_loss_timeout': 30.0}
+# a slow one: no ask again within a test
+NO_ASK_AGAIN = {'server_check_period': 60.0, 'server_loss_timeout': 300.0}
 
 
 class ResultRequests:
@@ -60,6 +62,13 @@ class ResultRequests:
     def of(self, goal_id: bytes) -> int:
         with self._changed:
             return self._by_goal.get(goal_id, 0)
+
+    def wait_for_any(self, count: int) -> None:
+        """Wait until the server has received `count` requests, for whichever goals."""
+        with self._changed:
+            assert self._changed.wait_for(
+                lambda: sum(self._by_goal.values()) >= count, TIMEOUT_SEC
+            ), f'{sum(self._by_goal.values())} requests, not {count}'
 
 
 @dataclass
@@ -115,3 +124,28 @@ def test_a_goal_whose_server_restarted_after_the_last_ask_ends_error(
 
     assert result.task_status == 'ERROR'
     assert 'no longer knows the goal' in json.loads(result.task_result)['error']
+
+
+def test_the_result_is_asked_for_with_the_goal_and_again_once_a_server_that_did_not_know_it_accepts(
+    ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
+) -> None:
+    """The node asks for the result right behind the goal, not once the goal is accepted (a
+    hop saved on every task): here the server holds the goal for a decision, so it answers
+    that request STATUS_UNKNOWN; once it accepts, the result is asked for again, and only
+    that answer counts (the task ends DONE with its result, not ERROR)."""
+    topic = f'{topic_prefix}/drive'
+    server = ScriptedActionServer(ros.node, Fibonacci, topic, hold_goal_requests=True)
+    requests = ResultRequests(ros, server, topic)
+    tm = launch_task_manager({'drive': action_task('drive', topic)}, **NO_ASK_AGAIN)
+    handle = tm.send('drive', {'order': 1}, task_id='decided-later')
+    held = server.wait_for_held(1, TIMEOUT_SEC)[0]
+
+    requests.wait_for_any(1)  # before the server has said whether it takes the goal
+    held.accept()
+    goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
+    goal.succeed(Fibonacci.Result(sequence=[0, 1, 1]))
+    result = tm.result_of(handle).result
+
+    assert result.task_status == 'DONE'
+    assert json.loads(result.task_result) == {'sequence': [0, 1, 1]}
+    assert requests.of(bytes(goal.goal_handle.goal_id.uuid)) == 2
