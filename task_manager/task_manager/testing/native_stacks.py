@@ -34,24 +34,30 @@ def py_spy() -> str | None:
     return str(beside) if beside.exists() else shutil.which('py-spy')
 
 
+def _gdb_every_thread(pid: str) -> list[str] | None:
+    """gdb's command for the backtrace of every thread of process `pid`; None without gdb."""
+    gdb = shutil.which('gdb')
+    return None if gdb is None else [gdb, '-p', pid, *GDB_EVERY_THREAD]
+
+
 def dump_commands() -> list[list[str]]:
     """py-spy's dump and gdb's, those of them installed (PID where the process id goes)."""
     commands = []
     if (spy := py_spy()) is not None:
         commands.append([spy, 'dump', '--native', '--pid', PID])
-    if (gdb := shutil.which('gdb')) is not None:
-        commands.append([gdb, '-p', PID, *GDB_EVERY_THREAD])
+    if (gdb := _gdb_every_thread(PID)) is not None:
+        commands.append(gdb)
     return commands
 
 
 def every_thread(pid: int) -> str:
     """gdb's backtrace of every thread of process `pid` (what it printed; '' without gdb)."""
-    gdb = shutil.which('gdb')
-    if gdb is None:
+    command = _gdb_every_thread(str(pid))
+    if command is None:
         return ''
     try:
         done = subprocess.run(
-            [gdb, '-p', str(pid), *GDB_EVERY_THREAD],
+            command,
             stdin=subprocess.DEVNULL,
             capture_output=True,
             text=True,
