@@ -10,8 +10,11 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from rclpy.qos import qos_profile_services_default
+from action_msgs.msg import GoalStatus, GoalStatusArray
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.qos import qos_profile_action_status_default, qos_profile_services_default
 from rclpy.service_introspection import ServiceIntrospectionState
+from rclpy.task import Future
 from service_msgs.msg import ServiceEventInfo
 from test_msgs.action import Fibonacci
 
@@ -62,13 +65,6 @@ class ResultRequests:
     def of(self, goal_id: bytes) -> int:
         with self._changed:
             return self._by_goal.get(goal_id, 0)
-
-    def wait_for_any(self, count: int) -> None:
-        """Wait until the server has received `count` requests, for whichever goals."""
-        with self._changed:
-            assert self._changed.wait_for(
-                lambda: sum(self._by_goal.values()) >= count, TIMEOUT_SEC
-            ), f'{sum(self._by_goal.values())} requests, not {count}'
 
 
 @dataclass
@@ -126,26 +122,101 @@ def test_a_goal_whose_server_restarted_after_the_last_ask_ends_error(
     assert 'no longer knows the goal' in json.loads(result.task_result)['error']
 
 
+class DecidingServer:
+    """An action server made of its services, which accepts a goal only when the test says so
+    and answers a result request for a goal it has not accepted STATUS_UNKNOWN at once, as
+    rclpy's and rclcpp's servers do (rclpy's own ActionServer may instead hold a result request
+    taken in the same turn as its goal until it has decided: not what this test needs)."""
+
+    def __init__(self, ros: RosHarness, topic: str) -> None:
+        impl = Fibonacci.Impl
+        group = ReentrantCallbackGroup()
+        self._ros = ros
+        self._decided: Future[None] = Future()
+        self._accepted: set[bytes] = set()
+        self._ended: Future[None] = Future()
+        # (goal id, whether the goal had been accepted) of each result request, in order
+        self.result_requests: list[tuple[bytes, bool]] = []
+        self._changed = threading.Condition()
+        node = ros.node
+        self._entities = [
+            node.create_service(
+                impl.SendGoalService, f'{topic}/_action/send_goal', self._goal, callback_group=group
+            ),
+            node.create_service(
+                impl.GetResultService,
+                f'{topic}/_action/get_result',
+                self._result,
+                callback_group=group,
+            ),
+            node.create_service(
+                impl.CancelGoalService,
+                f'{topic}/_action/cancel_goal',
+                lambda _request, response: response,
+                callback_group=group,
+            ),
+        ]
+        self._status = node.create_publisher(
+            GoalStatusArray, f'{topic}/_action/status', qos_profile_action_status_default
+        )
+
+    async def _goal(self, request: Any, response: Any) -> Any:
+        await self._decided
+        self._accepted.add(bytes(request.goal_id.uuid))
+        response.accepted = True
+        return response
+
+    async def _result(self, request: Any, response: Any) -> Any:
+        goal_id = bytes(request.goal_id.uuid)
+        with self._changed:
+            self.result_requests.append((goal_id, goal_id in self._accepted))
+            self._changed.notify_all()
+        if goal_id not in self._accepted:
+            response.status = GoalStatus.STATUS_UNKNOWN
+            return response
+        await self._ended
+        response.status = GoalStatus.STATUS_SUCCEEDED
+        response.result = Fibonacci.Result(sequence=[0, 1, 1])
+        return response
+
+    def wait_for_result_requests(self, count: int) -> None:
+        with self._changed:
+            assert self._changed.wait_for(
+                lambda: len(self.result_requests) >= count, TIMEOUT_SEC
+            ), f'{len(self.result_requests)} result requests, not {count}'
+
+    def accept(self) -> None:
+        self._ros.on_executor(lambda: self._decided.set_result(None))
+
+    def end(self) -> None:
+        self._ros.on_executor(lambda: self._ended.set_result(None))
+
+    def destroy(self) -> None:
+        for service in self._entities:
+            self._ros.node.destroy_service(service)
+        self._ros.node.destroy_publisher(self._status)
+
+
 def test_the_result_is_asked_for_with_the_goal_and_again_once_a_server_that_did_not_know_it_accepts(
     ros: RosHarness, launch_task_manager: LaunchTaskManager, topic_prefix: str
 ) -> None:
     """The node asks for the result right behind the goal, not once the goal is accepted (a
-    hop saved on every task): here the server holds the goal for a decision, so it answers
-    that request STATUS_UNKNOWN; once it accepts, the result is asked for again, and only
-    that answer counts (the task ends DONE with its result, not ERROR)."""
+    hop saved on every task): a server that gets that request before it has accepted the goal
+    answers it STATUS_UNKNOWN; once it accepts, the result is asked for again, and only that
+    answer counts (the task ends DONE with its result, not ERROR)."""
     topic = f'{topic_prefix}/drive'
-    server = ScriptedActionServer(ros.node, Fibonacci, topic, hold_goal_requests=True)
-    requests = ResultRequests(ros, server, topic)
+    server = DecidingServer(ros, topic)
     tm = launch_task_manager({'drive': action_task('drive', topic)}, **NO_ASK_AGAIN)
     handle = tm.send('drive', {'order': 1}, task_id='decided-later')
-    held = server.wait_for_held(1, TIMEOUT_SEC)[0]
 
-    requests.wait_for_any(1)  # before the server has said whether it takes the goal
-    held.accept()
-    goal = server.wait_for_goals(1, TIMEOUT_SEC)[0]
-    goal.succeed(Fibonacci.Result(sequence=[0, 1, 1]))
+    server.wait_for_result_requests(1)  # before the server has said whether it takes the goal
+    server.accept()
+    server.wait_for_result_requests(2)
+    server.end()
     result = tm.result_of(handle).result
+    server.destroy()
 
     assert result.task_status == 'DONE'
     assert json.loads(result.task_result) == {'sequence': [0, 1, 1]}
-    assert requests.of(bytes(goal.goal_handle.goal_id.uuid)) == 2
+    (first, known_then), (again, known_later) = server.result_requests
+    assert first == again and not known_then and known_later
