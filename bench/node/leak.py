@@ -1,7 +1,7 @@
 """Memory over many tasks: the node's RSS while LEAK_TASKS instant tasks run through it, in
 bursts of LEAK_BURST sent at once, sampled every LEAK_SAMPLE_EVERY tasks. Growth after the
 first sample taken WARM_UP_SEC after the first burst would be a leak: by then the node's
-caches, the history's pages and the goals the ExecuteTask server keeps for RESULT_TIMEOUT_SEC
+caches, the history's pages and the goals the ExecuteTask server keeps (config.KEPT_GOALS_SEC)
 have reached their working size (at 500 tasks a second the first LEAK_SAMPLE_EVERY tasks take
 6 s, and the RSS grew 7 % more until 10 s, then not at all: a warm-up the row took for a leak).
 """
@@ -17,11 +17,10 @@ from bench.harness.replies import BenchError
 from bench.harness.report import Row
 from bench.harness.stats import last_reply_after
 from task_manager.rclpy_tools.futures import result_of
-from task_manager.ros.serving.action_services_server import RESULT_TIMEOUT_SEC
 
 MIB = 1024 * 1024
 GROWTH_TARGET_PERCENT = 10.0
-WARM_UP_SEC = RESULT_TIMEOUT_SEC + 2.0
+WARM_UP_SEC = config.KEPT_GOALS_SEC + 1.5
 
 
 def burst(ctx: BenchContext) -> float:
