@@ -6,6 +6,7 @@ import threading
 from collections.abc import Callable, Collection, Iterator
 from contextlib import contextmanager
 from datetime import datetime, timedelta
+from functools import cache
 from typing import Any, Protocol, TypeVar
 
 import typer
@@ -15,7 +16,7 @@ from task_manager import TaskManagerClient, TaskManagerUnavailable, TaskResult, 
 from task_manager.client.records import Decision
 from task_manager.core.admission.options import OnConflict
 from task_manager.core.bounds import PRIORITY
-from task_manager.process_setup import end_within, interrupt_main_thread, stop_when_unheard
+from task_manager.process_setup import MainThreadInterrupt, end_within, stop_when_unheard
 
 EXIT_DONE = 0
 EXIT_ERROR = 1
@@ -156,7 +157,13 @@ def _new_client(timeout_sec: float) -> tuple[TaskManagerClient, threading.Event]
     after a hold-up (Ctrl-Z, a paused machine; its or the node's): the wait in progress then
     ends as Ctrl-C would end it, and taskctl says why (exit 4)."""
     client = TaskManagerClient('taskctl', timeout_sec=timeout_sec)
-    return client, stop_when_unheard(client, interrupt_main_thread)
+    return client, stop_when_unheard(client, _main_thread_interrupt())
+
+
+@cache
+def _main_thread_interrupt() -> MainThreadInterrupt:
+    """taskctl's one MainThreadInterrupt, made in the main thread (where verbs run)."""
+    return MainThreadInterrupt()
 
 
 class Reaching(Protocol):
