@@ -78,7 +78,9 @@ class Bridge:
         self.settings = settings
         self.topics = Topics(settings.prefix, settings.robot_id)
         self.client = client
-        self.outbox = ResultOutbox(settings.acked_file)
+        self.outbox = ResultOutbox(
+            settings.acked_file, lambda: self._jobs.put(self.outbox.write_acked)
+        )
         self.requests = RequestHandler(client, settings.source, settings.max_payload_bytes)
         self.failed = threading.Event()
         """Set when the bridge cannot go on (the broker refused its credentials)."""
@@ -134,6 +136,7 @@ class Bridge:
             unsubscribe()
         self._jobs.put(None)
         self._worker.join()
+        self.outbox.write_acked()  # what was acknowledged since the worker's last write
 
     def _mqtt_client(self, broker: Broker) -> mqtt.Client:
         client_id = f'task_manager_{self.settings.robot_id}'

@@ -6,11 +6,18 @@ last one the broker acknowledged with every one before it, kept in a file with i
 acknowledged and nothing else, and can tell the node's history from a new one that numbers
 other tasks from 1 again (a file of one line, from before the task id was kept, is read).
 Thread-safe: acknowledgements arrive on the MQTT client's thread.
+
+The file is written once for acknowledgements that come together: `write_soon` asks for
+`write_acked()` (the bridge queues it behind its worker's jobs), so a burst of results costs a
+write or a few, not one each (each was a twelfth of the bridge's CPU in a burst, on the MQTT
+client's thread). An acknowledgement not yet written when the process dies is sent again after
+the restart: results are at least once (QoS 1) anyway.
 """
 
 import contextlib
 import os
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,12 +31,17 @@ class _Sent:
 
 
 class ResultOutbox:
-    def __init__(self, acked_file: Path) -> None:
+    def __init__(self, acked_file: Path, write_soon: Callable[[], None] | None = None) -> None:
+        """`write_soon`: asks, from any thread, for `write_acked()` to be called soon (None:
+        the file is written at each acknowledgement)."""
         self._file = acked_file
+        self._write_soon = write_soon
+        self._write_asked = False
         self._lock = threading.Lock()
         self.known = acked_file.exists()
         """Whether a previous run left its acknowledged sequence (else: start from now)."""
         self.acked, self.acked_task_id = _read(acked_file)
+        self._written = self.acked, self.acked_task_id
         self.sent = self.acked
         # key: sequence; in the order sent (which is by sequence)
         self._unacked: dict[int, _Sent] = {}
@@ -94,7 +106,14 @@ class ResultOutbox:
             self.acked = self.sent = sequence
             self.acked_task_id = task_id
             self.known = True
-            _write(self._file, sequence, task_id)
+            self._write(sequence, task_id)
+
+    def write_acked(self) -> None:
+        """Write the last acknowledged to the file, if it moved since it was last written."""
+        with self._lock:
+            self._write_asked = False
+            if (self.acked, self.acked_task_id) != self._written:
+                self._write(self.acked, self.acked_task_id)
 
     def _acknowledge(self, message_id: int) -> None:
         sequence = self._by_message.pop(message_id)
@@ -114,9 +133,18 @@ class ResultOutbox:
             del self._unacked[first]
             if first > advanced:
                 advanced, task_id = first, sent.task_id
-        if advanced != self.acked:
-            self.acked, self.acked_task_id = advanced, task_id
-            _write(self._file, advanced, task_id)
+        if advanced == self.acked:
+            return
+        self.acked, self.acked_task_id = advanced, task_id
+        if self._write_soon is None:
+            self._write(advanced, task_id)
+        elif not self._write_asked:
+            self._write_asked = True
+            self._write_soon()
+
+    def _write(self, sequence: int, task_id: str) -> None:
+        _write(self._file, sequence, task_id)
+        self._written = sequence, task_id
 
 
 def _read(path: Path) -> tuple[int, str]:

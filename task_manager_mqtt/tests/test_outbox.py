@@ -84,3 +84,31 @@ def test_a_file_written_before_the_task_id_was_kept_is_read(tmp_path: Path) -> N
     (tmp_path / 'acked').write_text('41\n')
     outbox = ResultOutbox(tmp_path / 'acked')
     assert (outbox.known, outbox.acked, outbox.acked_task_id) == (True, 41, '')
+
+
+def test_acknowledgements_that_come_together_are_written_once(tmp_path: Path) -> None:
+    asked: list[int] = []
+    outbox = ResultOutbox(tmp_path / 'acked', lambda: asked.append(outbox.acked))
+    outbox.start_at(0)
+    for sequence in (1, 2, 3):
+        send(outbox, sequence, message_id=sequence)
+    for message_id in (1, 2, 3):
+        outbox.on_ack(message_id)
+    assert (outbox.acked, asked) == (3, [1])  # one write asked for, by the first
+    assert ResultOutbox(tmp_path / 'acked').acked == 0  # not written yet
+    outbox.write_acked()
+    assert ResultOutbox(tmp_path / 'acked').acked == 3
+    send(outbox, 4, message_id=4)
+    outbox.on_ack(4)
+    assert asked == [1, 4]  # asked again once the last was written
+    outbox.write_acked()
+    restarted = ResultOutbox(tmp_path / 'acked')
+    assert (restarted.acked, restarted.sent) == (4, 4)
+
+
+def test_an_acknowledged_position_already_written_is_not_written_again(tmp_path: Path) -> None:
+    outbox = ResultOutbox(tmp_path / 'acked', lambda: None)
+    outbox.start_at(5, 'five')
+    (tmp_path / 'acked').unlink()
+    outbox.write_acked()  # nothing moved since start_at wrote it
+    assert not (tmp_path / 'acked').exists()
