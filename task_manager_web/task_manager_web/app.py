@@ -123,8 +123,12 @@ def _add_routes(app: FastAPI) -> None:
 
     @app.get('/api/health', tags=['state'])
     async def health(link: Link) -> dict[str, Any]:
-        """Whether the gateway reaches a Task Manager (no token needed)."""
-        return {'connected': link.connected, 'event_streams': link.stream_count}
+        """Whether the gateway reaches a Task Manager, and its task events (no token needed)."""
+        return {
+            'connected': link.connected,
+            'events': link.events_connected,
+            'event_streams': link.stream_count,
+        }
 
     @app.get('/metrics', **METRICS_ROUTE)
     async def metrics(_: MetricsViewer, link: Link, request: Request) -> Response:

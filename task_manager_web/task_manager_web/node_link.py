@@ -63,6 +63,12 @@ class NodeLink(DoorLink):
     def connected(self) -> bool:
         return self.client.connected
 
+    @property
+    def events_connected(self) -> bool:
+        """Whether the node's task events reach the gateway (they can come a moment after the
+        active list, or never when the node publishes none)."""
+        return self.client.events_connected
+
     def require_connected(self) -> None:
         """Fail at once (TaskManagerUnavailable) rather than wait for a node that is not there."""
         if not self.client.connected:

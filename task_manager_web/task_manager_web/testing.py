@@ -39,14 +39,20 @@ class GatewayProcess(NodeProcess):
 
 @contextlib.contextmanager
 def gateway_client(gateway: GatewayProcess) -> Iterator[httpx.Client]:
-    """An HTTP client of the gateway, with its admin token, once the gateway reaches the node."""
+    """An HTTP client of the gateway, with its admin token, once the gateway reaches the node and
+    hears its events (what ends before is in no event stream and no metric)."""
     with httpx.Client(
         base_url=gateway.url,
         headers={'Authorization': f'Bearer {gateway.token}'},
         timeout=TIMEOUT_SEC,
     ) as client:
-        wait_until(lambda: client.get('/api/health').json()['connected'], 'gateway connected')
+        wait_until(lambda: _reaches_the_node(client), 'gateway connected, events included')
         yield client
+
+
+def _reaches_the_node(client: httpx.Client) -> bool:
+    health = client.get('/api/health').json()
+    return bool(health['connected'] and health['events'])
 
 
 class HeldRead:
