@@ -136,7 +136,10 @@ class Bridge:
             unsubscribe()
         self._jobs.put(None)
         self._worker.join()
-        self.outbox.write_acked()  # what was acknowledged since the worker's last write
+        try:  # what was acknowledged since the worker's last write
+            self.outbox.write_acked()
+        except OSError as error:
+            LOG.error('cannot write %s: %s', self.settings.acked_file, error)
 
     def _mqtt_client(self, broker: Broker) -> mqtt.Client:
         client_id = f'task_manager_{self.settings.robot_id}'
