@@ -128,12 +128,18 @@ class NodeLink(DoorLink):
             self._hand_over('task', compact_json(event_json(event)))
 
     def _on_events_lost(self, batches: int) -> None:
-        if self._streams:
-            notice = {
-                'message': f'{batches} batch(es) of task events went missing (the gateway fell '
-                'behind the Task Manager): reconnect'
-            }
-            self._hand_over(EventStream.OVERFLOW, compact_json(notice))
+        if not self._streams:
+            return
+        if not batches:  # the events reached the gateway a moment after the node did (it
+            # started again): a page reads its tasks again on a connection, as it did a moment
+            # ago, and keeps its stream
+            self._on_connection_change(self.connected)
+            return
+        notice = {
+            'message': f'{batches} batch(es) of task events went missing (the gateway fell '
+            'behind the Task Manager): reconnect'
+        }
+        self._hand_over(EventStream.OVERFLOW, compact_json(notice))
 
     def _on_connection_change(self, connected: bool) -> None:
         self._hand_over('connection', compact_json({'connected': connected}))

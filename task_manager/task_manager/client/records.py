@@ -385,7 +385,8 @@ class EventsLost:
     what a caller keeps from the events should be read again (`task_states`)."""
 
     batches: int
-    """How many batches of events (up to 100 events each) were lost."""
+    """How many batches of events (up to 100 events each) were lost; 0: not known (see
+    `on_events_lost`)."""
 
 
 def event_kind_of(text: str) -> TaskEventKind:

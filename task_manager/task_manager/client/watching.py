@@ -226,7 +226,9 @@ class Watching:
 
         A client that falls behind the Task Manager by more than its reader holds (1,000
         batches of up to 100 events) loses the oldest: `batches` of them, found from the
-        numbers the middleware gives each message. What a caller keeps from the events (an
+        numbers the middleware gives each message. `batches` is 0 when the events reach this
+        client after the node already did (a node started or started again; 11-18 ms later
+        here): what came between is not known. What a caller keeps from the events (an
         active list, a task's last state) should then be read again (`task_states`). It
         runs on the executor thread, after the events of the batch that showed the gap.
         """

@@ -8,10 +8,10 @@ from typing import Any
 
 import pytest
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from task_manager_msgs.msg import TaskEventArray
+from task_manager_msgs.msg import ActiveTaskArray, TaskEventArray
 
 from task_manager.client import EventsLost, TaskManagerClient
-from task_manager.core.names import TASK_EVENT_BATCHES_TOPIC
+from task_manager.core.names import ACTIVE_TASKS_TOPIC, TASK_EVENT_BATCHES_TOPIC
 from task_manager.rclpy_tools import qos
 from task_manager.testing.gateway import wait_until
 from task_manager.testing.harness import RosHarness
@@ -82,3 +82,43 @@ def test_events_a_client_fell_too_far_behind_for_are_told_as_lost(
             numbers.append(-1 if item.task.task_id == 'hold' else int(item.task.task_id[1:]))
     assert [i for i in items if isinstance(i, EventsLost)] == [EventsLost(n) for n in lost]
     assert gaps == lost
+
+
+def _active_list_writer(ros: RosHarness) -> Any:
+    """A stand-in for the node's writer of /task_manager/active_tasks (its topic and QoS)."""
+    return ros.on_executor(
+        lambda: ros.node.create_publisher(ActiveTaskArray, ACTIVE_TASKS_TOPIC, qos.ACTIVE_TASKS)
+    )
+
+
+def test_events_that_reach_the_client_after_the_node_did_are_told_as_maybe_lost(
+    ros: RosHarness, client: TaskManagerClient
+) -> None:
+    """A node started (or started again) reaches a client's reader of its active list before
+    its reader of the events (11-18 ms here): whoever read the node's state once it was
+    reached missed what the events said meanwhile, and no number shows it (a new writer).
+    The client tells it as a loss of a number not known (0)."""
+    lost: list[int] = []
+    client.on_events_lost(lost.append)
+    _active_list_writer(ros)
+    wait_until(lambda: client.connected, 'the client reached by the active list')
+    assert not client.events_connected and lost == []
+    batch_writer(ros)
+    wait_until(lambda: lost, 'the loss told')
+    assert lost == [0] and client.events_connected
+
+
+def test_events_that_reach_the_client_before_the_node_did_lose_nothing(
+    ros: RosHarness, client: TaskManagerClient
+) -> None:
+    lost: list[int] = []
+    seen: list[str] = []
+    client.on_events_lost(lost.append)
+    client.on_task_event(lambda event: seen.append(event.task.task_id))
+    writer = batch_writer(ros)
+    wait_until(lambda: client.events_connected, 'the client reached by the events')
+    _active_list_writer(ros)
+    wait_until(lambda: client.connected, 'the client reached by the active list')
+    writer.publish(event_batch('after'))
+    wait_until(lambda: seen == ['after'], 'the batch after taken')
+    assert lost == []
