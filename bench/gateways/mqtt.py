@@ -30,19 +30,25 @@ ROBOT = 'bench_robot'
 
 @contextmanager
 def running_bridge(ctx: BenchContext) -> Iterator[tuple[BrokerProcess, FleetClient]]:
+    """A broker and a bridge, stopped whatever happens: a bridge that does not stop in time
+    (its stop raises, after its stacks) still leaves its log and no broker running."""
     broker = BrokerProcess(ctx.log_dir / 'mqtt_broker', [ROBOT])
     broker.start()
-    bridge = BridgeProcess(ROBOT, broker.url(ROBOT), ctx.log_dir / 'mqtt_acked', nice=None)
     try:
-        with FleetClient(broker.url(), client_id='bench-cloud') as fleet:
-            if not fleet.wait_online([ROBOT], config.CONNECT_TIMEOUT_SEC):
-                raise BenchError('the bridge did not come online with its node')
-            yield broker, fleet
+        bridge = BridgeProcess(ROBOT, broker.url(ROBOT), ctx.log_dir / 'mqtt_acked', nice=None)
+        try:
+            with FleetClient(broker.url(), client_id='bench-cloud') as fleet:
+                if not fleet.wait_online([ROBOT], config.CONNECT_TIMEOUT_SEC):
+                    raise BenchError('the bridge did not come online with its node')
+                yield broker, fleet
+        finally:
+            try:
+                bridge.stop()
+            finally:
+                with (ctx.log_dir / 'mqtt_bridge.log').open('a') as log:
+                    log.write('\n'.join(bridge.log_lines) + '\n')
     finally:
-        bridge.stop()
         broker.stop()
-        with (ctx.log_dir / 'mqtt_bridge.log').open('a') as log:
-            log.write('\n'.join(bridge.log_lines) + '\n')
 
 
 def mqtt_task_ms(fleet: FleetClient) -> float:
