@@ -206,9 +206,9 @@ class BenchClient:
         self.harness = RosHarness(BENCH_NODE_NAME)
         node = self.harness.node
         self.execute_task = LeanActionClient(node, ExecuteTask, EXECUTE_TASK_ACTION)
-        self.fibonacci = LeanActionClient(node, Fibonacci, config.FIBONACCI_TOPIC)
-        self.hold = LeanActionClient(node, Fibonacci, config.HOLD_TOPIC)
-        self.trigger = self._service(config.TRIGGER_TOPIC)
+        self.fibonacci = LeanActionClient(node, Fibonacci, config.DIRECT_FIBONACCI_TOPIC)
+        self.hold = LeanActionClient(node, Fibonacci, config.DIRECT_HOLD_TOPIC)
+        self.trigger = self._service(config.DIRECT_TRIGGER_TOPIC)
         self.release_goals = self._service(config.RELEASE_GOALS_TOPIC)
         self.release_calls = self._service(config.RELEASE_CALLS_TOPIC)
         self.release_feedback = self._service(config.RELEASE_FEEDBACK_TOPIC)

@@ -18,6 +18,14 @@ RELEASE_CALLS_TOPIC = '/bench/release_calls'
 FEEDBACK_TOPIC = '/bench/feedback'
 RELEASE_FEEDBACK_TOPIC = '/bench/release_feedback'
 
+# The direct baselines go to twins of the servers (same process, same code) under names of
+# their own: every client of a service takes every response its server sends, its own or not
+# (rmw_fastrtps filters them in the take), so a baseline sent to the node's servers would
+# wake the idle node for each reply, and the node's requests would wake the bench's client.
+DIRECT_FIBONACCI_TOPIC = '/bench/direct/fibonacci'
+DIRECT_TRIGGER_TOPIC = '/bench/direct/trigger'
+DIRECT_HOLD_TOPIC = '/bench/direct/hold'
+
 FIBONACCI_TASK = 'bench/fibonacci'
 TRIGGER_TASK = 'bench/trigger'
 HOLD_TASK = 'bench/hold'

@@ -1,11 +1,13 @@
 """The servers the benchmarked tasks run on, in a process of their own (`python -m bench.servers`).
 
-Minimal and fast: instant goals and calls end in their first callback, and the instant action
-server keeps no finished goals (see lean_action.py). The hold server is a regular rclpy
-ActionServer whose goals are kept accepted but not executing, so a thousand of them cost no
-pending coroutine in this process's executor; `/bench/release_goals` executes them all. Held
-calls of the slow service wait on futures until `/bench/release_calls`. The feedback server's
-goals publish feedback at 100 Hz, from one rclpy timer, until `/bench/release_feedback`.
+Each server the node's tasks use has a twin under a name of its own for the bench's direct
+baselines (see config.DIRECT_FIBONACCI_TOPIC). Minimal and fast: instant goals and calls end in
+their first callback, and the instant action server keeps no finished goals (see
+lean_action.py). The hold server is a regular rclpy ActionServer whose goals are kept accepted
+but not executing, so a thousand of them cost no pending coroutine in this process's executor;
+`/bench/release_goals` executes them all. Held calls of the slow service wait on futures until
+`/bench/release_calls`. The feedback server's goals publish feedback at 100 Hz, from one rclpy
+timer, until `/bench/release_feedback`.
 """
 
 import json
@@ -61,22 +63,29 @@ class BenchServers:
         self._held_calls: list[Future[Any]] = []
         self._wake = node.create_guard_condition(lambda: None, group)
         self._feedback = FeedbackServer(node, group, self._wake.trigger)
-        self._instant = InstantActionServer(
-            node, Fibonacci, config.FIBONACCI_TOPIC, fibonacci_result, group
-        )
-        self._hold = ActionServer(
-            node,
-            Fibonacci,
-            config.HOLD_TOPIC,
-            execute_callback=finish_fibonacci,
-            handle_accepted_callback=self._held_goals.append,
-            goal_service_qos_profile=DEEP_RELIABLE,
-            result_service_qos_profile=DEEP_RELIABLE,
-            cancel_service_qos_profile=DEEP_RELIABLE,
-            callback_group=group,
-        )
+        # each server twice: for the node's tasks, and under a name of its own for the bench's
+        # direct baselines (config.DIRECT_FIBONACCI_TOPIC)
+        self._instant = [
+            InstantActionServer(node, Fibonacci, topic, fibonacci_result, group)
+            for topic in (config.FIBONACCI_TOPIC, config.DIRECT_FIBONACCI_TOPIC)
+        ]
+        self._hold = [
+            ActionServer(
+                node,
+                Fibonacci,
+                topic,
+                execute_callback=finish_fibonacci,
+                handle_accepted_callback=self._held_goals.append,
+                goal_service_qos_profile=DEEP_RELIABLE,
+                result_service_qos_profile=DEEP_RELIABLE,
+                cancel_service_qos_profile=DEEP_RELIABLE,
+                callback_group=group,
+            )
+            for topic in (config.HOLD_TOPIC, config.DIRECT_HOLD_TOPIC)
+        ]
         for topic, callback in (
             (config.TRIGGER_TOPIC, answer_trigger),
+            (config.DIRECT_TRIGGER_TOPIC, answer_trigger),
             (config.SLOW_SERVICE_TOPIC, self._hold_call),
             (config.RELEASE_GOALS_TOPIC, self._release_goals),
             (config.RELEASE_CALLS_TOPIC, self._release_calls),
