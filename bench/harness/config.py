@@ -25,6 +25,10 @@ RELEASE_FEEDBACK_TOPIC = '/bench/release_feedback'
 DIRECT_FIBONACCI_TOPIC = '/bench/direct/fibonacci'
 DIRECT_TRIGGER_TOPIC = '/bench/direct/trigger'
 DIRECT_HOLD_TOPIC = '/bench/direct/hold'
+# the throughput benchmark's floor (bench/harness/relay.py): its ExecuteTask, and its own twin of
+# the instant Fibonacci server
+RELAY_ACTION = '/bench/relay/execute_task'
+RELAY_FIBONACCI_TOPIC = '/bench/relay/fibonacci'
 
 FIBONACCI_TASK = 'bench/fibonacci'
 TRIGGER_TASK = 'bench/trigger'

@@ -57,17 +57,25 @@ def start_servers(log_dir: Path) -> ChildProcess:
     return ChildProcess('servers', [sys.executable, '-m', 'bench.harness.servers'], log_dir)
 
 
+def start_relay(log_dir: Path) -> ChildProcess:
+    return ChildProcess('relay', [sys.executable, '-m', 'bench.harness.relay'], log_dir)
+
+
 def start_event_listener(log_dir: Path) -> ChildProcess:
     return ChildProcess(
         'event_listener', [sys.executable, '-m', 'bench.harness.event_listener'], log_dir
     )
 
 
-def spin_child(node_name: str, build: Callable[[Node], object]) -> None:
+def spin_child(
+    node_name: str,
+    build: Callable[[Node], object],
+    executor_type: Callable[[], SingleThreadedExecutor] = SingleThreadedExecutor,
+) -> None:
     """The main of a child process: a node with what `build` puts on it, spun until SIGINT."""
     rclpy.init()
     node = rclpy.create_node(node_name)
-    executor = SingleThreadedExecutor()
+    executor = executor_type()
     build(node)
     executor.add_node(node)
     try:

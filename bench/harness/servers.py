@@ -64,10 +64,15 @@ class BenchServers:
         self._wake = node.create_guard_condition(lambda: None, group)
         self._feedback = FeedbackServer(node, group, self._wake.trigger)
         # each server twice: for the node's tasks, and under a name of its own for the bench's
-        # direct baselines (config.DIRECT_FIBONACCI_TOPIC)
+        # direct baselines (config.DIRECT_FIBONACCI_TOPIC); the instant one a third time, for
+        # the throughput benchmark's floor relay (relay.py)
         self._instant = [
             InstantActionServer(node, Fibonacci, topic, fibonacci_result, group)
-            for topic in (config.FIBONACCI_TOPIC, config.DIRECT_FIBONACCI_TOPIC)
+            for topic in (
+                config.FIBONACCI_TOPIC,
+                config.DIRECT_FIBONACCI_TOPIC,
+                config.RELAY_FIBONACCI_TOPIC,
+            )
         ]
         self._hold = [
             ActionServer(
