@@ -6,9 +6,10 @@ server a goal, and answers the client's get_result with DONE once the server's r
 Nothing else: no task lookup, no JSON, no conflicts, no history, no log line, no active list,
 events, status or results topic. It is not a task manager, but what any relay of the same
 protocol pays in rclpy: the same hops through one more process, each message taken and sent
-by Python. Spun by the node's own executor (the ParkingExecutor: with rclpy's
-SingleThreadedExecutor it reached 44-56 % of direct, with this one 56 %), on a server of its own
-(the servers' third twin of the instant Fibonacci server: see config.DIRECT_FIBONACCI_TOPIC).
+by Python. Spun by the node's own executor, the ParkingExecutor (on rclpy's SingleThreadedExecutor
+or its EventsExecutor the relay went no faster: docs/benchmarks.md, "The burst's floor"), on a
+server of its own (the servers' third twin of the instant Fibonacci server: see
+config.DIRECT_FIBONACCI_TOPIC).
 """
 
 from typing import Any
