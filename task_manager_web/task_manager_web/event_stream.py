@@ -9,6 +9,8 @@ KEEPALIVE_SEC = 15.0
 """An event stream idle this long gets a comment line, which also finds clients gone."""
 STREAM_QUEUE_MAX = 10_000
 """Events a stream may have waiting; a client that falls this far behind is disconnected."""
+BATCH_MAX = 200
+"""Events waiting together sent in one piece at most (a write of some 100 KiB)."""
 
 
 class EventStream:
@@ -39,6 +41,14 @@ class EventStream:
     async def next(self) -> tuple[str, str]:
         return await self._queue.get()
 
+    async def next_batch(self, limit: int = BATCH_MAX) -> list[tuple[str, str]]:
+        """The next event, and those waiting behind it (at most `limit` in all): the last is
+        the stream's end (overflow or bye) if one came, and nothing after it is taken."""
+        batch = [await self._queue.get()]
+        while len(batch) < limit and batch[-1][0] not in ENDS and not self._queue.empty():
+            batch.append(self._queue.get_nowait())
+        return batch
+
 
 async def event_lines(
     stream: EventStream,
@@ -46,23 +56,29 @@ async def event_lines(
     close: Callable[[], None],
     keepalive_sec: float = KEEPALIVE_SEC,
 ) -> AsyncIterator[str]:
-    """The stream's text: the `first` events (kind, JSON text), then each event as it comes
-    (a comment line when idle for `keepalive_sec`), until the client goes, the stream
-    overflows or is ended; `close()` at the end."""
+    """The stream's text: the `first` events (kind, JSON text), then the events as they come,
+    those waiting together in one piece (one write to the client, not one per event; a comment
+    line when idle for `keepalive_sec`), until the client goes, the stream overflows or is
+    ended; `close()` at the end."""
     try:
         for kind, text in first:
             yield sse(kind, text)
         while True:
             try:
-                kind, text = await asyncio.wait_for(stream.next(), keepalive_sec)
+                async with asyncio.timeout(keepalive_sec):
+                    batch = await stream.next_batch()
             except TimeoutError:
                 yield ': keepalive\n\n'
                 continue
-            yield sse(kind, text)
-            if kind in (EventStream.OVERFLOW, EventStream.BYE):
+            yield ''.join(sse(kind, text) for kind, text in batch)
+            if batch[-1][0] in ENDS:
                 return
     finally:
         close()
+
+
+ENDS = (EventStream.OVERFLOW, EventStream.BYE)
+"""The kinds of event that end a stream."""
 
 
 def sse(kind: str, data: str) -> str:
