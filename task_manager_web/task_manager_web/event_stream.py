@@ -10,7 +10,10 @@ KEEPALIVE_SEC = 15.0
 STREAM_QUEUE_MAX = 10_000
 """Events a stream may have waiting; a client that falls this far behind is disconnected."""
 BATCH_MAX = 200
-"""Events waiting together sent in one piece at most (a write of some 100 KiB)."""
+"""Events waiting together sent in one piece at most."""
+BATCH_MAX_CHARS = 262_144
+"""Once the events taken for one piece hold this much text, no more are added (an event may
+carry a result of up to a MiB: it goes alone)."""
 
 
 class EventStream:
@@ -41,12 +44,22 @@ class EventStream:
     async def next(self) -> tuple[str, str]:
         return await self._queue.get()
 
-    async def next_batch(self, limit: int = BATCH_MAX) -> list[tuple[str, str]]:
-        """The next event, and those waiting behind it (at most `limit` in all): the last is
-        the stream's end (overflow or bye) if one came, and nothing after it is taken."""
+    async def next_batch(
+        self, limit: int = BATCH_MAX, max_chars: int = BATCH_MAX_CHARS
+    ) -> list[tuple[str, str]]:
+        """The next event, and those waiting behind it, until `limit` events or `max_chars` of
+        text are taken: the last is the stream's end (overflow or bye) if one came, and nothing
+        after it is taken."""
         batch = [await self._queue.get()]
-        while len(batch) < limit and batch[-1][0] not in ENDS and not self._queue.empty():
+        chars = len(batch[0][1])
+        while (
+            len(batch) < limit
+            and chars < max_chars
+            and batch[-1][0] not in ENDS
+            and not self._queue.empty()
+        ):
             batch.append(self._queue.get_nowait())
+            chars += len(batch[-1][1])
         return batch
 
 

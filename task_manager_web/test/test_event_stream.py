@@ -4,7 +4,13 @@ after the stream's end (no ROS, no server: the stream and its generator alone)."
 import asyncio
 from collections.abc import AsyncIterator
 
-from task_manager_web.event_stream import BATCH_MAX, EventStream, event_lines, sse
+from task_manager_web.event_stream import (
+    BATCH_MAX,
+    BATCH_MAX_CHARS,
+    EventStream,
+    event_lines,
+    sse,
+)
 
 
 def _pieces(stream: EventStream, offered: list[tuple[str, str]], count: int) -> list[str]:
@@ -31,6 +37,14 @@ def test_a_piece_holds_at_most_batch_max_events_and_the_rest_follow() -> None:
     _, first, second = _pieces(EventStream(), offered, 3)
     assert first == ''.join(sse(kind, text) for kind, text in offered[:BATCH_MAX])
     assert second == ''.join(sse(kind, text) for kind, text in offered[BATCH_MAX:])
+
+
+def test_a_piece_stops_growing_once_it_holds_batch_max_chars_of_text() -> None:
+    big = '"' + 'x' * (BATCH_MAX_CHARS // 2) + '"'
+    offered = [('task', big), ('task', big), ('task', '{"n": 3}')]
+    _, first, second = _pieces(EventStream(), offered, 3)
+    assert first == sse('task', big) + sse('task', big)
+    assert second == sse('task', '{"n": 3}')
 
 
 def test_the_stream_ends_with_its_bye_and_takes_nothing_after_it() -> None:
