@@ -25,15 +25,17 @@ TARGET_SHARE = 0.50
 
 def manager_burst(ctx: BenchContext, count: int, round_index: int) -> float:
     """Tasks per second of `count` instant tasks sent at once through the manager."""
+    return execute_task_burst(ctx.client.execute_task, count, f'manager burst {round_index}')
+
+
+def execute_task_burst(server: LeanActionClient, count: int, what: str) -> float:
+    """Tasks per second of `count` instant tasks sent at once to an ExecuteTask server (the
+    manager's, or the floor relay's); each must end DONE."""
     goal = execute_task_goal(config.FIBONACCI_TASK, config.FIBONACCI_DATA)
-    seconds, replies = burst(
-        lambda _: ctx.client.execute_task.send_goal(goal),
-        count,
-        f'manager burst {round_index}',
-    )
+    seconds, replies = burst(lambda _: server.send_goal(goal), count, what)
     failed = sum(1 for reply in replies if task_status(reply) != 'DONE')
     if failed:
-        raise BenchError(f'manager burst {round_index}: {failed} of {count} tasks not DONE')
+        raise BenchError(f'{what}: {failed} of {count} tasks not DONE')
     return count / seconds
 
 
@@ -51,16 +53,6 @@ def direct_burst(ctx: BenchContext, count: int, round_index: int) -> float:
     return count / seconds
 
 
-def relay_burst(relay: LeanActionClient, count: int, round_index: int) -> float:
-    """Tasks per second of `count` instant tasks sent at once through the floor relay."""
-    goal = execute_task_goal(config.FIBONACCI_TASK, config.FIBONACCI_DATA)
-    seconds, replies = burst(lambda _: relay.send_goal(goal), count, f'relay burst {round_index}')
-    failed = sum(1 for reply in replies if task_status(reply) != 'DONE')
-    if failed:
-        raise BenchError(f'relay burst {round_index}: {failed} of {count} tasks not DONE')
-    return count / seconds
-
-
 @contextlib.contextmanager
 def floor_relay(ctx: BenchContext) -> Iterator[LeanActionClient]:
     """The relay's process, and the bench's client of its ExecuteTask, while the body runs."""
@@ -72,7 +64,7 @@ def floor_relay(ctx: BenchContext) -> Iterator[LeanActionClient]:
                 f'the floor relay did not serve within {config.CONNECT_TIMEOUT_SEC} s'
                 f'\n--- relay log ---\n{process.log_tail()}'
             )
-        relay_burst(client, config.WARM_UP_SAMPLES, -1)
+        execute_task_burst(client, config.WARM_UP_SAMPLES, 'relay warm-up')
         yield client
     finally:
         client.destroy()
@@ -90,7 +82,7 @@ def run(ctx: BenchContext) -> None:
         paths = {
             'manager': lambda index: manager_burst(ctx, count, index),
             'direct': lambda index: direct_burst(ctx, count, index),
-            'relay': lambda index: relay_burst(relay, count, index),
+            'relay': lambda index: execute_task_burst(relay, count, f'relay burst {index}'),
         }
         order = list(paths)
         for index in range(config.THROUGHPUT_ROUNDS):

@@ -41,9 +41,6 @@ class EventStream:
         the overflow notice, which ends it too)."""
         self.offer(self.BYE, json.dumps({'message': message}))
 
-    async def next(self) -> tuple[str, str]:
-        return await self._queue.get()
-
     async def next_batch(
         self, limit: int = BATCH_MAX, max_chars: int = BATCH_MAX_CHARS
     ) -> list[tuple[str, str]]:
